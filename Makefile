@@ -1,0 +1,24 @@
+# Two entry points (see README): `make run` (default scenario end to end) and `make test`.
+# Both create the virtual environment on first use from the pinned requirements.
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+
+$(VENV)/.installed: requirements.txt requirements-dev.txt setup.py setup.cfg package.xml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-dev.txt
+	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e . && test -x $(VENV)/bin/dynamics
+	touch $@
+
+.PHONY: install run test bench
+install: $(VENV)/.installed
+
+run: $(VENV)/.installed
+	$(VENV)/bin/adcs-run $(SCENARIO)
+
+test: $(VENV)/.installed
+	$(PY) -m pytest -q tests
+
+bench: $(VENV)/.installed
+	$(PY) benchmarks/lockstep_vs_pingpong.py

@@ -1,0 +1,215 @@
+"""numpy <-> message conversions, with validation of everything that comes in.
+
+Simulated time travels as integer nanoseconds (``t_ns``) so that a command's stamp matches the
+state it answers exactly; seconds are derived only for the physics.
+
+Every ``*_from_msg`` function validates and raises :class:`InvalidMessage` with a reason; nodes
+catch it through :class:`adcs_msgs_py.guard.RejectCounter`, which counts and warns (throttled).
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Vector3Stamped
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+
+NS_PER_S = 1_000_000_000
+# A quaternion whose norm is further than this from 1 is rejected (not silently renormalised).
+UNIT_QUATERNION_TOLERANCE = 1e-6
+
+INERTIAL_FRAME = 'inertial'
+BODY_FRAME = 'body'
+
+STATUS_LEVELS = {'OK': DiagnosticStatus.OK, 'WARN': DiagnosticStatus.WARN,
+                 'ERROR': DiagnosticStatus.ERROR, 'STALE': DiagnosticStatus.STALE}
+
+
+class InvalidMessage(ValueError):
+    """A received message that must not reach the physics or a control law."""
+
+
+# --- time -------------------------------------------------------------------------------------
+
+def stamp_from_ns(t_ns: int) -> Time:
+    """Integer nanoseconds -> builtin_interfaces/Time."""
+    sec, nanosec = divmod(int(t_ns), NS_PER_S)
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def ns_from_stamp(stamp: Time) -> int:
+    """builtin_interfaces/Time -> integer nanoseconds."""
+    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
+
+
+def ns_from_seconds(t: float) -> int:
+    """Seconds -> integer nanoseconds, rounded to the nearest nanosecond."""
+    return int(round(float(t) * NS_PER_S))
+
+
+def clock_msg(t_ns: int) -> Clock:
+    """/clock message for simulated time ``t_ns``."""
+    return Clock(clock=stamp_from_ns(t_ns))
+
+
+# --- validation helpers -------------------------------------------------------------------
+
+def _finite(name: str, values, length: int | None = None) -> np.ndarray:
+    arr = np.asarray(values, dtype=float)
+    if length is not None and arr.shape != (length,):
+        raise InvalidMessage(f'{name}: expected {length} values, got {arr.size}')
+    if not np.all(np.isfinite(arr)):
+        raise InvalidMessage(f'{name}: non-finite value in {arr.tolist()}')
+    return arr
+
+
+def checked_quaternion(name: str, xyzw, tol: float = UNIT_QUATERNION_TOLERANCE) -> np.ndarray:
+    """Validate a unit quaternion (x, y, z, w); return it as an array (renormalised within tol)."""
+    q = _finite(name, xyzw, 4)
+    norm = float(np.linalg.norm(q))
+    if abs(norm - 1.0) > tol:
+        raise InvalidMessage(f'{name}: quaternion norm {norm:.9g} is not 1 (tolerance {tol:g})')
+    return q / norm
+
+
+# --- state (attitude + rate in one stamped message) ---------------------------------------
+
+def state_to_msg(t_ns: int, q: np.ndarray, w: np.ndarray, msg: Odometry | None = None) -> Odometry:
+    """Attitude ``q`` (x, y, z, w; body in inertial) and body rate ``w`` -> nav_msgs/Odometry.
+
+    The twist is expressed in the child (body) frame as REP-105 prescribes. A message object can be
+    passed in to be reused (saves allocation on the hot path).
+    """
+    if msg is None:
+        msg = Odometry()
+        msg.header.frame_id = INERTIAL_FRAME
+        msg.child_frame_id = BODY_FRAME
+    msg.header.stamp = stamp_from_ns(t_ns)
+    o = msg.pose.pose.orientation
+    o.x, o.y, o.z, o.w = (float(v) for v in q)
+    a = msg.twist.twist.angular
+    a.x, a.y, a.z = (float(v) for v in w)
+    return msg
+
+
+def state_from_msg(msg: Odometry) -> tuple[int, np.ndarray, np.ndarray]:
+    """nav_msgs/Odometry -> (t_ns, q (x y z w), w); raises InvalidMessage."""
+    o = msg.pose.pose.orientation
+    q = checked_quaternion('state.pose.orientation', (o.x, o.y, o.z, o.w))
+    a = msg.twist.twist.angular
+    w = _finite('state.twist.angular', (a.x, a.y, a.z), 3)
+    return ns_from_stamp(msg.header.stamp), q, w
+
+
+# --- wheels -------------------------------------------------------------------------------
+
+def wheel_state_to_msg(t_ns: int, names: Sequence[str], angle, speed, torque,
+                       msg: JointState | None = None) -> JointState:
+    """Wheel angles (rad), speeds relative to the body (rad/s), applied motor torques (N m)."""
+    if msg is None:
+        msg = JointState()
+        msg.name = list(names)
+    msg.header.stamp = stamp_from_ns(t_ns)
+    msg.position = [float(v) for v in angle]
+    msg.velocity = [float(v) for v in speed]
+    msg.effort = [float(v) for v in torque]
+    return msg
+
+
+def wheel_state_from_msg(msg: JointState) -> tuple[int, list[str], np.ndarray, np.ndarray, np.ndarray]:
+    """sensor_msgs/JointState of the wheels -> (t_ns, names, angle, speed, torque)."""
+    n = len(msg.name)
+    angle = _finite('wheels/state.position', msg.position, n)
+    speed = _finite('wheels/state.velocity', msg.velocity, n)
+    torque = _finite('wheels/state.effort', msg.effort, n)
+    return ns_from_stamp(msg.header.stamp), list(msg.name), angle, speed, torque
+
+
+def wheel_cmd_to_msg(t_ns: int, names: Sequence[str], effort=None, velocity=None) -> JointState:
+    """Wheel command: motor torques (``effort``) or speeds (``velocity``), one per named wheel."""
+    if (effort is None) == (velocity is None):
+        raise ValueError('give exactly one of effort (torque mode) or velocity (speed mode)')
+    msg = JointState()
+    msg.header.stamp = stamp_from_ns(t_ns)
+    msg.name = list(names)
+    if effort is not None:
+        msg.effort = [float(v) for v in effort]
+    else:
+        msg.velocity = [float(v) for v in velocity]
+    return msg
+
+
+def wheel_cmd_from_msg(msg: JointState, known: Mapping[str, int]) -> tuple[int, np.ndarray, np.ndarray, str]:
+    """Validate a wheel command against the known wheel names.
+
+    Returns ``(t_ns, index, values, mode)``: ``index`` maps each commanded wheel to its position in
+    the plant, ``mode`` is ``'torque'`` (effort) or ``'speed'`` (velocity). A command may name a
+    subset of the wheels; wheels it does not name keep their previous command.
+    """
+    names = list(msg.name)
+    if not names:
+        raise InvalidMessage('wheels/cmd: no wheel names')
+    if len(set(names)) != len(names):
+        raise InvalidMessage(f'wheels/cmd: duplicate wheel names {names}')
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise InvalidMessage(f'wheels/cmd: unknown wheel name(s) {unknown}; known: {list(known)}')
+    has_effort, has_velocity = len(msg.effort) > 0, len(msg.velocity) > 0
+    if has_effort == has_velocity:
+        raise InvalidMessage('wheels/cmd: set exactly one of effort (torque) or velocity (speed)')
+    if has_effort:
+        values, mode = _finite('wheels/cmd.effort', msg.effort, len(names)), 'torque'
+    else:
+        values, mode = _finite('wheels/cmd.velocity', msg.velocity, len(names)), 'speed'
+    index = np.array([known[n] for n in names], dtype=int)
+    return ns_from_stamp(msg.header.stamp), index, values, mode
+
+
+# --- body torques ---------------------------------------------------------------------------
+
+def vector_to_msg(t_ns: int, v, frame_id: str = BODY_FRAME) -> Vector3Stamped:
+    """3-vector (body axes) -> geometry_msgs/Vector3Stamped."""
+    msg = Vector3Stamped()
+    msg.header.stamp = stamp_from_ns(t_ns)
+    msg.header.frame_id = frame_id
+    msg.vector.x, msg.vector.y, msg.vector.z = (float(x) for x in v)
+    return msg
+
+
+def vector_from_msg(msg: Vector3Stamped, name: str = 'torque_cmd') -> tuple[int, np.ndarray]:
+    """geometry_msgs/Vector3Stamped -> (t_ns, vector); raises InvalidMessage."""
+    v = msg.vector
+    return ns_from_stamp(msg.header.stamp), _finite(f'{name}.vector', (v.x, v.y, v.z), 3)
+
+
+# --- status (DiagnosticArray) ----------------------------------------------------------------
+
+def status_to_msg(t_ns: int, name: str, values: Mapping[str, object], level: str = 'OK',
+                  message: str = '', hardware_id: str = '') -> DiagnosticArray:
+    """One DiagnosticStatus named ``name`` with ``values`` as key/value strings.
+
+    Floats are written with ``repr`` so they read back bit for bit.
+    """
+    status = DiagnosticStatus(level=STATUS_LEVELS[level], name=name, message=message,
+                              hardware_id=hardware_id)
+    status.values = [KeyValue(key=str(k), value=repr(float(v)) if isinstance(v, (float, np.floating))
+                              else str(v)) for k, v in values.items()]
+    msg = DiagnosticArray(status=[status])
+    msg.header.stamp = stamp_from_ns(t_ns)
+    return msg
+
+
+def status_values(status: DiagnosticStatus) -> dict[str, object]:
+    """KeyValues of a DiagnosticStatus -> dict, numbers parsed back to float where they parse."""
+    out: dict[str, object] = {}
+    for kv in status.values:
+        try:
+            out[kv.key] = float(kv.value)
+        except ValueError:
+            out[kv.key] = kv.value
+    return out

@@ -1,0 +1,218 @@
+"""Parameter schemas: one declaration per node, used by the node at start and by the runner.
+
+A scenario file is a plain ROS 2 params file (a section per node name with ``ros__parameters``).
+Each node declares its parameters as a :class:`Schema`; :meth:`Schema.validate` turns a
+``{dotted.name: value}`` dict into checked values or raises :class:`ParameterError` naming the
+key. The same schema validates a YAML section before any process starts (runner) and the
+parameter overrides a node received (node start), so both give the same message.
+
+No rclpy here: this module is importable and testable without ROS.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import yaml
+
+REQUIRED = object()
+
+# ROS parameter kinds (what a params-file value may be).
+KINDS = ('double', 'int', 'bool', 'string', 'double_array', 'int_array', 'string_array')
+
+# Parameters every rclpy node has; never "unknown".
+BUILTIN_PARAMETERS = frozenset({'use_sim_time', 'start_type_description_service'})
+
+
+class ParameterError(ValueError):
+    """A parameter is missing, of the wrong type, unknown or non-physical."""
+
+    def __init__(self, key: str, problem: str, section: str | None = None) -> None:
+        where = f'{section}.ros__parameters.{key}' if section else key
+        super().__init__(f'parameter {where!r}: {problem}')
+        self.key = key
+        self.section = section
+
+
+Check = Callable[[Any], 'str | None']
+
+
+@dataclass(frozen=True)
+class Param:
+    """One parameter: name (dotted), kind, default (or REQUIRED), length, check, doc."""
+
+    name: str
+    kind: str
+    default: Any = REQUIRED
+    doc: str = ''
+    length: int | tuple[int, ...] | None = None
+    check: Check | None = None
+    choices: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f'{self.name}: unknown kind {self.kind}')
+
+    def coerce(self, value: Any) -> Any:
+        """Check the type of ``value`` and return it in canonical form; raise on mismatch.
+
+        Integers are accepted where a double is expected (``kp: 1`` means 1.0): ROS itself is
+        strict here, but nothing is lost by converting, and users write integers.
+        """
+        kind = self.kind
+        if kind == 'double':
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise TypeError(f'expected a number (double), got {value!r}')
+            value = float(value)
+            if not math.isfinite(value):
+                raise ValueError(f'must be finite, got {value!r}')
+        elif kind == 'int':
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise TypeError(f'expected an integer, got {value!r}')
+        elif kind == 'bool':
+            if not isinstance(value, bool):
+                raise TypeError(f'expected true or false, got {value!r}')
+        elif kind == 'string':
+            if not isinstance(value, str):
+                raise TypeError(f'expected a string, got {value!r}')
+        else:
+            if not isinstance(value, (list, tuple)):
+                raise TypeError(f'expected a list ({kind}), got {value!r}')
+            elem = Param(self.name, kind[:-len('_array')])
+            try:
+                value = [elem.coerce(v) for v in value]
+            except (TypeError, ValueError) as exc:
+                raise type(exc)(f'element {exc}') from None
+            if self.length is not None:
+                allowed = self.length if isinstance(self.length, tuple) else (self.length,)
+                if len(value) not in allowed:
+                    raise ValueError(f'expected {" or ".join(map(str, allowed))} values, got {len(value)}')
+        if self.choices is not None and value not in self.choices:
+            raise ValueError(f'must be one of {list(self.choices)}, got {value!r}')
+        if self.check is not None:
+            problem = self.check(value)
+            if problem:
+                raise ValueError(problem)
+        return value
+
+
+@dataclass
+class Schema:
+    """The parameters of one node, plus an optional whole-section check."""
+
+    node: str
+    params: list[Param]
+    cross_check: Callable[[dict], None] | None = None
+    doc: str = ''
+    by_name: dict[str, Param] = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.by_name = {p.name: p for p in self.params}
+
+    def validate(self, given: Mapping[str, Any]) -> dict[str, Any]:
+        """Validate ``given`` (dotted names -> values); return every parameter's value.
+
+        Raises :class:`ParameterError` for an unknown key, a missing required one, a wrong type or
+        a value its check refuses; the cross-section check raises ParameterError itself.
+        """
+        unknown = sorted(set(given) - set(self.by_name) - BUILTIN_PARAMETERS)
+        if unknown:
+            close = ', '.join(unknown)
+            raise ParameterError(unknown[0], f'unknown parameter for node {self.node!r} '
+                                 f'(unknown: {close}); known: {sorted(self.by_name)}', self.node)
+        out: dict[str, Any] = {}
+        for p in self.params:
+            if p.name in given:
+                try:
+                    out[p.name] = p.coerce(given[p.name])
+                except (TypeError, ValueError) as exc:
+                    raise ParameterError(p.name, str(exc), self.node) from None
+            elif p.default is REQUIRED:
+                raise ParameterError(p.name, f'required but missing ({p.doc})', self.node)
+            else:
+                out[p.name] = p.default
+        if self.cross_check is not None:
+            try:
+                self.cross_check(out)
+            except ParameterError as exc:
+                if exc.section is None:
+                    raise ParameterError(exc.key, str(exc).split(': ', 1)[1], self.node) from None
+                raise
+        return out
+
+    def describe(self) -> str:
+        """Markdown table of the parameters (used by ``--help`` and the docs)."""
+        rows = ['| parameter | type | default | meaning |', '| --- | --- | --- | --- |']
+        for p in self.params:
+            default = 'required' if p.default is REQUIRED else repr(p.default)
+            rows.append(f'| `{p.name}` | {p.kind} | {default} | {p.doc} |')
+        return '\n'.join(rows)
+
+
+# --- reusable checks --------------------------------------------------------------------------
+
+def positive(v) -> str | None:
+    return None if v > 0 else f'must be > 0, got {v!r}'
+
+
+def non_negative(v) -> str | None:
+    return None if v >= 0 else f'must be >= 0, got {v!r}'
+
+
+def all_positive(vs) -> str | None:
+    bad = [v for v in vs if not v > 0]
+    return None if not bad else f'every value must be > 0, got {vs!r}'
+
+
+def all_non_negative(vs) -> str | None:
+    bad = [v for v in vs if v < 0]
+    return None if not bad else f'every value must be >= 0, got {vs!r}'
+
+
+def domain_id(v) -> str | None:
+    return None if 0 <= v <= 232 else f'ROS_DOMAIN_ID must be in 0..232, got {v}'
+
+
+# --- params files -------------------------------------------------------------------------------
+
+def flatten(tree: Mapping[str, Any], prefix: str = '') -> dict[str, Any]:
+    """Nested dict of a ``ros__parameters`` section -> {dotted.name: value} (as ROS flattens)."""
+    flat: dict[str, Any] = {}
+    for key, value in tree.items():
+        name = f'{prefix}{key}'
+        if isinstance(value, Mapping):
+            flat.update(flatten(value, name + '.'))
+        else:
+            flat[name] = value
+    return flat
+
+
+def load_params_file(path: str) -> dict[str, dict[str, Any]]:
+    """Read a ROS 2 params file -> {node section: {dotted.name: value}}.
+
+    Raises ParameterError with the offending section for malformed YAML or a section without
+    ``ros__parameters``. Node names may be written with or without a leading ``/``.
+    """
+    try:
+        with open(path, encoding='utf-8') as f:
+            tree = yaml.safe_load(f)
+    except OSError as exc:
+        raise ParameterError('<file>', f'cannot read {path}: {exc.strerror}') from None
+    except yaml.YAMLError as exc:
+        raise ParameterError('<file>', f'{path} is not valid YAML: {exc}') from None
+    if not isinstance(tree, Mapping) or not tree:
+        raise ParameterError('<file>', f'{path} must be a mapping of node sections '
+                             '(<node>: {ros__parameters: {...}})')
+    sections: dict[str, dict[str, Any]] = {}
+    for node, body in tree.items():
+        name = str(node).lstrip('/')
+        if not isinstance(body, Mapping) or set(body) != {'ros__parameters'}:
+            raise ParameterError('ros__parameters', f'section {name!r} must contain exactly one key '
+                                 "'ros__parameters'", name)
+        params = body['ros__parameters'] or {}
+        if not isinstance(params, Mapping):
+            raise ParameterError('ros__parameters', 'must be a mapping of parameters', name)
+        sections[name] = flatten(params)
+    return sections

@@ -1,0 +1,109 @@
+"""Topic names, message types and QoS of the adcs_sim graph: the single source of truth.
+
+Names are relative (except ``/clock``) so that ``-r __ns:=/sat1`` runs several spacecraft in one
+domain. Every node and the recorder take their topics from :data:`TOPICS`.
+
+QoS choices
+-----------
+* **Lockstep data** (state, wheel state/commands, torque commands, applied torque): RELIABLE,
+  VOLATILE, KEEP_LAST depth 10. Lockstep must not lose a state or a command (a lost one costs a
+  wall-clock timeout and a missed step); depth 10 absorbs a burst while a subscriber is busy
+  without unbounded memory. VOLATILE because a late joiner must not act on an old state.
+* **/clock**: RELIABLE, depth 10. rclpy's time source subscribes best-effort, which matches a
+  reliable publisher; reliable lets the recorder keep every tick.
+* **Status / diagnostics**: RELIABLE, depth 50: what the papers plot, one per step, recorded.
+* **Faults**: RELIABLE, TRANSIENT_LOCAL, depth 100: a controller or recorder that joins late still
+  learns which actuators are gone.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from builtin_interfaces.msg import Time  # noqa: F401  (re-exported for type hints)
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Vector3Stamped
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+
+QOS_LOCKSTEP = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=10,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+QOS_CLOCK = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=10,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+QOS_STATUS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=50,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+QOS_LATCHED = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=100,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# The recorder keeps a deep queue: it must never drop a message while it writes a chunk.
+RECORDER_DEPTH = 1000
+
+
+@dataclass(frozen=True)
+class TopicSpec:
+    """One topic of the graph: name, message class, QoS and what it carries."""
+
+    name: str
+    msg_type: type
+    qos: QoSProfile
+    doc: str
+
+    @property
+    def type_name(self) -> str:
+        """ROS 2 type name, e.g. ``nav_msgs/msg/Odometry``."""
+        module = self.msg_type.__module__.split('.')[0]
+        return f'{module}/msg/{self.msg_type.__name__}'
+
+
+CLOCK = '/clock'
+STATE = 'state'
+TRUTH_STATE = 'truth/state'
+WHEELS_STATE = 'wheels/state'
+WHEELS_CMD = 'wheels/cmd'
+TORQUE_CMD = 'torque_cmd'
+APPLIED_TORQUE = 'actuators/torque'
+REFERENCE = 'reference'
+FAULTS = 'faults'
+CONTROLLER_STATUS = 'controller/status'
+DYNAMICS_STATUS = 'dynamics/status'
+
+TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in (
+    TopicSpec(CLOCK, Clock, QOS_CLOCK, 'simulated time, published by the dynamics node'),
+    TopicSpec(STATE, Odometry, QOS_LOCKSTEP,
+              'attitude (body in inertial, x y z w) and body rate (rad/s, body axes) as measured; '
+              'one stamped message so attitude and rate are always of the same step'),
+    TopicSpec(TRUTH_STATE, Odometry, QOS_LOCKSTEP,
+              'true attitude and rate, published only when measurement noise is configured'),
+    TopicSpec(WHEELS_STATE, JointState, QOS_LOCKSTEP,
+              'per wheel: angle (rad), speed relative to the body (rad/s), applied motor torque (N m)'),
+    TopicSpec(WHEELS_CMD, JointState, QOS_LOCKSTEP,
+              'per wheel: motor torque command (effort, N m) or speed command (velocity, rad/s)'),
+    TopicSpec(TORQUE_CMD, Vector3Stamped, QOS_LOCKSTEP,
+              'external body torque command for ideal torquers (N m, body axes)'),
+    TopicSpec(APPLIED_TORQUE, Vector3Stamped, QOS_LOCKSTEP,
+              'control torque applied to the body at the start of the step (wheels + torquers, '
+              'after saturation), held over the step'),
+    TopicSpec(REFERENCE, Odometry, QOS_LOCKSTEP, 'attitude and rate target'),
+    TopicSpec(FAULTS, DiagnosticArray, QOS_LATCHED, 'one status per actuator: OK / ERROR and mode'),
+    TopicSpec(CONTROLLER_STATUS, DiagnosticArray, QOS_STATUS,
+              'control-law mode, Lyapunov value, estimates, rejected-message counts'),
+    TopicSpec(DYNAMICS_STATUS, DiagnosticArray, QOS_STATUS,
+              'missed steps, stale and rejected commands, integration statistics'),
+)}
+
+
+def spec(name: str) -> TopicSpec:
+    """Return the :class:`TopicSpec` of a graph topic, with a clear error for an unknown one."""
+    try:
+        return TOPICS[name]
+    except KeyError:
+        raise KeyError(f'unknown topic {name!r}; known topics: {sorted(TOPICS)}') from None
+
+
+# Command topics a controller may answer a state with (what the dynamics node can wait for).
+COMMAND_TOPICS = (WHEELS_CMD, TORQUE_CMD)

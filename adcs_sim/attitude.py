@@ -1,0 +1,72 @@
+"""Quaternion kinematics and attitude errors (numpy, batchable, no ROS).
+
+Convention (DESIGN.md): Hamilton quaternion, scalar last, ``q = (x, y, z, w)`` of the body frame in
+the inertial frame, i.e. ``R(q)`` maps body vectors to inertial ones. This is numerically the
+papers' ``[q1 q2 q3 q4]`` (seeds 000, 001, 004) and ``scipy.spatial.transform.Rotation.from_quat``.
+Every function takes a leading batch axis (``q`` of shape ``(..., 4)``).
+
+Conversions to matrices and Euler angles use :mod:`scipy.spatial.transform`; only what the papers
+define (kinematics, error quaternion, eigenaxis angle) is written here.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+# 2-1-3 Euler sequence (rotate about body y, then x, then z): intrinsic 'YXZ' in scipy's notation.
+# Angles come back in sequence order: (theta_2, theta_1, theta_3).
+EULER_213 = 'YXZ'
+
+
+def quat_kinematics(q: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """dq/dt for body rate ``w`` (seed 004 eq. 4): dq_v = 1/2 (q4 w - w x q_v), dq4 = -1/2 w.q_v."""
+    qv, q4 = q[..., :3], q[..., 3:4]
+    dqv = 0.5 * (q4 * w - np.cross(w, qv))
+    dq4 = -0.5 * np.sum(w * qv, axis=-1, keepdims=True)
+    return np.concatenate([dqv, dq4], axis=-1)
+
+
+def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton product ``p ⊗ q`` (scalar last)."""
+    pv, p4 = p[..., :3], p[..., 3:4]
+    qv, q4 = q[..., :3], q[..., 3:4]
+    v = p4 * qv + q4 * pv + np.cross(pv, qv)
+    s = p4 * q4 - np.sum(pv * qv, axis=-1, keepdims=True)
+    return np.concatenate([v, s], axis=-1)
+
+
+def quat_conjugate(q: np.ndarray) -> np.ndarray:
+    """Conjugate (inverse of a unit quaternion)."""
+    return np.concatenate([-q[..., :3], q[..., 3:4]], axis=-1)
+
+
+def quat_normalize(q: np.ndarray) -> np.ndarray:
+    """Project onto the unit sphere."""
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def error_quaternion(q: np.ndarray, q_ref: np.ndarray) -> np.ndarray:
+    """Attitude error ``q_ref* ⊗ q``: the body attitude relative to the reference frame.
+
+    For ``q_ref`` = identity this is ``q`` itself, which is how seed 004 regulates to the origin.
+    """
+    return quat_multiply(quat_conjugate(q_ref), q)
+
+
+def eigenaxis_angle(q: np.ndarray) -> np.ndarray:
+    """Rotation angle (rad, in [0, pi]) of the error quaternion ``q`` about its eigenaxis."""
+    return 2.0 * np.arctan2(np.linalg.norm(q[..., :3], axis=-1), np.abs(q[..., 3]))
+
+
+def rotation_matrix(q: np.ndarray) -> np.ndarray:
+    """Body-to-inertial direction cosine matrix ``R(q)`` (via scipy)."""
+    q = np.asarray(q, dtype=float)
+    flat = Rotation.from_quat(q.reshape(-1, 4)).as_matrix()
+    return flat.reshape(q.shape[:-1] + (3, 3))
+
+
+def euler_213(q: np.ndarray) -> np.ndarray:
+    """2-1-3 Euler angles (rad) of ``q``, in sequence order (about y, then x, then z)."""
+    q = np.asarray(q, dtype=float)
+    flat = Rotation.from_quat(q.reshape(-1, 4)).as_euler(EULER_213)
+    return flat.reshape(q.shape[:-1] + (3,))

@@ -1,0 +1,116 @@
+"""What every adcs_sim node shares: validated parameters, startup handshake, process entry point.
+
+* :class:`AdcsNode` declares its parameters from the overrides it was given and validates them
+  with its :class:`~adcs_msgs_py.params.Schema`; a bad file stops the node before it publishes
+  anything, with a message naming the key (exit status 2).
+* :func:`wait_for` blocks until the graph is connected (matched publishers/subscriptions are
+  updated by the DDS threads, so no spinning is needed) with a wall-clock deadline.
+* :func:`main_for` is each executable's ``main``: network hygiene defaults, init on a private
+  context, clean shutdown on SIGINT/SIGTERM.
+"""
+from __future__ import annotations
+
+import array
+import os
+import sys
+import time
+from collections.abc import Callable
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+
+from adcs_msgs_py.params import ParameterError, Schema
+
+EXIT_BAD_PARAMETERS = 2
+EXIT_GRAPH_TIMEOUT = 3
+
+
+class GraphTimeout(RuntimeError):
+    """The graph did not connect within the startup timeout."""
+
+
+def network_hygiene_defaults() -> None:
+    """Keep DDS discovery on this machine unless the user explicitly chose otherwise."""
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+
+
+def _plain(value):
+    if isinstance(value, array.array):
+        return value.tolist()
+    if isinstance(value, (list, tuple)):
+        return list(value)
+    return value
+
+
+class AdcsNode(Node):
+    """A node whose parameters are checked against a schema at construction."""
+
+    schema: Schema
+
+    def __init__(self, context: Context, schema: Schema | None = None, **kwargs) -> None:
+        schema = schema or self.schema
+        super().__init__(schema.node, context=context,
+                         automatically_declare_parameters_from_overrides=True, **kwargs)
+        given = {name: _plain(p.value) for name, p in self.get_parameters_by_prefix('').items()
+                 if p.type_ != p.Type.NOT_SET}
+        self.params = schema.validate(given)
+
+    def wait_for(self, what: str, ready: Callable[[], bool], timeout: float) -> None:
+        """Block until ``ready()`` or raise GraphTimeout naming ``what`` after ``timeout`` s."""
+        deadline = time.monotonic() + timeout
+        while not ready():
+            if time.monotonic() > deadline:
+                raise GraphTimeout(f'{self.get_name()}: timed out after {timeout:g} s waiting for {what}')
+            time.sleep(0.005)
+
+    def wait_for_publishers(self, required: dict, timeout: float) -> None:
+        """Wait until each publisher has at least the given number of matched subscriptions."""
+        for pub, count in required.items():
+            if count > 0:
+                self.wait_for(f'{count} subscriber(s) on {pub.topic_name}',
+                              lambda p=pub, c=count: p.get_subscription_count() >= c, timeout)
+
+    def close(self) -> None:
+        """Release resources (files); called once on the way out, whatever happened."""
+
+    def run(self, executor) -> None:
+        """Default behaviour: spin until shutdown."""
+        executor.spin()
+
+
+def main_for(node_class: type[AdcsNode], args=None, handle_signals: bool = True) -> int:
+    """Entry point of a node executable. Returns the process exit status.
+
+    ``handle_signals=False`` leaves SIGINT/SIGTERM to the node (the recorder drains its queues
+    before closing the bag); otherwise rclpy's handler turns them into a clean shutdown.
+    """
+    network_hygiene_defaults()
+    context = Context()
+    options = SignalHandlerOptions.ALL if handle_signals else SignalHandlerOptions.NO
+    rclpy.init(args=args if args is not None else sys.argv, context=context,
+               signal_handler_options=options)
+    node = None
+    status = 0
+    try:
+        try:
+            node = node_class(context)
+        except ParameterError as exc:
+            print(f'[{node_class.schema.node}] error: {exc}', file=sys.stderr, flush=True)
+            return EXIT_BAD_PARAMETERS
+        executor = rclpy.executors.SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        node.run(executor)
+    except GraphTimeout as exc:
+        print(f'error: {exc}', file=sys.stderr, flush=True)
+        status = EXIT_GRAPH_TIMEOUT
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.close()
+            node.destroy_node()
+        rclpy.try_shutdown(context=context)
+    return status

@@ -1,0 +1,260 @@
+"""Dynamics node: owns the plant and the simulated clock.
+
+Lockstep (default, deterministic): for each step ``k`` it publishes ``/clock``, ``state`` (and
+``truth/state`` when noise is on) and ``wheels/state`` stamped ``t_k``, waits until every awaited
+command topic has delivered a command stamped ``t_k``, publishes the applied control torque, and
+integrates ``[t_k, t_k+1]`` holding the commands (zero-order hold, fixed-step RK4). A step whose
+commands do not arrive within ``lockstep.timeout`` wall seconds is a *missed step*: the declared
+policy (hold the last command, or zero) applies and the miss is counted on ``dynamics/status``.
+Commands stamped for another step are counted as stale and ignored.
+
+Realtime mode paces the same loop against the wall clock (``real_time_factor``) with no waiting:
+each step uses the latest commands received.
+
+The node exits with status 0 when ``duration`` is reached, after the last messages are
+acknowledged by their subscribers.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from rclpy.duration import Duration
+
+from adcs_msgs_py import conversions as cv
+from adcs_msgs_py import topics
+from adcs_msgs_py.guard import RejectCounter
+from adcs_sim.attitude import quat_multiply, quat_normalize
+from adcs_sim.nodes.base import AdcsNode, main_for
+from adcs_sim.plant import ReactionWheels, WheelCommand
+from adcs_sim.scenario import DYNAMICS_SCHEMA, build_plant, command_topics, initial_state
+
+
+class MeasurementModel:
+    """Seeded star-tracker and gyro errors applied to the published state (truth kept apart)."""
+
+    def __init__(self, seed: int, attitude_std: float, rate_std: float, gyro_bias) -> None:
+        self.rng = np.random.default_rng(seed)
+        self.attitude_std = attitude_std
+        self.rate_std = rate_std
+        self.gyro_bias = np.asarray(gyro_bias, dtype=float)
+        self.active = attitude_std > 0 or rate_std > 0 or bool(np.any(self.gyro_bias))
+
+    def measure(self, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if not self.active:
+            return q, w
+        dtheta = self.rng.normal(0.0, self.attitude_std, 3) if self.attitude_std > 0 else np.zeros(3)
+        dq = quat_normalize(np.concatenate([0.5 * dtheta, [1.0]]))
+        q_meas = quat_normalize(quat_multiply(q, dq))
+        w_meas = w + self.gyro_bias
+        if self.rate_std > 0:
+            w_meas = w_meas + self.rng.normal(0.0, self.rate_std, 3)
+        return q_meas, w_meas
+
+
+class DynamicsNode(AdcsNode):
+    schema = DYNAMICS_SCHEMA
+
+    def __init__(self, context) -> None:
+        super().__init__(context)
+        p = self.params
+        self.plant = build_plant(p)
+        self.x = initial_state(self.plant, p)
+        self.commands = self.plant.zero_commands()
+        self.period_ns = cv.ns_from_seconds(p['control_period'])
+        self.period = self.period_ns / cv.NS_PER_S
+        self.n_steps = int(math.floor(cv.ns_from_seconds(p['duration']) / self.period_ns + 1e-9))
+        self.max_step = p['integrator.max_step']
+        self.lockstep = p['mode'] == 'lockstep'
+        self.awaited = command_topics(p) if self.lockstep else []
+        self.measurement = MeasurementModel(p['noise.seed'], p['noise.attitude_std'],
+                                            p['noise.rate_std'], p['noise.gyro_bias'])
+        self.wheels: ReactionWheels | None = next(
+            (a for a in self.plant.actuators if isinstance(a, ReactionWheels)), None)
+        self.wheel_index = {name: i for i, name in enumerate(self.wheels.names)} if self.wheels else {}
+
+        self.rejects = RejectCounter(self.get_logger())
+        self.missed_steps = 0
+        self.stale_commands = 0
+        self.step_ns = 0
+        self.received: set[str] = set()
+
+        def pub(name):
+            s = topics.spec(name)
+            return self.create_publisher(s.msg_type, s.name, s.qos)
+
+        self.pub_clock = pub(topics.CLOCK)
+        self.pub_state = pub(topics.STATE)
+        self.pub_truth = pub(topics.TRUTH_STATE) if self.measurement.active else None
+        self.pub_wheels = pub(topics.WHEELS_STATE) if self.wheels else None
+        self.pub_applied = pub(topics.APPLIED_TORQUE)
+        self.pub_status = pub(topics.DYNAMICS_STATUS)
+        self._state_msg = None
+        self._truth_msg = None
+        self._wheel_msg = None
+
+        self.subs = {}
+        if self.wheels:
+            s = topics.spec(topics.WHEELS_CMD)
+            self.subs[topics.WHEELS_CMD] = self.create_subscription(
+                s.msg_type, s.name, self._on_wheel_cmd, s.qos)
+        if 'torquers' in self.plant.slices:
+            s = topics.spec(topics.TORQUE_CMD)
+            self.subs[topics.TORQUE_CMD] = self.create_subscription(
+                s.msg_type, s.name, self._on_torque_cmd, s.qos)
+
+    # --- commands ---------------------------------------------------------------------------
+
+    def _accept_stamp(self, topic: str, t_ns: int) -> bool:
+        if self.lockstep and t_ns != self.step_ns:
+            self.stale_commands += 1
+            return False
+        self.received.add(topic)
+        return True
+
+    def _on_wheel_cmd(self, msg) -> None:
+        parsed = self.rejects.accept(topics.WHEELS_CMD,
+                                     lambda: cv.wheel_cmd_from_msg(msg, self.wheel_index))
+        if parsed is None:
+            return
+        t_ns, index, values, mode = parsed
+        if not self._accept_stamp(topics.WHEELS_CMD, t_ns):
+            return
+        old = self.commands['wheels']
+        value, speed_mode = old.value.copy(), old.speed_mode.copy()
+        value[index] = values
+        speed_mode[index] = mode == 'speed'
+        self.commands['wheels'] = WheelCommand(value, speed_mode)
+
+    def _on_torque_cmd(self, msg) -> None:
+        parsed = self.rejects.accept(topics.TORQUE_CMD, lambda: cv.vector_from_msg(msg))
+        if parsed is None:
+            return
+        t_ns, torque = parsed
+        if self._accept_stamp(topics.TORQUE_CMD, t_ns):
+            self.commands['torquers'] = torque
+
+    # --- publishing -----------------------------------------------------------------------
+
+    def publish_state(self) -> None:
+        t_ns = self.step_ns
+        x = self.x
+        q, w = x[:4], x[4:7]
+        self.pub_clock.publish(cv.clock_msg(t_ns))
+        q_m, w_m = self.measurement.measure(q, w)
+        self._state_msg = cv.state_to_msg(t_ns, q_m, w_m, self._state_msg)
+        self.pub_state.publish(self._state_msg)
+        if self.pub_truth is not None:
+            self._truth_msg = cv.state_to_msg(t_ns, q, w, self._truth_msg)
+            self.pub_truth.publish(self._truth_msg)
+        if self.wheels is not None:
+            xa = x[self.plant.slices['wheels']]
+            n = self.wheels.count
+            speed = xa[:n]
+            torque = self.wheels.motor_torque(speed, self.commands['wheels'])
+            self._wheel_msg = cv.wheel_state_to_msg(t_ns, self.wheels.names, xa[n:], speed, torque,
+                                                    self._wheel_msg)
+            self.pub_wheels.publish(self._wheel_msg)
+
+    def publish_status(self, final: bool = False) -> None:
+        values = {'step': self.step_ns // self.period_ns if self.period_ns else 0,
+                  'missed_steps': self.missed_steps, 'stale_commands': self.stale_commands,
+                  'rejected_messages': self.rejects.total, 'final': str(final).lower(),
+                  'awaited_commands': ','.join(self.awaited) or 'none', 'mode': self.params['mode']}
+        level = 'WARN' if self.missed_steps else 'OK'
+        self.pub_status.publish(cv.status_to_msg(self.step_ns, 'dynamics', values, level))
+
+    # --- main loop ------------------------------------------------------------------------
+
+    def wait_for_graph(self) -> None:
+        p = self.params
+        timeout = p['startup.timeout']
+        recorder = 1 if p['startup.expect_recorder'] else 0
+        for topic in self.awaited:
+            sub = self.subs[topic]
+            self.wait_for(f'a controller publishing {sub.topic_name}',
+                          lambda s=sub: s.get_publisher_count() >= 1, timeout)
+        state_subs = p['startup.state_subscribers']
+        if state_subs < 0:
+            state_subs = (1 if self.awaited else 0) + recorder
+        required = {self.pub_state: state_subs}
+        for pub in (self.pub_clock, self.pub_truth, self.pub_wheels, self.pub_applied, self.pub_status):
+            if pub is not None:
+                required[pub] = max(required.get(pub, 0), recorder)
+        self.wait_for_publishers(required, timeout)
+
+    def run(self, executor) -> None:
+        self.wait_for_graph()
+        self.get_logger().info(
+            f'{self.params["mode"]} run: {self.n_steps} steps of {self.period:g} s, '
+            f'waiting for {self.awaited or "no commands"}')
+        self.publish_status()
+        timeout = self.params['lockstep.timeout']
+        pace = self.period / self.params['real_time_factor']
+        wall0 = time.monotonic()
+        for k in range(self.n_steps):
+            self.step_ns = k * self.period_ns
+            self.received.clear()
+            self.publish_state()
+            if self.lockstep:
+                self._wait_commands(executor, timeout)
+            else:
+                self._spin_until(executor, wall0 + k * pace)
+            t = self.step_ns / cv.NS_PER_S
+            torque = self.plant.control_torque(t, self.x, self.commands)
+            self.pub_applied.publish(cv.vector_to_msg(self.step_ns, torque))
+            self.x = self.plant.step(t, self.x, self.commands, self.period, self.max_step)
+        self.step_ns = self.n_steps * self.period_ns
+        self.received.clear()
+        self.publish_state()
+        self.publish_status(final=True)
+        self._drain_acks()
+        self.get_logger().info(f'done at t = {self.step_ns / cv.NS_PER_S:g} s; '
+                               f'missed steps: {self.missed_steps}')
+
+    def _wait_commands(self, executor, timeout: float) -> None:
+        awaited = self.awaited
+        if not awaited:
+            executor.spin_once(timeout_sec=0.0)
+            return
+        deadline = time.monotonic() + timeout
+        while not self.received.issuperset(awaited):
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                self._missed()
+                return
+            executor.spin_once(timeout_sec=remaining)
+
+    def _missed(self) -> None:
+        self.missed_steps += 1
+        missing = sorted(set(self.awaited) - self.received)
+        self.get_logger().warning(
+            f'step t = {self.step_ns / cv.NS_PER_S:g} s: no command on {missing} within '
+            f'{self.params["lockstep.timeout"]:g} s; policy {self.params["lockstep.timeout_policy"]} '
+            f'({self.missed_steps} missed)', throttle_duration_sec=5.0)
+        if self.params['lockstep.timeout_policy'] == 'zero':
+            zero = self.plant.zero_commands()
+            for topic in missing:
+                key = 'wheels' if topic == topics.WHEELS_CMD else 'torquers'
+                self.commands[key] = zero[key]
+        self.publish_status()
+
+    def _spin_until(self, executor, wall_deadline: float) -> None:
+        executor.spin_once(timeout_sec=0.0)
+        while (remaining := wall_deadline - time.monotonic()) > 0:
+            executor.spin_once(timeout_sec=remaining)
+
+    def _drain_acks(self) -> None:
+        for pub in (self.pub_clock, self.pub_state, self.pub_truth, self.pub_wheels,
+                    self.pub_applied, self.pub_status):
+            if pub is not None:
+                pub.wait_for_all_acked(Duration(seconds=5.0))
+
+
+def main(args=None) -> None:
+    raise SystemExit(main_for(DynamicsNode, args))
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,133 @@
+"""Recorder node: every topic of the graph, serialized, into a rosbag2 MCAP bag.
+
+Subscriptions are ``raw`` (CDR bytes; nothing is deserialised). All topics of the interface
+(:data:`adcs_msgs_py.topics.TOPICS`, each with its own QoS so transient-local faults are received
+too) are subscribed at start; other topics appearing in the node's namespace are picked up by a
+periodic graph look-up. The file is flushed every ``flush_period`` wall seconds.
+
+On SIGINT / SIGTERM the node stops taking new work, drains what DDS has already delivered, and
+closes the bag (summary + ``metadata.yaml``). After SIGKILL, everything up to the last flush is
+readable (:func:`adcs_sim.bag.read_raw`).
+"""
+from __future__ import annotations
+
+import importlib
+import signal
+import sys
+import time
+from datetime import datetime
+from pathlib import Path
+
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+from adcs_msgs_py import topics
+from adcs_sim.bag import BagWriter, qos_dicts
+from adcs_sim.nodes.base import AdcsNode, main_for
+from adcs_sim.scenario import RECORDER_SCHEMA
+
+IGNORED_TOPICS = ('/rosout', '/parameter_events')
+READY_LINE = 'recorder: ready'
+
+
+def message_class(type_name: str):
+    """``pkg/msg/Name`` -> the Python message class, or None if it is not installed."""
+    try:
+        pkg, kind, name = type_name.split('/')
+        return getattr(importlib.import_module(f'{pkg}.{kind}'), name)
+    except (ValueError, ImportError, AttributeError):
+        return None
+
+
+def _type_name(msg_type) -> str:
+    return f'{msg_type.__module__.split(".")[0]}/msg/{msg_type.__name__}'
+
+
+class RecorderNode(AdcsNode):
+    schema = RECORDER_SCHEMA
+
+    def __init__(self, context) -> None:
+        super().__init__(context)
+        p = self.params
+        output = p['output'] or f'runs/{datetime.now():%Y%m%d-%H%M%S}'
+        metadata = {}
+        if p['scenario_file']:
+            try:
+                metadata['scenario'] = Path(p['scenario_file']).read_text()
+            except OSError as exc:
+                from adcs_msgs_py.params import ParameterError
+                raise ParameterError('scenario_file', f'cannot read {p["scenario_file"]}: {exc.strerror}',
+                                     'recorder') from None
+        try:
+            self.bag = BagWriter(Path(output), chunk_size=p['chunk_size'], metadata=metadata)
+        except (FileExistsError, OSError) as exc:
+            from adcs_msgs_py.params import ParameterError
+            raise ParameterError('output', str(exc), 'recorder') from None
+        self.stopping = False
+        self.received = 0
+        self.subs = {}
+        wanted = p['topics']
+        self.record_all = 'all' in wanted
+        for spec in topics.TOPICS.values():
+            if self.record_all or spec.name in wanted:
+                qos = QoSProfile(history=spec.qos.history, depth=topics.RECORDER_DEPTH,
+                                 reliability=spec.qos.reliability, durability=spec.qos.durability)
+                self._subscribe(spec.name, spec.msg_type, qos, spec.qos)
+        self.create_timer(p['flush_period'], self.bag.flush)
+        if self.record_all:
+            self.create_timer(p['discovery_period'], self._discover)
+        print(READY_LINE, flush=True)
+
+    def _subscribe(self, name: str, msg_type, qos: QoSProfile, offered: QoSProfile) -> None:
+        resolved = self.resolve_topic_name(name)
+        if resolved in self.subs:
+            return
+        self.bag.add_topic(resolved, _type_name(msg_type), qos_dicts(offered))
+
+        def on_message(data: bytes, topic=resolved) -> None:
+            self.bag.write(topic, data)
+            self.received += 1
+
+        self.subs[resolved] = self.create_subscription(msg_type, name, on_message, qos, raw=True)
+
+    def _discover(self) -> None:
+        """Subscribe to topics that appeared in the graph (in this namespace) since the last look."""
+        ns = self.get_namespace().rstrip('/') + '/'
+        for name, types in self.get_topic_names_and_types():
+            if name in self.subs or name in IGNORED_TOPICS or not name.startswith(ns) or len(types) != 1:
+                continue
+            msg_type = message_class(types[0])
+            if msg_type is None:
+                continue
+            infos = self.get_publishers_info_by_topic(name)
+            reliable = infos and all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
+            qos = QoSProfile(depth=topics.RECORDER_DEPTH, reliability=ReliabilityPolicy.RELIABLE
+                             if reliable else ReliabilityPolicy.BEST_EFFORT)
+            self._subscribe(name, msg_type, qos, infos[0].qos_profile if infos else qos)
+
+    def run(self, executor) -> None:
+        def request_stop(signum, frame):  # noqa: ARG001
+            self.stopping = True
+        signal.signal(signal.SIGINT, request_stop)
+        signal.signal(signal.SIGTERM, request_stop)
+        while not self.stopping:
+            executor.spin_once(timeout_sec=0.1)
+        # Drain: keep taking what DDS already delivered until a quiet period.
+        quiet_until = time.monotonic() + 0.3
+        while time.monotonic() < quiet_until:
+            before = self.received
+            executor.spin_once(timeout_sec=0.05)
+            if self.received != before:
+                quiet_until = time.monotonic() + 0.3
+
+    def close(self) -> None:
+        self.bag.close()
+        print(f'recorder: wrote {sum(t.count for t in self.bag.topics.values())} messages to '
+              f'{self.bag.path}', file=sys.stderr, flush=True)
+
+
+def main(args=None) -> None:
+    raise SystemExit(main_for(RecorderNode, args, handle_signals=False))
+
+
+if __name__ == '__main__':
+    main()

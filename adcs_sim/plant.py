@@ -1,0 +1,395 @@
+"""Spacecraft plant: rigid body + actuators + environment, integrated with fixed-step RK4 (no ROS).
+
+Inertia convention
+------------------
+``inertia`` (J) is the **total** inertia of the spacecraft with its wheels locked, i.e. it
+*includes* each wheel's spin inertia. With wheel ``i`` of spin axis ``a_i`` (unit, body axes),
+spin inertia ``Js_i`` and speed ``Omega_i`` **relative to the body**, the total angular momentum in
+body axes is::
+
+    H = J w + sum_i a_i Js_i Omega_i
+
+and the equations of motion are (``J_s = J - sum_i Js_i a_i a_i^T``, the inertia without the
+wheels' spin inertia about their axes)::
+
+    J_s dw/dt = -w x H + tau_ext - sum_i a_i tau_i        (body)
+    Js_i (a_i . dw/dt + dOmega_i/dt) = tau_i              (wheel i, tau_i = motor + friction)
+
+so the body feels ``-a_i tau_i`` (seed 004: ``N = -dh/dt``). Seed 004's ``I`` (eq. 2-3, "body of
+the satellite" with absolute wheel momentum ``h``) is our ``J_s``; for the papers' small wheels the
+difference is below 0.1 % and the scenario files state which one they give. A wheel spin-up from
+rest changes the body rate by exactly ``-J^{-1} a Js dOmega`` (total ``J``, momentum conservation).
+
+Actuators
+---------
+An actuator is an :class:`Actuator`: it may carry states (appended to the state vector), store
+angular momentum, remove spin inertia from ``J``, and apply a body torque computed from the
+zero-order-hold command and the state. The integrator knows nothing about any particular actuator,
+so new actuator models (thrusters, magnetorquers) are added as new classes, not by editing it.
+
+Every array function accepts a leading batch axis: ``x`` of shape ``(..., n_states)``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from adcs_sim.attitude import quat_kinematics
+
+MU_EARTH = 3.986004418e14  # m^3/s^2
+R_EARTH = 6378137.0  # m
+
+
+def rotate_to_body(q: np.ndarray, v_inertial: np.ndarray) -> np.ndarray:
+    """``R(q)^T v``: an inertial vector in body axes (``q`` body-in-inertial, scalar last)."""
+    qv, q4 = q[..., :3], q[..., 3:4]
+    t = 2.0 * np.cross(v_inertial, qv)
+    return v_inertial + q4 * t + np.cross(t, qv)
+
+
+# --- actuators -------------------------------------------------------------------------------
+
+class Actuator:
+    """Interface of a plant actuator. Subclasses override what applies to them."""
+
+    name: str = 'actuator'
+    n_states: int = 0
+
+    def initial_state(self) -> np.ndarray:
+        return np.zeros(self.n_states)
+
+    def spin_inertia_matrix(self) -> np.ndarray:
+        """Inertia about the actuator's own spin axes, included in J but not rigidly attached."""
+        return np.zeros((3, 3))
+
+    def momentum(self, xa: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Angular momentum stored in the actuator beyond ``J_s w`` (body axes)."""
+        return np.zeros(w.shape)
+
+    def torque(self, t: float, xa: np.ndarray, w: np.ndarray, cmd: Any) -> tuple[np.ndarray, Any]:
+        """Body torque (..., 3) under command ``cmd`` and an auxiliary value for :meth:`derivative`."""
+        raise NotImplementedError
+
+    def derivative(self, t: float, xa: np.ndarray, w: np.ndarray, wdot: np.ndarray,
+                   cmd: Any, aux: Any) -> np.ndarray:
+        return np.zeros(xa.shape)
+
+    def zero_command(self) -> Any:
+        raise NotImplementedError
+
+
+class WheelCommand(NamedTuple):
+    """Zero-order-hold wheel command: per wheel a value and whether it is a speed (else torque)."""
+
+    value: np.ndarray      # (..., n): motor torque (N m) or speed set-point relative to body (rad/s)
+    speed_mode: np.ndarray  # (n,) or (..., n) bool
+
+
+@dataclass
+class ReactionWheels(Actuator):
+    """Reaction wheels with arbitrary spin axes, torque and speed limits, friction, faults.
+
+    States: speeds ``Omega`` (rad/s, relative to the body) then angles (rad).
+    Motor torque: in torque mode the saturated command; in speed mode a proportional speed loop
+    ``tau = Js * speed_gain * (Omega_cmd - Omega)`` saturated at the torque limit (the wheel
+    drive electronics' loop, used by seed 000's zero-momentum law). At the speed limit, motor
+    torque that would spin the wheel faster is cut. Friction ``-viscous*Omega - coulomb*sign(Omega)``
+    acts between wheel and body. A wheel marked unavailable (failed) produces no motor torque.
+    """
+
+    names: list[str]
+    axes: np.ndarray                 # (n, 3), normalised here
+    spin_inertia: np.ndarray         # (n,)
+    max_torque: np.ndarray           # (n,), inf = unlimited
+    max_speed: np.ndarray            # (n,), inf = unlimited
+    viscous: np.ndarray | None = None
+    coulomb: np.ndarray | None = None
+    speed_gain: np.ndarray | None = None  # (n,) 1/s
+    initial_speed: np.ndarray | None = None
+    name: str = 'wheels'
+    available: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        n = len(self.names)
+        self.axes = np.asarray(self.axes, dtype=float).reshape(n, 3)
+        self.axes = self.axes / np.linalg.norm(self.axes, axis=1, keepdims=True)
+        as_n = lambda v, d: np.full(n, d, dtype=float) if v is None else np.asarray(v, dtype=float).reshape(n)  # noqa: E731
+        self.spin_inertia = as_n(self.spin_inertia, 0.0)
+        self.max_torque = as_n(self.max_torque, np.inf)
+        self.max_speed = as_n(self.max_speed, np.inf)
+        self.viscous = as_n(self.viscous, 0.0)
+        self.coulomb = as_n(self.coulomb, 0.0)
+        self.speed_gain = as_n(self.speed_gain, 1.0)
+        self.initial_speed = as_n(self.initial_speed, 0.0)
+        self.n_states = 2 * n
+        self.available = np.ones(n, dtype=bool)
+        self._has_friction = bool(np.any(self.viscous) or np.any(self.coulomb))
+        self._speed_limited = bool(np.any(np.isfinite(self.max_speed)))
+
+    @property
+    def count(self) -> int:
+        return len(self.names)
+
+    def initial_state(self) -> np.ndarray:
+        return np.concatenate([self.initial_speed, np.zeros(self.count)])
+
+    def spin_inertia_matrix(self) -> np.ndarray:
+        return np.einsum('i,ij,ik->jk', self.spin_inertia, self.axes, self.axes)
+
+    def momentum(self, xa, w):
+        return (xa[..., :self.count] * self.spin_inertia) @ self.axes
+
+    def zero_command(self) -> WheelCommand:
+        return WheelCommand(np.zeros(self.count), np.zeros(self.count, dtype=bool))
+
+    def motor_torque(self, speed: np.ndarray, cmd: WheelCommand) -> np.ndarray:
+        """Motor torque actually produced for wheel speeds ``speed`` under ``cmd``."""
+        value = cmd.value
+        if np.any(cmd.speed_mode):
+            loop = self.spin_inertia * self.speed_gain * (value - speed)
+            value = np.where(cmd.speed_mode, loop, value)
+        tau = np.clip(value, -self.max_torque, self.max_torque)
+        if self._speed_limited:
+            tau = np.where((np.abs(speed) >= self.max_speed) & (tau * speed > 0), 0.0, tau)
+        return np.where(self.available, tau, 0.0)
+
+    def friction_torque(self, speed: np.ndarray) -> np.ndarray:
+        return -self.viscous * speed - self.coulomb * np.sign(speed)
+
+    def torque(self, t, xa, w, cmd):
+        speed = xa[..., :self.count]
+        tau = self.motor_torque(speed, cmd)
+        if self._has_friction:
+            tau = tau + self.friction_torque(speed)
+        return -(tau @ self.axes), tau
+
+    def derivative(self, t, xa, w, wdot, cmd, aux):
+        speed = xa[..., :self.count]
+        accel = aux / self.spin_inertia - wdot @ self.axes.T
+        return np.concatenate([accel, speed], axis=-1)
+
+
+@dataclass
+class Torquers(Actuator):
+    """Ideal external torquers (seed 001): the commanded body torque, saturated per axis."""
+
+    max_torque: np.ndarray = field(default_factory=lambda: np.full(3, np.inf))
+    name: str = 'torquers'
+
+    def __post_init__(self) -> None:
+        self.max_torque = np.broadcast_to(np.asarray(self.max_torque, dtype=float), (3,)).copy()
+
+    def zero_command(self) -> np.ndarray:
+        return np.zeros(3)
+
+    def torque(self, t, xa, w, cmd):
+        return np.clip(cmd, -self.max_torque, self.max_torque), None
+
+
+# --- environment ------------------------------------------------------------------------------
+
+@dataclass
+class Disturbance:
+    """Body-frame disturbance ``c + A sin(f t + phi)`` (N m; f in rad/s), per axis."""
+
+    constant: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    amplitude: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    frequency: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    phase: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def __post_init__(self) -> None:
+        for name in ('constant', 'amplitude', 'frequency', 'phase'):
+            setattr(self, name, np.asarray(getattr(self, name), dtype=float).reshape(3))
+
+    @property
+    def active(self) -> bool:
+        return bool(np.any(self.constant) or np.any(self.amplitude))
+
+    def torque(self, t: float) -> np.ndarray:
+        return self.constant + self.amplitude * np.sin(self.frequency * t + self.phase)
+
+
+@dataclass
+class CircularOrbit:
+    """Circular orbit; angles in rad. Position at time t: argument of latitude ``u0 + n t``."""
+
+    altitude: float
+    inclination: float = 0.0
+    raan: float = 0.0
+    arg_latitude0: float = 0.0
+    mu: float = MU_EARTH
+
+    @property
+    def radius(self) -> float:
+        return R_EARTH + self.altitude
+
+    @property
+    def mean_motion(self) -> float:
+        return math.sqrt(self.mu / self.radius ** 3)
+
+    def position_unit(self, t: float) -> np.ndarray:
+        """Unit position vector in the inertial frame (equatorial axes)."""
+        u = self.arg_latitude0 + self.mean_motion * t
+        cO, sO = math.cos(self.raan), math.sin(self.raan)
+        ci, si = math.cos(self.inclination), math.sin(self.inclination)
+        cu, su = math.cos(u), math.sin(u)
+        return np.array([cO * cu - sO * ci * su, sO * cu + cO * ci * su, si * su])
+
+    def gravity_gradient(self, t: float, q: np.ndarray, inertia: np.ndarray) -> np.ndarray:
+        """Gravity-gradient torque ``3 n^2 c x (J c)``, c = nadir unit vector in body axes."""
+        c = rotate_to_body(q, -self.position_unit(t))
+        return 3.0 * self.mean_motion ** 2 * np.cross(c, c @ inertia.T)
+
+
+# --- the plant --------------------------------------------------------------------------------
+
+def check_inertia(J: np.ndarray, what: str = 'inertia') -> str | None:
+    """Why ``J`` is not a physical inertia matrix, or None (symmetric, PD, triangle inequality)."""
+    J = np.asarray(J, dtype=float)
+    if J.shape != (3, 3) or not np.all(np.isfinite(J)):
+        return f'{what} must be a finite 3x3 matrix'
+    if not np.allclose(J, J.T, rtol=0, atol=1e-12 * max(1.0, np.abs(J).max())):
+        return f'{what} must be symmetric'
+    eig = np.linalg.eigvalsh(J)
+    if eig[0] <= 0:
+        return f'{what} must be positive definite (principal moments {eig.tolist()})'
+    a, b, c = eig
+    if a + b < c * (1 - 1e-12):
+        return (f'{what} violates the triangle inequality of principal moments '
+                f'({a:g} + {b:g} < {c:g}): no rigid body has it')
+    return None
+
+
+class Plant:
+    """Rigid spacecraft with actuators, disturbances and optional gravity gradient.
+
+    State vector ``x = [q (4, x y z w), w (3, rad/s), actuator states...]`` with optional leading
+    batch axes. ``commands`` is a dict actuator name -> zero-order-hold command.
+    """
+
+    def __init__(self, inertia, actuators: list[Actuator] = (), disturbance: Disturbance | None = None,
+                 orbit: CircularOrbit | None = None, gravity_gradient: bool = False) -> None:
+        self.inertia = np.asarray(inertia, dtype=float)
+        problem = check_inertia(self.inertia)
+        if problem:
+            raise ValueError(problem)
+        self.actuators = list(actuators)
+        names = [a.name for a in self.actuators]
+        if len(set(names)) != len(names):
+            raise ValueError(f'actuator names must be unique, got {names}')
+        self.disturbance = disturbance if disturbance is not None and disturbance.active else None
+        if gravity_gradient and orbit is None:
+            raise ValueError('gravity gradient needs an orbit')
+        self.orbit = orbit
+        self.gravity_gradient = gravity_gradient
+        spin = sum((a.spin_inertia_matrix() for a in self.actuators), np.zeros((3, 3)))
+        self.inertia_struct = self.inertia - spin
+        problem = check_inertia(self.inertia_struct, 'inertia minus wheel spin inertia')
+        if problem:
+            raise ValueError(problem)
+        self.inertia_struct_inv = np.linalg.inv(self.inertia_struct)
+        self.slices: dict[str, slice] = {}
+        start = 7
+        for a in self.actuators:
+            self.slices[a.name] = slice(start, start + a.n_states)
+            start += a.n_states
+        self.n_states = start
+
+    def actuator(self, name: str) -> Actuator:
+        for a in self.actuators:
+            if a.name == name:
+                return a
+        raise KeyError(name)
+
+    def initial_state(self, q, w) -> np.ndarray:
+        parts = [np.asarray(q, dtype=float), np.asarray(w, dtype=float)]
+        parts += [a.initial_state() for a in self.actuators]
+        return np.concatenate(parts)
+
+    def zero_commands(self) -> dict[str, Any]:
+        return {a.name: a.zero_command() for a in self.actuators}
+
+    def environment_torque(self, t: float, q: np.ndarray) -> np.ndarray | float:
+        tau = 0.0
+        if self.disturbance is not None:
+            tau = tau + self.disturbance.torque(t)
+        if self.gravity_gradient:
+            tau = tau + self.orbit.gravity_gradient(t, q, self.inertia)
+        return tau
+
+    def angular_momentum(self, x: np.ndarray) -> np.ndarray:
+        """Total angular momentum in body axes."""
+        w = x[..., 4:7]
+        H = w @ self.inertia_struct.T
+        for a in self.actuators:
+            H = H + a.momentum(x[..., self.slices[a.name]], w)
+        return H
+
+    def inertial_momentum(self, x: np.ndarray) -> np.ndarray:
+        """Total angular momentum in inertial axes (conserved without external torque)."""
+        q = x[..., :4]
+        return rotate_to_inertial(q, self.angular_momentum(x))
+
+    def kinetic_energy(self, x: np.ndarray) -> np.ndarray:
+        """Rotational kinetic energy of body and wheels."""
+        w = x[..., 4:7]
+        T = 0.5 * np.sum(w * (w @ self.inertia_struct.T), axis=-1)
+        for a in self.actuators:
+            if isinstance(a, ReactionWheels):
+                s = x[..., self.slices[a.name]][..., :a.count]
+                absolute = s + w @ a.axes.T
+                T = T + 0.5 * np.sum(a.spin_inertia * absolute ** 2, axis=-1)
+        return T
+
+    def control_torque(self, t: float, x: np.ndarray, commands: dict[str, Any]) -> np.ndarray:
+        """Body torque from all actuators at state ``x`` (what the ZOH command produces now)."""
+        w = x[..., 4:7]
+        tau = np.zeros(w.shape)
+        for a in self.actuators:
+            tau = tau + a.torque(t, x[..., self.slices[a.name]], w, commands[a.name])[0]
+        return tau
+
+    def derivative(self, t: float, x: np.ndarray, commands: dict[str, Any]) -> np.ndarray:
+        q, w = x[..., :4], x[..., 4:7]
+        H = w @ self.inertia_struct.T
+        tau = self.environment_torque(t, q)
+        auxes = []
+        for a in self.actuators:
+            xa = x[..., self.slices[a.name]]
+            H = H + a.momentum(xa, w)
+            ta, aux = a.torque(t, xa, w, commands[a.name])
+            tau = tau + ta
+            auxes.append(aux)
+        wdot = (tau - np.cross(w, H)) @ self.inertia_struct_inv.T
+        parts = [quat_kinematics(q, w), wdot]
+        for a, aux in zip(self.actuators, auxes):
+            parts.append(a.derivative(t, x[..., self.slices[a.name]], w, wdot, commands[a.name], aux))
+        return np.concatenate(parts, axis=-1)
+
+    def step(self, t: float, x: np.ndarray, commands: dict[str, Any], period: float,
+             max_step: float) -> np.ndarray:
+        """Advance ``period`` seconds holding ``commands`` (zero-order hold), fixed-step RK4.
+
+        The period is split into ``ceil(period / max_step)`` equal RK4 steps; the quaternion is
+        renormalised after each.
+        """
+        n = max(1, math.ceil(period / max_step - 1e-9))
+        h = period / n
+        f = self.derivative
+        for i in range(n):
+            ti = t + i * h
+            k1 = f(ti, x, commands)
+            k2 = f(ti + 0.5 * h, x + 0.5 * h * k1, commands)
+            k3 = f(ti + 0.5 * h, x + 0.5 * h * k2, commands)
+            k4 = f(ti + h, x + h * k3, commands)
+            x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            x[..., :4] /= np.linalg.norm(x[..., :4], axis=-1, keepdims=True)
+        return x
+
+
+def rotate_to_inertial(q: np.ndarray, v_body: np.ndarray) -> np.ndarray:
+    """``R(q) v``: a body vector in inertial axes."""
+    return rotate_to_body(np.concatenate([-q[..., :3], q[..., 3:4]], axis=-1), v_body)

@@ -1,0 +1,239 @@
+"""Scenario parameters of the dynamics and recorder nodes, and the plant built from them (no ROS).
+
+A scenario file is a ROS 2 params file with a section per node. This module declares the
+``dynamics`` and ``recorder`` sections (:data:`DYNAMICS_SCHEMA`, :data:`RECORDER_SCHEMA`), the
+spacecraft blocks shared with controllers (inertia, wheels), and :func:`build_plant`.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from adcs_msgs_py import topics
+from adcs_msgs_py.params import (Param, ParameterError, Schema, all_non_negative, all_positive,
+                                 non_negative, positive)
+from adcs_sim.plant import (CircularOrbit, Disturbance, Plant, ReactionWheels, Torquers,
+                            check_inertia)
+
+UNIT_TOLERANCE = 1e-3  # an initial quaternion further than this from unit norm is refused
+
+
+def inertia_matrix(values: list[float]) -> np.ndarray:
+    """3 principal moments or 9 row-major entries -> 3x3 matrix."""
+    arr = np.asarray(values, dtype=float)
+    return np.diag(arr) if arr.size == 3 else arr.reshape(3, 3)
+
+
+def _check_inertia_values(values) -> str | None:
+    return check_inertia(inertia_matrix(values), 'inertia')
+
+
+def check_unit_quaternion(values) -> str | None:
+    norm = math.sqrt(sum(v * v for v in values))
+    if abs(norm - 1.0) > UNIT_TOLERANCE:
+        return f'quaternion [x, y, z, w] must have unit norm (got {norm:.6g}, tolerance {UNIT_TOLERANCE})'
+    return None
+
+
+def inertia_param(doc: str) -> Param:
+    return Param('inertia', 'double_array', doc=doc, length=(3, 9), check=_check_inertia_values)
+
+
+def wheel_params(with_physics: bool) -> list[Param]:
+    """The ``wheels.*`` block. Controllers need names, axes, torque limits; the plant all of it."""
+    params = [
+        Param('wheels.names', 'string_array', default=[],
+              doc='wheel names (the JointState names); empty: no wheels'),
+        Param('wheels.axes', 'double_array', default=[],
+              doc='spin axes in body axes, 3 per wheel, flattened (need not be unit)'),
+        Param('wheels.max_torque', 'double_array', default=[],
+              doc='motor torque limit per wheel (N m, > 0; .inf for none)', check=all_positive),
+    ]
+    if with_physics:
+        params += [
+            Param('wheels.spin_inertia', 'double_array', default=[],
+                  doc='spin inertia per wheel (kg m^2, > 0); included in `inertia`', check=all_positive),
+            Param('wheels.max_speed', 'double_array', default=[],
+                  doc='speed limit per wheel (rad/s, > 0; .inf for none)', check=all_positive),
+            Param('wheels.viscous_friction', 'double_array', default=[],
+                  doc='viscous friction per wheel (N m s/rad, >= 0; default 0)', check=all_non_negative),
+            Param('wheels.coulomb_friction', 'double_array', default=[],
+                  doc='Coulomb friction per wheel (N m, >= 0; default 0)', check=all_non_negative),
+            Param('wheels.speed_loop_gain', 'double_array', default=[],
+                  doc='speed-mode loop bandwidth per wheel (1/s, > 0; default 1)', check=all_positive),
+            Param('wheels.initial_speed', 'double_array', default=[],
+                  doc='initial speed per wheel relative to the body (rad/s; default 0)'),
+        ]
+    return params
+
+
+def check_wheels(v: dict, with_physics: bool) -> None:
+    """Cross-check the wheels block: lengths agree with ``wheels.names``, axes are not zero."""
+    names = v['wheels.names']
+    n = len(names)
+    if len(set(names)) != n:
+        raise ParameterError('wheels.names', f'wheel names must be unique, got {names}')
+    if any(not name for name in names):
+        raise ParameterError('wheels.names', 'wheel names must be non-empty strings')
+    if len(v['wheels.axes']) != 3 * n:
+        raise ParameterError('wheels.axes', f'expected 3 values per wheel ({3 * n} for {n} wheels), '
+                             f'got {len(v["wheels.axes"])}')
+    axes = np.asarray(v['wheels.axes'], dtype=float).reshape(n, 3)
+    for i, axis in enumerate(axes):
+        if np.linalg.norm(axis) < 1e-9:
+            raise ParameterError('wheels.axes', f'axis of wheel {names[i]!r} has zero length')
+    required = ['wheels.max_torque'] + (['wheels.spin_inertia', 'wheels.max_speed'] if with_physics else [])
+    optional = ['wheels.viscous_friction', 'wheels.coulomb_friction', 'wheels.speed_loop_gain',
+                'wheels.initial_speed'] if with_physics else []
+    for key in required + optional:
+        got = len(v[key])
+        if got != n and not (key in optional and got == 0):
+            raise ParameterError(key, f'expected one value per wheel ({n}), got {got}')
+
+
+def _dynamics_cross_check(v: dict) -> None:
+    check_wheels(v, with_physics=True)
+    n = len(v['wheels.names'])
+    if n:
+        J = inertia_matrix(v['inertia'])
+        axes = np.asarray(v['wheels.axes'], dtype=float).reshape(n, 3)
+        axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+        spin = np.einsum('i,ij,ik->jk', np.asarray(v['wheels.spin_inertia']), axes, axes)
+        problem = check_inertia(J - spin, 'inertia minus the wheels\' spin inertia')
+        if problem:
+            raise ParameterError('wheels.spin_inertia', problem + ' (`inertia` must include the wheels)')
+    if v['integrator.max_step'] > v['control_period']:
+        raise ParameterError('integrator.max_step', f'must not exceed control_period '
+                             f'({v["control_period"]} s), got {v["integrator.max_step"]}')
+    if v['duration'] < v['control_period']:
+        raise ParameterError('duration', f'must be at least one control period ({v["control_period"]} s)')
+    if v['gravity_gradient'] and v['orbit.altitude'] <= 0:
+        raise ParameterError('orbit.altitude', 'gravity_gradient needs an orbit altitude > 0 (m)')
+    commands = v['lockstep.commands']
+    allowed = set(topics.COMMAND_TOPICS) | {'auto', 'none'}
+    bad = [c for c in commands if c not in allowed]
+    if bad:
+        raise ParameterError('lockstep.commands', f'unknown command topic(s) {bad}; allowed: {sorted(allowed)}')
+    if 'wheels/cmd' in command_topics(v) and not n:
+        raise ParameterError('lockstep.commands', 'waits for wheels/cmd but no wheels are configured')
+    if 'torque_cmd' in command_topics(v) and not v['torquers.enabled']:
+        raise ParameterError('lockstep.commands', 'waits for torque_cmd but torquers.enabled is false')
+
+
+def command_topics(v: dict) -> list[str]:
+    """The command topics the dynamics node waits for each step (``auto`` / ``none`` resolved)."""
+    commands = v['lockstep.commands']
+    if 'none' in commands:
+        return []
+    if 'auto' in commands:
+        auto = []
+        if v['wheels.names']:
+            auto.append(topics.WHEELS_CMD)
+        if v['torquers.enabled']:
+            auto.append(topics.TORQUE_CMD)
+        return auto
+    return list(dict.fromkeys(commands))
+
+
+def startup_params() -> list[Param]:
+    return [
+        Param('startup.expect_recorder', 'bool', default=False,
+              doc='wait until a recorder is subscribed to every topic this node publishes'),
+        Param('startup.timeout', 'double', default=60.0, check=positive,
+              doc='wall seconds to wait for the graph to connect before giving up'),
+    ]
+
+
+DYNAMICS_SCHEMA = Schema('dynamics', [
+    inertia_param('total inertia incl. wheel spin inertia (kg m^2): 3 principal moments or 9 entries'),
+    Param('initial.attitude', 'double_array', default=[0.0, 0.0, 0.0, 1.0], length=4,
+          check=check_unit_quaternion, doc='initial quaternion [x, y, z, w], body in inertial'),
+    Param('initial.rate', 'double_array', default=[0.0, 0.0, 0.0], length=3,
+          doc='initial body rate (rad/s, body axes)'),
+    *wheel_params(with_physics=True),
+    Param('torquers.enabled', 'bool', default=False, doc='ideal external torquers (torque_cmd)'),
+    Param('torquers.max_torque', 'double_array', default=[math.inf] * 3, length=3, check=all_positive,
+          doc='per-axis torquer limit (N m)'),
+    Param('disturbance.constant', 'double_array', default=[0.0] * 3, length=3, doc='N m, body axes'),
+    Param('disturbance.amplitude', 'double_array', default=[0.0] * 3, length=3, doc='N m, body axes'),
+    Param('disturbance.frequency', 'double_array', default=[0.0] * 3, length=3, doc='rad/s'),
+    Param('disturbance.phase', 'double_array', default=[0.0] * 3, length=3, doc='rad'),
+    Param('gravity_gradient', 'bool', default=False, doc='gravity-gradient torque on the orbit'),
+    Param('orbit.altitude', 'double', default=0.0, check=non_negative, doc='circular orbit altitude (m)'),
+    Param('orbit.inclination_deg', 'double', default=0.0, doc='deg'),
+    Param('orbit.raan_deg', 'double', default=0.0, doc='deg'),
+    Param('orbit.arg_latitude_deg', 'double', default=0.0, doc='argument of latitude at t = 0 (deg)'),
+    Param('control_period', 'double', default=1.0, check=positive,
+          doc='zero-order-hold control period (s); state published each period'),
+    Param('duration', 'double', check=positive, doc='simulated duration (s)'),
+    Param('integrator.max_step', 'double', default=0.1, check=positive,
+          doc='largest RK4 step inside a control period (s)'),
+    Param('mode', 'string', default='lockstep', choices=('lockstep', 'realtime'),
+          doc='lockstep: wait for commands each step (deterministic); realtime: paced, no waiting'),
+    Param('real_time_factor', 'double', default=1.0, check=positive,
+          doc='realtime mode: simulated seconds per wall second'),
+    Param('lockstep.commands', 'string_array', default=['auto'],
+          doc="command topics to wait for each step; 'auto': those of the configured actuators; "
+              "'none': free flight"),
+    Param('lockstep.timeout', 'double', default=5.0, check=positive,
+          doc='wall seconds to wait for a step\'s commands before applying the timeout policy'),
+    Param('lockstep.timeout_policy', 'string', default='hold', choices=('hold', 'zero'),
+          doc='on a missed step: hold the last command or apply zero'),
+    Param('noise.seed', 'int', default=0, doc='seed of the measurement noise generator'),
+    Param('noise.attitude_std', 'double', default=0.0, check=non_negative,
+          doc='star-tracker noise, rad (1 sigma per axis, small-angle rotation)'),
+    Param('noise.rate_std', 'double', default=0.0, check=non_negative, doc='gyro noise, rad/s (1 sigma)'),
+    Param('noise.gyro_bias', 'double_array', default=[0.0] * 3, length=3, doc='constant gyro bias, rad/s'),
+    Param('startup.state_subscribers', 'int', default=-1,
+          doc='matched subscribers of `state` to wait for before t = 0 (-1: one per awaited command '
+              'topic, plus the recorder)'),
+    *startup_params(),
+], cross_check=_dynamics_cross_check, doc='plant, simulated clock and lockstep loop')
+
+
+def build_plant(v: dict) -> Plant:
+    """Plant from validated ``dynamics`` parameters."""
+    actuators = []
+    names = v['wheels.names']
+    if names:
+        n = len(names)
+        opt = lambda key, default: v[key] if v[key] else [default] * n  # noqa: E731
+        actuators.append(ReactionWheels(
+            names=list(names), axes=np.asarray(v['wheels.axes']).reshape(n, 3),
+            spin_inertia=v['wheels.spin_inertia'], max_torque=v['wheels.max_torque'],
+            max_speed=v['wheels.max_speed'], viscous=opt('wheels.viscous_friction', 0.0),
+            coulomb=opt('wheels.coulomb_friction', 0.0), speed_gain=opt('wheels.speed_loop_gain', 1.0),
+            initial_speed=opt('wheels.initial_speed', 0.0)))
+    if v['torquers.enabled']:
+        actuators.append(Torquers(max_torque=v['torquers.max_torque']))
+    orbit = None
+    if v['orbit.altitude'] > 0:
+        orbit = CircularOrbit(altitude=v['orbit.altitude'],
+                              inclination=math.radians(v['orbit.inclination_deg']),
+                              raan=math.radians(v['orbit.raan_deg']),
+                              arg_latitude0=math.radians(v['orbit.arg_latitude_deg']))
+    disturbance = Disturbance(v['disturbance.constant'], v['disturbance.amplitude'],
+                              v['disturbance.frequency'], v['disturbance.phase'])
+    return Plant(inertia_matrix(v['inertia']), actuators, disturbance, orbit, v['gravity_gradient'])
+
+
+def initial_state(plant: Plant, v: dict) -> np.ndarray:
+    q = np.asarray(v['initial.attitude'], dtype=float)
+    return plant.initial_state(q / np.linalg.norm(q), v['initial.rate'])
+
+
+RECORDER_SCHEMA = Schema('recorder', [
+    Param('output', 'string', default='', doc='bag folder to create (empty: runs/<timestamp>)'),
+    Param('scenario_file', 'string', default='',
+          doc='scenario file embedded in the bag as metadata (the runner sets it)'),
+    Param('topics', 'string_array', default=['all'],
+          doc="topics to record; 'all': every topic of the interface plus any discovered"),
+    Param('chunk_size', 'int', default=65536, check=positive,
+          doc='MCAP chunk size (bytes): smaller loses less on a crash'),
+    Param('flush_period', 'double', default=0.5, check=positive,
+          doc='wall seconds between flushes of the open chunk to disk'),
+    Param('discovery_period', 'double', default=1.0, check=positive,
+          doc='wall seconds between looks for new topics to record'),
+    *startup_params(),
+], doc='records every topic of the graph to a rosbag2 MCAP bag')

@@ -1,0 +1,38 @@
+"""ament_python package ``adcs_sim``: installable by ``colcon build`` and by ``pip install``."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = 'adcs_sim'
+
+# Node executables: the name is also the node name and the scenario-file section name.
+NODES = {
+    'dynamics': 'adcs_sim.nodes.dynamics:main',
+    'recorder': 'adcs_sim.nodes.recorder:main',
+    'pd_controller': 'adcs_controllers.nodes.pd_controller:main',
+}
+TOOLS = {
+    'adcs-run': 'adcs_sim.runner:main',
+    'adcs-analyze': 'adcs_sim.analyze:main',
+}
+
+setup(
+    name=PACKAGE,
+    version='0.1.0',
+    packages=find_packages(include=['adcs_sim*', 'adcs_controllers*', 'adcs_msgs_py*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
+        ('share/' + PACKAGE, ['package.xml']),
+        ('share/' + PACKAGE + '/config', sorted(glob('config/*.yaml'))),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='adcs_sim developers',
+    maintainer_email='adcs-sim@example.org',
+    description='Spacecraft ADCS simulation as a ROS 2 Jazzy node graph',
+    license='Apache-2.0',
+    python_requires='>=3.10',
+    entry_points={
+        'console_scripts': [f'{name} = {target}' for name, target in {**NODES, **TOOLS}.items()],
+    },
+)
