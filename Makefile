@@ -5,10 +5,10 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 
-$(VENV)/.installed: requirements.txt requirements-dev.txt setup.py setup.cfg package.xml
+$(VENV)/.installed: requirements.txt requirements-dev.txt setup.py setup.cfg pyproject.toml package.xml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-dev.txt
-	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e . && test -x $(VENV)/bin/dynamics
+	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps -e . && test -x $(VENV)/bin/dynamics
 	touch $@
 
 .PHONY: install run test bench

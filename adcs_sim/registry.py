@@ -1,0 +1,27 @@
+"""The node executables of the package: section name -> module and parameter schema.
+
+A scenario file has one section per node, named like the executable (``dynamics``,
+``pd_controller``, ``recorder``); the runner starts exactly those. Keep in step with setup.py's
+``NODES`` (a test checks it).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from adcs_msgs_py.params import Schema
+from adcs_controllers.schemas import PD_SCHEMA
+from adcs_sim.scenario import DYNAMICS_SCHEMA, RECORDER_SCHEMA
+
+
+@dataclass(frozen=True)
+class NodeInfo:
+    module: str
+    schema: Schema
+    role: str  # 'dynamics', 'controller' (subscribes to state, sends commands), 'recorder', 'other'
+
+
+NODES: dict[str, NodeInfo] = {
+    'dynamics': NodeInfo('adcs_sim.nodes.dynamics', DYNAMICS_SCHEMA, 'dynamics'),
+    'recorder': NodeInfo('adcs_sim.nodes.recorder', RECORDER_SCHEMA, 'recorder'),
+    'pd_controller': NodeInfo('adcs_controllers.nodes.pd_controller', PD_SCHEMA, 'controller'),
+}

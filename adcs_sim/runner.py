@@ -1,0 +1,313 @@
+"""``adcs-run [scenario.yaml] [--out DIR] [--duration S]``: one scenario, end to end.
+
+1. Validates every section of the scenario file with its node's schema (nothing starts if one
+   is wrong; the message names the key). An unknown section is an error.
+2. Leases a fresh ``ROS_DOMAIN_ID`` (1..99) and sets ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``
+   for every process it starts.
+3. Starts the recorder first (always: a run of the runner is always recorded; a ``recorder``
+   section only tunes it), waits until it is subscribed, then every other node of the file as
+   its own process, each told to wait for the recorder before its first message.
+4. Shows a progress bar in simulated time (from ``/clock``) until the dynamics node finishes.
+5. Stops the controllers, then the recorder (which closes the bag), and prints the metrics
+   (:mod:`adcs_sim.analysis`), also written to ``<out>/metrics.json``.
+
+A node that fails at start stops the whole graph; the runner exits non-zero with that node's
+error and removes the output folder (no partial bag claims to be a run). A node that dies
+mid-run stops the graph too, but the bag of what was recorded is kept. Ctrl-C / SIGTERM stop
+everything cleanly (recorder last, so the bag is complete) and leave no process behind.
+
+Output folder layout: ``<out>/bag`` (the rosbag2 MCAP bag), ``<out>/logs/<node>.log``,
+``<out>/metrics.json``, ``<out>/scenario.yaml`` (a copy).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from datetime import datetime
+from pathlib import Path
+
+from adcs_msgs_py.params import ParameterError, load_params_file
+from adcs_sim.domains import DomainLease
+
+DEFAULT_SCENARIO = 'microsat_pd_slew.yaml'
+READY_TIMEOUT_S = 60.0
+STOP_TIMEOUT_S = 20.0
+
+
+class RunError(RuntimeError):
+    """The run could not be started or did not complete."""
+
+
+def config_dirs() -> list[Path]:
+    """Where scenario files are looked up by bare name: installed share folder, then the source tree."""
+    dirs = [Path(sys.prefix) / 'share' / 'adcs_sim' / 'config']
+    try:
+        from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+        try:
+            dirs.insert(0, Path(get_package_share_directory('adcs_sim')) / 'config')
+        except (PackageNotFoundError, KeyError, ValueError, OSError):  # OSError: no AMENT_PREFIX_PATH
+            pass
+    except ImportError:
+        pass
+    dirs.append(Path(__file__).resolve().parents[1] / 'config')
+    return dirs
+
+
+def resolve_scenario(name: str | None) -> Path:
+    """A scenario path, or a bare file name looked up in the config folders."""
+    name = name or DEFAULT_SCENARIO
+    path = Path(name)
+    if path.exists():
+        return path.resolve()
+    if not path.is_absolute() and len(path.parts) == 1:
+        for d in config_dirs():
+            if (d / name).exists():
+                return (d / name).resolve()
+    raise RunError(f'scenario file {name!r} not found (looked in: {", ".join(map(str, config_dirs()))})')
+
+
+def validate_scenario(path: Path, duration: float | None = None) -> dict:
+    """Validate every section; return {section: validated params}. Raises ParameterError."""
+    from adcs_sim.registry import NODES
+    sections = load_params_file(str(path))
+    unknown = [s for s in sections if s not in NODES]
+    if unknown:
+        raise ParameterError(unknown[0], f'unknown node section {unknown[0]!r} in {path}; '
+                             f'known nodes: {sorted(NODES)}')
+    if 'dynamics' not in sections:
+        raise ParameterError('dynamics', f'{path} has no dynamics section: nothing would simulate')
+    controllers = [s for s in sections if NODES[s].role == 'controller']
+    if len(controllers) > 1:
+        raise ParameterError(controllers[1], f'more than one controller section ({controllers}): '
+                             'the dynamics node would receive competing commands')
+    validated = {}
+    for name, given in sections.items():
+        if name == 'dynamics' and duration is not None:
+            given = {**given, 'duration': float(duration)}
+        validated[name] = NODES[name].schema.validate(given)
+    return validated
+
+
+class Graph:
+    """The node processes of one run, started and stopped in order."""
+
+    def __init__(self, env: dict, log_dir: Path) -> None:
+        self.env = env
+        self.log_dir = log_dir
+        self.procs: dict[str, subprocess.Popen] = {}
+        self.logs: dict[str, Path] = {}
+
+    def start(self, name: str, module: str, args: list[str]) -> subprocess.Popen:
+        log = self.log_dir / f'{name}.log'
+        self.logs[name] = log
+        with open(log, 'wb') as f:
+            proc = subprocess.Popen([sys.executable, '-m', module, '--ros-args', *args],
+                                    stdout=f, stderr=subprocess.STDOUT, env=self.env,
+                                    stdin=subprocess.DEVNULL, start_new_session=True)
+        self.procs[name] = proc
+        return proc
+
+    def log_tail(self, name: str, lines: int = 15) -> str:
+        try:
+            text = self.logs[name].read_text(errors='replace').strip().splitlines()
+        except OSError:
+            return ''
+        return '\n'.join(text[-lines:])
+
+    def wait_for_line(self, name: str, line: str, timeout: float) -> None:
+        """Wait until process ``name`` prints ``line`` (it is alive and ready)."""
+        deadline = time.monotonic() + timeout
+        proc = self.procs[name]
+        while line not in self.logs[name].read_text(errors='replace'):
+            if proc.poll() is not None:
+                raise RunError(f'{name} exited with status {proc.returncode} at start:\n{self.log_tail(name)}')
+            if time.monotonic() > deadline:
+                raise RunError(f'{name} not ready after {timeout:g} s:\n{self.log_tail(name)}')
+            time.sleep(0.02)
+
+    def failed(self, names) -> tuple[str, int] | None:
+        """The first of ``names`` that has exited (name, status), or None."""
+        for name in names:
+            code = self.procs[name].poll()
+            if code is not None:
+                return name, code
+        return None
+
+    def stop(self, name: str, timeout: float = STOP_TIMEOUT_S) -> int | None:
+        """SIGINT, then SIGKILL after ``timeout``; returns the exit status."""
+        proc = self.procs.get(name)
+        if proc is None:
+            return None
+        if proc.poll() is None:
+            try:
+                os.killpg(proc.pid, signal.SIGINT)
+            except ProcessLookupError:
+                pass
+            try:
+                proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+        return proc.returncode
+
+    def stop_all(self, recorder_last: str | None = 'recorder') -> None:
+        for name in list(self.procs):
+            if name != recorder_last:
+                self.stop(name)
+        if recorder_last in self.procs:
+            self.stop(recorder_last)
+
+
+class _Progress:
+    """/clock subscriber driving a tqdm bar in simulated seconds."""
+
+    def __init__(self, duration: float, enabled: bool) -> None:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+        from rosgraph_msgs.msg import Clock
+        from tqdm import tqdm
+        self.rclpy = rclpy
+        self.context = Context()
+        rclpy.init(context=self.context, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+        self.node = rclpy.create_node('adcs_run_progress', context=self.context)
+        self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.sim_time = 0.0
+        self.bar = tqdm(total=duration, unit='sim s', disable=not enabled, dynamic_ncols=True,
+                        bar_format='{l_bar}{bar}| {n:.0f}/{total:.0f} sim s [{elapsed}<{remaining}]')
+        qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+        self.node.create_subscription(Clock, '/clock', self._on_clock, qos)
+
+    def _on_clock(self, msg) -> None:
+        t = msg.clock.sec + msg.clock.nanosec * 1e-9
+        if t > self.sim_time:
+            self.bar.update(t - self.sim_time)
+            self.sim_time = t
+
+    def spin(self, seconds: float) -> None:
+        self.executor.spin_once(timeout_sec=seconds)
+
+    def close(self) -> None:
+        self.bar.close()
+        self.node.destroy_node()
+        self.rclpy.try_shutdown(context=self.context)
+
+
+def run_scenario(scenario: Path, out: Path, duration: float | None = None, progress: bool = True,
+                 tol_deg: float = 0.5) -> dict:
+    """Run one scenario end to end; return its metrics. Raises RunError / ParameterError."""
+    from adcs_sim.analysis import RunData, run_metrics
+    from adcs_sim.registry import NODES
+    validated = validate_scenario(scenario, duration)
+    if out.exists() and any(out.iterdir()):
+        raise RunError(f'output folder {out} exists and is not empty')
+    log_dir = out / 'logs'
+    log_dir.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(scenario, out / 'scenario.yaml')
+    bag_dir = out / 'bag'
+    lease = DomainLease(1, 99)
+    graph = Graph(lease.env(), log_dir)
+    started = False
+    interrupted = []
+
+    def on_signal(signum, frame):  # noqa: ARG001
+        interrupted.append(signum)
+        raise KeyboardInterrupt
+    old_handlers = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    prog = None
+    try:
+        common = ['--params-file', str(scenario)]
+        graph.start('recorder', NODES['recorder'].module,
+                    [*common, '-p', f'output:={bag_dir}', '-p', f'scenario_file:={scenario}'])
+        from adcs_sim.nodes.recorder import READY_LINE
+        graph.wait_for_line('recorder', READY_LINE, READY_TIMEOUT_S)
+        others = [s for s in validated if s not in ('recorder', 'dynamics')]
+        n_state_subscribers = sum(NODES[s].role == 'controller' for s in others) + 1
+        for name in others:
+            graph.start(name, NODES[name].module, [*common, '-p', 'startup.expect_recorder:=true'])
+        dyn_args = [*common, '-p', 'startup.expect_recorder:=true',
+                    '-p', f'startup.state_subscribers:={n_state_subscribers}']
+        if duration is not None:
+            dyn_args += ['-p', f'duration:={float(duration)!r}']
+        dynamics = graph.start('dynamics', NODES['dynamics'].module, dyn_args)
+        prog = _Progress(validated['dynamics']['duration'], progress)
+        watched = ['recorder', *others]
+        while dynamics.poll() is None:
+            prog.spin(0.2)
+            if prog.sim_time > 0:
+                started = True
+            dead = graph.failed(watched)
+            if dead:
+                name, code = dead
+                raise RunError(f'{name} exited with status {code} '
+                               f'{"during" if started else "before"} the run:\n{graph.log_tail(name)}')
+        if dynamics.returncode != 0:
+            started = started or (bag_dir / 'metadata.yaml').exists() or prog.sim_time > 0
+            raise RunError(f'dynamics exited with status {dynamics.returncode}:\n{graph.log_tail("dynamics")}')
+        started = True
+        prog.close()
+        prog = None
+        for name in others:
+            graph.stop(name)
+        code = graph.stop('recorder')
+        if code != 0:
+            raise RunError(f'recorder exited with status {code}:\n{graph.log_tail("recorder")}')
+    except KeyboardInterrupt:
+        graph.stop_all()
+        raise RunError(f'interrupted by signal {interrupted[0] if interrupted else "SIGINT"}; '
+                       f'bag kept in {bag_dir}') from None
+    except BaseException:
+        graph.stop_all()
+        if not started:
+            shutil.rmtree(out, ignore_errors=True)
+        raise
+    finally:
+        if prog is not None:
+            prog.close()
+        graph.stop_all()
+        lease.release()
+        for s, h in old_handlers.items():
+            signal.signal(s, h)
+    metrics = run_metrics(RunData.from_bag(bag_dir), tol_deg)
+    (out / 'metrics.json').write_text(json.dumps(
+        {k: (v if not isinstance(v, float) or math.isfinite(v) else str(v)) for k, v in metrics.items()},
+        indent=2))
+    return metrics
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog='adcs-run', description=__doc__.splitlines()[0])
+    parser.add_argument('scenario', nargs='?', default=None,
+                        help=f'scenario params file, or the name of one in config/ (default {DEFAULT_SCENARIO})')
+    parser.add_argument('--out', type=Path, default=None, help='output folder (default runs/<scenario>-<time>)')
+    parser.add_argument('--duration', type=float, default=None, help='override the simulated duration (s)')
+    parser.add_argument('--tolerance-deg', type=float, default=0.5,
+                        help='settling band for the printed metrics (deg; default 0.5)')
+    parser.add_argument('--no-progress', action='store_true', help='no progress bar')
+    args = parser.parse_args(argv)
+    try:
+        scenario = resolve_scenario(args.scenario)
+        out = args.out or Path('runs') / f'{scenario.stem}-{datetime.now():%Y%m%d-%H%M%S}'
+        print(f'adcs-run: {scenario} -> {out}', flush=True)
+        metrics = run_scenario(scenario, out, args.duration, not args.no_progress and sys.stderr.isatty(),
+                               args.tolerance_deg)
+    except (ParameterError, RunError) as exc:
+        print(f'adcs-run: error: {exc}', file=sys.stderr)
+        return 1 if isinstance(exc, RunError) else 2
+    from adcs_sim.analysis import format_metrics
+    print(f'bag: {out / "bag"}')
+    print('metrics:')
+    print(format_metrics(metrics))
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
