@@ -140,7 +140,9 @@ class ReactionWheels(Actuator):
         return np.einsum('i,ij,ik->jk', self.spin_inertia, self.axes, self.axes)
 
     def momentum(self, xa, w):
-        return (xa[..., :self.count] * self.spin_inertia) @ self.axes
+        # Absolute spin (relative speed + body rate about the axis): J_s w + this = J w + sum a Js Omega.
+        absolute = xa[..., :self.count] + w @ self.axes.T
+        return (absolute * self.spin_inertia) @ self.axes
 
     def zero_command(self) -> WheelCommand:
         return WheelCommand(np.zeros(self.count), np.zeros(self.count, dtype=bool))

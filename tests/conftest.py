@@ -32,3 +32,29 @@ def ros_domain(monkeypatch):
         yield lease
     finally:
         lease.release()
+
+
+def make_scenario(tmp_path: Path, overrides: dict | None = None, base: str = 'microsat_pd_slew.yaml',
+                  drop: tuple[str, ...] = ()) -> Path:
+    """Copy of a config/ scenario with ``overrides`` ({section: {dotted.name: value}}) applied.
+
+    A value of None deletes the parameter; sections named in ``drop`` are removed.
+    """
+    import yaml
+    tree = yaml.safe_load((CONFIG / base).read_text())
+    for section in drop:
+        tree.pop(section, None)
+    for section, params in (overrides or {}).items():
+        node = tree.setdefault(section, {'ros__parameters': {}})['ros__parameters']
+        for dotted, value in params.items():
+            *parents, leaf = dotted.split('.')
+            d = node
+            for p in parents:
+                d = d.setdefault(p, {})
+            if value is None:
+                d.pop(leaf, None)
+            else:
+                d[leaf] = value
+    path = tmp_path / f'scenario_{len(list(tmp_path.glob("scenario_*.yaml")))}.yaml'
+    path.write_text(yaml.safe_dump(tree, sort_keys=False))
+    return path

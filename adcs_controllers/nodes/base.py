@@ -55,12 +55,16 @@ class ControllerNode(AdcsNode):
 
     # --- plumbing ---------------------------------------------------------------------------
 
-    def run(self, executor) -> None:
+    def connect(self) -> None:
+        """Wait for the command publisher to be matched, then subscribe to the state."""
         recorder = 1 if self.params['startup.expect_recorder'] else 0
         self.wait_for_publishers({self.pub_cmd: 1 + recorder, self.pub_status: recorder},
                                  self.params['startup.timeout'])
         s = topics.spec(topics.STATE)
         self.sub_state = self.create_subscription(s.msg_type, s.name, self._on_state, s.qos)
+
+    def run(self, executor) -> None:
+        self.connect()
         executor.spin()
 
     def _on_state(self, msg) -> None:
