@@ -22,7 +22,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from adcs_msgs_py.params import ParameterError, Schema
+from adcs_msgs_py.params import ParameterError, Schema, load_params_file
 
 EXIT_BAD_PARAMETERS = 2
 EXIT_GRAPH_TIMEOUT = 3
@@ -81,6 +81,14 @@ class AdcsNode(Node):
         executor.spin()
 
 
+def check_params_files(argv: list[str]) -> None:
+    """Parse every ``--params-file`` ourselves first: rcl's parser reports a malformed file with
+    no key; ours names the file, the line and the section."""
+    for i, arg in enumerate(argv[:-1]):
+        if arg == '--params-file':
+            load_params_file(argv[i + 1])
+
+
 def main_for(node_class: type[AdcsNode], args=None, handle_signals: bool = True) -> int:
     """Entry point of a node executable. Returns the process exit status.
 
@@ -88,9 +96,15 @@ def main_for(node_class: type[AdcsNode], args=None, handle_signals: bool = True)
     before closing the bag); otherwise rclpy's handler turns them into a clean shutdown.
     """
     network_hygiene_defaults()
+    argv = list(args if args is not None else sys.argv)
+    try:
+        check_params_files(argv)
+    except ParameterError as exc:
+        print(f'[{node_class.schema.node}] error: {exc}', file=sys.stderr, flush=True)
+        return EXIT_BAD_PARAMETERS
     context = Context()
     options = SignalHandlerOptions.ALL if handle_signals else SignalHandlerOptions.NO
-    rclpy.init(args=args if args is not None else sys.argv, context=context,
+    rclpy.init(args=argv, context=context,
                signal_handler_options=options)
     node = None
     status = 0
