@@ -23,8 +23,8 @@ def controller_params() -> list[Param]:
         *wheel_params(with_physics=False),
         Param('saturation', 'string', default='clip', choices=('clip', 'scale'),
               doc='torque saturation: per actuator (clip) or whole vector (scale)'),
-        Param('torquers.max_torque', 'double', default=float('inf'), check=positive,
-              doc='torquer limit per axis (N m) when actuator is torquers'),
+        Param('torquers.max_torque', 'double', default=float('inf'), check=positive, finite=False,
+              doc='torquer limit per axis (N m; .inf for none) when actuator is torquers'),
         *startup_params(),
     ]
 

@@ -14,6 +14,9 @@ QoS choices
 * **Status / diagnostics**: RELIABLE, depth 50: what the papers plot, one per step, recorded.
 * **Faults**: RELIABLE, TRANSIENT_LOCAL, depth 100: a controller or recorder that joins late still
   learns which actuators are gone.
+* **Recorder** subscriptions: KEEP_ALL (see :func:`recorder_qos`). In lockstep free flight (no
+  command awaited) the dynamics node also waits for its step's messages to be acknowledged
+  before the next step, so a slower recorder paces the run instead of losing data.
 """
 from __future__ import annotations
 
@@ -40,8 +43,17 @@ QOS_STATUS = QoSProfile(
 QOS_LATCHED = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=100,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-# The recorder keeps a deep queue: it must never drop a message while it writes a chunk.
-RECORDER_DEPTH = 1000
+
+
+def recorder_qos(offered: QoSProfile) -> QoSProfile:
+    """The recorder's subscription QoS for a topic offered with ``offered``.
+
+    KEEP_ALL: the recorder must never drop a message while it writes a chunk (a KEEP_LAST reader
+    silently overwrites what it has not taken yet). Same reliability and durability as offered,
+    so transient-local topics deliver their history to it.
+    """
+    return QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=offered.reliability,
+                      durability=offered.durability)
 
 
 @dataclass(frozen=True)

@@ -191,32 +191,42 @@ def mcap_file(bag: str | os.PathLike) -> Path:
     return path
 
 
+def _open_reader(f):
+    """(reader, complete): indexed reader for a file with a summary, else a streaming reader."""
+    try:
+        complete = make_reader(f).get_summary() is not None
+    except Exception:  # noqa: BLE001 - no footer / damaged summary: the writer was killed
+        complete = False
+    f.seek(0)
+    return (make_reader(f), True) if complete else (NonSeekingReader(f, validate_crcs=False), False)
+
+
+def _records(bag, method: str):
+    """Iterate ``reader.<method>()`` over a bag's file; a truncated file ends at its last whole record.
+
+    A complete file is read through its index and any damage raises; a file without summary
+    (writer killed) is streamed and the iteration stops quietly at the first incomplete record.
+    """
+    with open(mcap_file(bag), 'rb') as f:
+        reader, complete = _open_reader(f)
+        it = getattr(reader, method)(**({'log_time_order': False} if method == 'iter_messages' else {}))
+        if complete:
+            yield from it
+            return
+        try:
+            yield from it
+        except Exception:  # noqa: BLE001 - truncated tail
+            return
+
+
 def read_raw(bag: str | os.PathLike) -> Iterator[tuple[str, str, int, bytes]]:
     """(topic, type name, log time ns, CDR bytes) for every message, in file order.
 
-    A complete file is read through its index; a truncated one (writer killed) by streaming up to
-    the last complete record.
+    Works on a complete bag and on one whose writer was killed (everything up to the last
+    complete record).
     """
-    path = mcap_file(bag)
-    with open(path, 'rb') as f:
-        try:
-            reader = make_reader(f)
-            reader.get_summary()
-            if reader.get_summary() is None:
-                raise ValueError('no summary')
-            it = reader.iter_messages(log_time_order=False)
-            for schema, channel, message in it:
-                yield channel.topic, schema.name, message.log_time, message.data
-            return
-        except Exception:  # noqa: BLE001 - any damage: fall back to streaming
-            pass
-    with open(path, 'rb') as f:
-        reader = NonSeekingReader(f, validate_crcs=False)
-        try:
-            for schema, channel, message in reader.iter_messages(log_time_order=False):
-                yield channel.topic, schema.name, message.log_time, message.data
-        except Exception:  # noqa: BLE001 - truncated tail: stop at the last complete record
-            return
+    for schema, channel, message in _records(bag, 'iter_messages'):
+        yield channel.topic, schema.name, message.log_time, message.data
 
 
 def read_messages(bag: str | os.PathLike, topics: set[str] | None = None) -> Iterator[tuple[str, int, Any]]:
@@ -228,12 +238,5 @@ def read_messages(bag: str | os.PathLike, topics: set[str] | None = None) -> Ite
 
 
 def read_metadata(bag: str | os.PathLike) -> dict[str, str]:
-    """MCAP metadata records of a bag (e.g. the embedded scenario file)."""
-    out: dict[str, str] = {}
-    with open(mcap_file(bag), 'rb') as f:
-        try:
-            for record in make_reader(f).iter_metadata():
-                out[record.name] = record.metadata.get('text', '')
-        except Exception:  # noqa: BLE001
-            pass
-    return out
+    """MCAP metadata records of a bag (e.g. the embedded ``scenario`` file), also when truncated."""
+    return {record.name: record.metadata.get('text', '') for record in _records(bag, 'iter_metadata')}

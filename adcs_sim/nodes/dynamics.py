@@ -90,6 +90,8 @@ class DynamicsNode(AdcsNode):
         self.pub_wheels = pub(topics.WHEELS_STATE) if self.wheels else None
         self.pub_applied = pub(topics.APPLIED_TORQUE)
         self.pub_status = pub(topics.DYNAMICS_STATUS)
+        self._step_publishers = [p for p in (self.pub_clock, self.pub_state, self.pub_truth,
+                                             self.pub_wheels) if p is not None]
         self._state_msg = None
         self._truth_msg = None
         self._wheel_msg = None
@@ -216,6 +218,10 @@ class DynamicsNode(AdcsNode):
     def _wait_commands(self, executor, timeout: float) -> None:
         awaited = self.awaited
         if not awaited:
+            # Free flight: nothing paces the loop, so pace it by the subscribers' acknowledgements
+            # (a slower recorder slows the run instead of losing messages).
+            for pub in self._step_publishers:
+                pub.wait_for_all_acked(Duration(seconds=timeout))
             executor.spin_once(timeout_sec=0.0)
             return
         deadline = time.monotonic() + timeout
@@ -246,10 +252,8 @@ class DynamicsNode(AdcsNode):
             executor.spin_once(timeout_sec=remaining)
 
     def _drain_acks(self) -> None:
-        for pub in (self.pub_clock, self.pub_state, self.pub_truth, self.pub_wheels,
-                    self.pub_applied, self.pub_status):
-            if pub is not None:
-                pub.wait_for_all_acked(Duration(seconds=5.0))
+        for pub in self._step_publishers + [self.pub_applied, self.pub_status]:
+            pub.wait_for_all_acked(Duration(seconds=5.0))
 
 
 def main(args=None) -> None:

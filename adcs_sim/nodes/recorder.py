@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib
 import signal
+import threading
 import sys
 import time
 from datetime import datetime
@@ -26,6 +27,7 @@ from adcs_sim.nodes.base import AdcsNode, main_for
 from adcs_sim.scenario import RECORDER_SCHEMA
 
 IGNORED_TOPICS = ('/rosout', '/parameter_events')
+STOP_REQUESTED = threading.Event()  # set by SIGINT / SIGTERM in the recorder process
 READY_LINE = 'recorder: ready'
 
 
@@ -69,9 +71,7 @@ class RecorderNode(AdcsNode):
         self.record_all = 'all' in wanted
         for spec in topics.TOPICS.values():
             if self.record_all or spec.name in wanted:
-                qos = QoSProfile(history=spec.qos.history, depth=topics.RECORDER_DEPTH,
-                                 reliability=spec.qos.reliability, durability=spec.qos.durability)
-                self._subscribe(spec.name, spec.msg_type, qos, spec.qos)
+                self._subscribe(spec.name, spec.msg_type, topics.recorder_qos(spec.qos), spec.qos)
         self.create_timer(p['flush_period'], self.bag.flush)
         if self.record_all:
             self.create_timer(p['discovery_period'], self._discover)
@@ -100,16 +100,12 @@ class RecorderNode(AdcsNode):
                 continue
             infos = self.get_publishers_info_by_topic(name)
             reliable = infos and all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
-            qos = QoSProfile(depth=topics.RECORDER_DEPTH, reliability=ReliabilityPolicy.RELIABLE
-                             if reliable else ReliabilityPolicy.BEST_EFFORT)
+            qos = topics.recorder_qos(QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE
+                                                 if reliable else ReliabilityPolicy.BEST_EFFORT))
             self._subscribe(name, msg_type, qos, infos[0].qos_profile if infos else qos)
 
     def run(self, executor) -> None:
-        def request_stop(signum, frame):  # noqa: ARG001
-            self.stopping = True
-        signal.signal(signal.SIGINT, request_stop)
-        signal.signal(signal.SIGTERM, request_stop)
-        while not self.stopping:
+        while not (self.stopping or STOP_REQUESTED.is_set()):
             executor.spin_once(timeout_sec=0.1)
         # Drain: keep taking what DDS already delivered until a quiet period.
         quiet_until = time.monotonic() + 0.3
@@ -125,7 +121,15 @@ class RecorderNode(AdcsNode):
               f'{self.bag.path}', file=sys.stderr, flush=True)
 
 
+def _request_stop(signum, frame) -> None:  # noqa: ARG001
+    STOP_REQUESTED.set()
+
+
 def main(args=None) -> None:
+    # Handle SIGINT/SIGTERM before the node exists (and so before it announces ready): a signal
+    # at any moment stops the recorder cleanly instead of killing it with the bag unclosed.
+    signal.signal(signal.SIGINT, _request_stop)
+    signal.signal(signal.SIGTERM, _request_stop)
     raise SystemExit(main_for(RecorderNode, args, handle_signals=False))
 
 
