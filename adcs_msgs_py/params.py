@@ -41,7 +41,11 @@ Check = Callable[[Any], 'str | None']
 
 @dataclass(frozen=True)
 class Param:
-    """One parameter: name (dotted), kind, default (or REQUIRED), length, check, doc."""
+    """One parameter: name (dotted), kind, default (or REQUIRED), length, check, doc.
+
+    Doubles (and double-array elements) must be finite unless ``finite=False`` (limits where
+    ``.inf`` means "none"); NaN is refused always.
+    """
 
     name: str
     kind: str
@@ -50,6 +54,7 @@ class Param:
     length: int | tuple[int, ...] | None = None
     check: Check | None = None
     choices: tuple[str, ...] | None = None
+    finite: bool = True
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -66,8 +71,8 @@ class Param:
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise TypeError(f'expected a number (double), got {value!r}')
             value = float(value)
-            if not math.isfinite(value):
-                raise ValueError(f'must be finite, got {value!r}')
+            if math.isnan(value) or (self.finite and math.isinf(value)):
+                raise ValueError(f'must be {"finite" if self.finite else "a number, not NaN"}, got {value!r}')
         elif kind == 'int':
             if isinstance(value, bool) or not isinstance(value, int):
                 raise TypeError(f'expected an integer, got {value!r}')
@@ -80,7 +85,7 @@ class Param:
         else:
             if not isinstance(value, (list, tuple)):
                 raise TypeError(f'expected a list ({kind}), got {value!r}')
-            elem = Param(self.name, kind[:-len('_array')])
+            elem = Param(self.name, kind[:-len('_array')], finite=self.finite)
             try:
                 value = [elem.coerce(v) for v in value]
             except (TypeError, ValueError) as exc:

@@ -48,14 +48,15 @@ def wheel_params(with_physics: bool) -> list[Param]:
         Param('wheels.axes', 'double_array', default=[],
               doc='spin axes in body axes, 3 per wheel, flattened (need not be unit)'),
         Param('wheels.max_torque', 'double_array', default=[],
-              doc='motor torque limit per wheel (N m, > 0; .inf for none)', check=all_positive),
+              doc='motor torque limit per wheel (N m, > 0; .inf for none)', check=all_positive, finite=False),
     ]
     if with_physics:
         params += [
             Param('wheels.spin_inertia', 'double_array', default=[],
                   doc='spin inertia per wheel (kg m^2, > 0); included in `inertia`', check=all_positive),
             Param('wheels.max_speed', 'double_array', default=[],
-                  doc='speed limit per wheel (rad/s, > 0; .inf for none)', check=all_positive),
+                  doc='speed limit per wheel (rad/s, > 0; .inf for none)', check=all_positive,
+                  finite=False),
             Param('wheels.viscous_friction', 'double_array', default=[],
                   doc='viscous friction per wheel (N m s/rad, >= 0; default 0)', check=all_non_negative),
             Param('wheels.coulomb_friction', 'double_array', default=[],
@@ -154,7 +155,7 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
     *wheel_params(with_physics=True),
     Param('torquers.enabled', 'bool', default=False, doc='ideal external torquers (torque_cmd)'),
     Param('torquers.max_torque', 'double_array', default=[math.inf] * 3, length=3, check=all_positive,
-          doc='per-axis torquer limit (N m)'),
+          finite=False, doc='per-axis torquer limit (N m; .inf for none)'),
     Param('disturbance.constant', 'double_array', default=[0.0] * 3, length=3, doc='N m, body axes'),
     Param('disturbance.amplitude', 'double_array', default=[0.0] * 3, length=3, doc='N m, body axes'),
     Param('disturbance.frequency', 'double_array', default=[0.0] * 3, length=3, doc='rad/s'),
