@@ -58,3 +58,53 @@ def make_scenario(tmp_path: Path, overrides: dict | None = None, base: str = 'mi
     path = tmp_path / f'scenario_{len(list(tmp_path.glob("scenario_*.yaml")))}.yaml'
     path.write_text(yaml.safe_dump(tree, sort_keys=False))
     return path
+
+
+def spin_until(executor, condition, timeout: float = 30.0, what: str = 'the expected messages') -> None:
+    """Spin until ``condition()``; the deadline only turns a hang into a failure."""
+    import time
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, f'graph did not deliver {what} within {timeout} s'
+        executor.spin_once(timeout_sec=0.1)
+
+
+class InProcessGraph:
+    """Nodes of the graph in this process, on a private context, one executor.
+
+    ``graph.add(NodeClass)`` builds an adcs_sim node from the scenario's parameters;
+    ``graph.plain(name)`` a bare rclpy node for test publishers/subscribers. Everything is
+    destroyed and the context shut down on exit.
+    """
+
+    def __init__(self, scenario: Path) -> None:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        self.rclpy = rclpy
+        self.context = Context()
+        rclpy.init(args=['--ros-args', '--params-file', str(scenario)], context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.nodes = []
+
+    def add(self, node_class):
+        return self._register(node_class(self.context))
+
+    def plain(self, name: str):
+        return self._register(self.rclpy.create_node(name, context=self.context))
+
+    def _register(self, node):
+        self.nodes.append(node)
+        self.executor.add_node(node)
+        return node
+
+    def spin_until(self, condition, timeout: float = 30.0, what: str = 'the expected messages') -> None:
+        spin_until(self.executor, condition, timeout, what)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for node in reversed(self.nodes):
+            node.destroy_node()
+        self.rclpy.try_shutdown(context=self.context)

@@ -10,29 +10,18 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.runner import main as runner_main
 from adcs_sim.runner import run_scenario
-from conftest import ROOT, make_scenario
+from conftest import ROOT, InProcessGraph, make_scenario
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
-
-
-def spin_until(executor, condition, timeout: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, 'expected message did not arrive'
-        executor.spin_once(timeout_sec=0.1)
 
 
 def _bad_wheel_commands(t_ns: int) -> list[JointState]:
@@ -54,11 +43,9 @@ def test_dynamics_rejects_bad_wheel_commands_and_runs_on(ros_domain, tmp_path):
     steps = 5
     scenario = make_scenario(tmp_path, {'dynamics': {'duration': float(steps), 'lockstep.timeout': 10.0}},
                              drop=('pd_controller', 'recorder'))
-    ctx = Context()
-    rclpy.init(args=['--ros-args', '--params-file', str(scenario)], context=ctx)
-    try:
-        dyn = DynamicsNode(ctx)
-        ctl = rclpy.create_node('bad_controller', context=ctx)
+    with InProcessGraph(scenario) as graph:
+        dyn = graph.add(DynamicsNode)
+        ctl = graph.plain('bad_controller')
         pub = ctl.create_publisher(JointState, topics.WHEELS_CMD, topics.QOS_LOCKSTEP)
         good = 0.002
 
@@ -68,40 +55,28 @@ def test_dynamics_rejects_bad_wheel_commands_and_runs_on(ros_domain, tmp_path):
                 pub.publish(bad)
             pub.publish(cv.wheel_cmd_to_msg(t_ns, ['rw_x'], effort=[good]))
         ctl.create_subscription(Odometry, topics.STATE, on_state, topics.QOS_LOCKSTEP)
-        executor = SingleThreadedExecutor(context=ctx)
-        executor.add_node(dyn)
-        executor.add_node(ctl)
-        dyn.run(executor)
-        n_bad = len(_bad_wheel_commands(0))
-        assert dyn.rejects.counts[topics.WHEELS_CMD] == steps * n_bad
-        assert dyn.missed_steps == 0
-        assert np.all(np.isfinite(dyn.x))
-        # Only the good command acted: wheel x absolute momentum = good torque x duration.
-        speed, w_x = dyn.x[dyn.plant.slices['wheels']][0], dyn.x[4]
-        np.testing.assert_allclose(0.01 * (speed + w_x), good * steps, rtol=1e-9)
-        ctl.destroy_node()
-        dyn.destroy_node()
-    finally:
-        rclpy.try_shutdown(context=ctx)
+        dyn.run(graph.executor)
+    n_bad = len(_bad_wheel_commands(0))
+    assert dyn.rejects.counts[topics.WHEELS_CMD] == steps * n_bad
+    assert dyn.missed_steps == 0
+    assert np.all(np.isfinite(dyn.x))
+    # Only the good command acted: wheel x absolute momentum = good torque x duration.
+    speed, w_x = dyn.x[dyn.plant.slices['wheels']][0], dyn.x[4]
+    np.testing.assert_allclose(0.01 * (speed + w_x), good * steps, rtol=1e-9)
 
 
 def test_controller_rejects_bad_states(ros_domain, tmp_path):
     from adcs_controllers.nodes.pd_controller import PdController
 
     scenario = make_scenario(tmp_path, drop=('dynamics', 'recorder'))
-    ctx = Context()
-    rclpy.init(args=['--ros-args', '--params-file', str(scenario)], context=ctx)
-    try:
-        pd = PdController(ctx)
-        test = rclpy.create_node('state_source', context=ctx)
+    with InProcessGraph(scenario) as graph:
+        pd = graph.add(PdController)
+        test = graph.plain('state_source')
         pub = test.create_publisher(Odometry, topics.STATE, topics.QOS_LOCKSTEP)
         answers = []
         test.create_subscription(JointState, topics.WHEELS_CMD, answers.append, topics.QOS_LOCKSTEP)
-        executor = SingleThreadedExecutor(context=ctx)
-        executor.add_node(pd)
-        executor.add_node(test)
         pd.connect()
-        spin_until(executor, lambda: pub.get_subscription_count() >= 1)
+        graph.spin_until(lambda: pub.get_subscription_count() >= 1, what='a matched state subscriber')
         bad = [
             cv.state_to_msg(1, [0.0, 0.0, 0.0, 1.1], [0.0, 0.0, 0.0]),          # not unit
             cv.state_to_msg(2, [0.0, 0.0, 0.0, 1.0], [math.nan, 0.0, 0.0]),     # NaN rate
@@ -111,15 +86,11 @@ def test_controller_rejects_bad_states(ros_domain, tmp_path):
         for msg in bad:
             pub.publish(msg)
         pub.publish(cv.state_to_msg(5, [0.0, 0.0, 0.0, 1.0], [0.01, 0.0, 0.0]))
-        spin_until(executor, lambda: len(answers) >= 1)
-        assert [cv.ns_from_stamp(a.header.stamp) for a in answers] == [5]
-        assert pd.rejects.counts[topics.STATE] == len(bad)
-        # PD on w = [0.01, 0, 0]: body torque -kd I w = -0.05*12*0.01 -> wheel x torque +0.006
-        np.testing.assert_allclose(answers[0].effort, [0.006, 0.0, 0.0], atol=1e-15)
-        test.destroy_node()
-        pd.destroy_node()
-    finally:
-        rclpy.try_shutdown(context=ctx)
+        graph.spin_until(lambda: len(answers) >= 1, what="the controller's answer")
+    assert [cv.ns_from_stamp(a.header.stamp) for a in answers] == [5]
+    assert pd.rejects.counts[topics.STATE] == len(bad)
+    # PD on w = [0.01, 0, 0]: body torque -kd I w = -0.05*12*0.01 -> wheel x torque +0.006
+    np.testing.assert_allclose(answers[0].effort, [0.006, 0.0, 0.0], atol=1e-15)
 
 
 # --- parameter files ------------------------------------------------------------------------

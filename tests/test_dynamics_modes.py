@@ -4,23 +4,11 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 
+from adcs_sim import bag as bagio
 from adcs_sim.analysis import RunData
 from adcs_sim.attitude import eigenaxis_angle, error_quaternion
-from conftest import make_scenario
-
-
-def _start(scenario, *node_classes):
-    ctx = Context()
-    rclpy.init(args=['--ros-args', '--params-file', str(scenario)], context=ctx)
-    nodes = [cls(ctx) for cls in node_classes]
-    executor = SingleThreadedExecutor(context=ctx)
-    for node in nodes:
-        executor.add_node(node)
-    return ctx, executor, nodes
+from conftest import InProcessGraph, make_scenario
 
 
 def test_realtime_mode_paces_and_uses_latest_commands(ros_domain, tmp_path):
@@ -31,20 +19,17 @@ def test_realtime_mode_paces_and_uses_latest_commands(ros_domain, tmp_path):
 
     scenario = make_scenario(tmp_path, {'dynamics': {
         'duration': 200.0, 'mode': 'realtime', 'real_time_factor': 2000.0}}, drop=('recorder',))
-    ctx, executor, (dyn, pd) = _start(scenario, DynamicsNode, PdController)
-    try:
+    with InProcessGraph(scenario) as graph:
+        dyn = graph.add(DynamicsNode)
+        pd = graph.add(PdController)
         pd.connect()
         e0 = float(eigenaxis_angle(dyn.x[:4]))
         wall0 = time.monotonic()
-        dyn.run(executor)
+        dyn.run(graph.executor)
         wall = time.monotonic() - wall0
-        assert dyn.awaited == [] and dyn.missed_steps == 0 and dyn.stale_commands == 0
-        assert wall >= 200.0 / 2000.0  # paced: never faster than the real-time factor allows
-        assert float(eigenaxis_angle(dyn.x[:4])) < 0.8 * e0  # commands were applied
-    finally:
-        for node in (dyn, pd):
-            node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
+    assert dyn.awaited == [] and dyn.missed_steps == 0 and dyn.stale_commands == 0
+    assert wall >= 200.0 / 2000.0  # paced: never faster than the real-time factor allows
+    assert float(eigenaxis_angle(dyn.x[:4])) < 0.8 * e0  # commands were applied
 
 
 def test_measurement_noise_is_seeded_and_truth_is_recorded(ros_domain, tmp_path):
@@ -64,19 +49,13 @@ def test_measurement_noise_is_seeded_and_truth_is_recorded(ros_domain, tmp_path)
                          'noise.attitude_std': att_std, 'noise.rate_std': rate_std,
                          'noise.gyro_bias': bias, 'startup.expect_recorder': True},
             'recorder': {'output': str(bag)}}, drop=('pd_controller',))
-        ctx, executor, (rec, dyn) = _start(scenario, RecorderNode, DynamicsNode)
-        try:
-            dyn.run(executor)
-            deadline = time.monotonic() + 30
-            while rec.bag.topics['/state'].count < n + 1 or rec.bag.topics['/truth/state'].count < n + 1:
-                assert time.monotonic() < deadline
-                executor.spin_once(timeout_sec=0.1)
+        with InProcessGraph(scenario) as graph:
+            rec = graph.add(RecorderNode)
+            dyn = graph.add(DynamicsNode)
+            dyn.run(graph.executor)
+            graph.spin_until(lambda: rec.bag.topics['/state'].count == n + 1
+                             and rec.bag.topics['/truth/state'].count == n + 1)
             rec.close()
-        finally:
-            for node in (rec, dyn):
-                node.destroy_node()
-            rclpy.try_shutdown(context=ctx)
-        from adcs_sim import bag as bagio
         measured = [(m.pose.pose.orientation, m.twist.twist.angular)
                     for _, _, m in bagio.read_messages(bag, {'/state'})]
         q_m = np.array([[o.x, o.y, o.z, o.w] for o, _ in measured])

@@ -7,21 +7,17 @@ on the graph's own events (matched endpoints, message counts) with deadlines as 
 """
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
 from adcs_sim import bag as bagio
 from adcs_sim.analysis import RunData, run_metrics
 from adcs_sim.runner import run_scenario
-from conftest import make_scenario
+from conftest import InProcessGraph, make_scenario
 from reference_pd import pd_slew_reference
 
 J = np.diag([12.0, 14.0, 10.0])
@@ -34,13 +30,6 @@ TRAJ_TOL = 1e-8
 
 def reference(n_steps: int):
     return pd_slew_reference(J, 0.01, Q0, kp=0.002, kd=0.05, limit=0.01, period=1.0, n_steps=n_steps)
-
-
-def spin_until(executor, condition, timeout: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, 'graph did not deliver the expected messages in time'
-        executor.spin_once(timeout_sec=0.1)
 
 
 def assert_matches_reference(run: RunData, n_steps: int) -> None:
@@ -64,30 +53,19 @@ def test_in_process_loop_converges_and_matches_reference(ros_domain, tmp_path):
         'dynamics': {'duration': float(n), 'startup.expect_recorder': True},
         'pd_controller': {'startup.expect_recorder': True},
         'recorder': {'output': str(bag_dir)}})
-    ctx = Context()
-    rclpy.init(args=['--ros-args', '--params-file', str(scenario)], context=ctx)
-    nodes = []
-    try:
-        rec = RecorderNode(ctx)
-        dyn = DynamicsNode(ctx)
-        pd = PdController(ctx)
-        nodes = [rec, dyn, pd]
-        executor = SingleThreadedExecutor(context=ctx)
-        for node in nodes:
-            executor.add_node(node)
+    with InProcessGraph(scenario) as graph:
+        rec = graph.add(RecorderNode)
+        dyn = graph.add(DynamicsNode)
+        pd = graph.add(PdController)
         pd.connect()
-        dyn.run(executor)
+        dyn.run(graph.executor)
         counts = rec.bag.topics
-        spin_until(executor, lambda: counts['/state'].count == n + 1
-                   and counts['/controller/status'].count == n + 1
-                   and counts['/wheels/cmd'].count == n + 1
-                   and counts['/dynamics/status'].count == 2)
+        graph.spin_until(lambda: counts['/state'].count == n + 1
+                         and counts['/controller/status'].count == n + 1
+                         and counts['/wheels/cmd'].count == n + 1
+                         and counts['/dynamics/status'].count == 2)
         assert dyn.missed_steps == 0 and dyn.stale_commands == 0 and dyn.rejects.total == 0
         rec.close()
-    finally:
-        for node in nodes:
-            node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
 
     run = RunData.from_bag(bag_dir)
     assert run.t.size == n + 1
@@ -152,11 +130,9 @@ def test_silent_controller_counts_missed_steps_and_applies_policy(ros_domain, tm
     scenario = make_scenario(tmp_path, {'dynamics': {
         'duration': float(steps), 'lockstep.timeout': 0.05, 'lockstep.timeout_policy': policy,
         'startup.timeout': 10.0}}, drop=('pd_controller', 'recorder'))
-    ctx = Context()
-    rclpy.init(args=['--ros-args', '--params-file', str(scenario)], context=ctx)
-    try:
-        dyn = DynamicsNode(ctx)
-        ctl = rclpy.create_node('first_step_only', context=ctx)
+    with InProcessGraph(scenario) as graph:
+        dyn = graph.add(DynamicsNode)
+        ctl = graph.plain('first_step_only')
         pub = ctl.create_publisher(JointState, topics.WHEELS_CMD, topics.QOS_LOCKSTEP)
 
         def on_state(msg):
@@ -164,19 +140,12 @@ def test_silent_controller_counts_missed_steps_and_applies_policy(ros_domain, tm
             if t_ns == 0:
                 pub.publish(cv.wheel_cmd_to_msg(0, ['rw_x'], effort=[tau]))
         ctl.create_subscription(Odometry, topics.STATE, on_state, topics.QOS_LOCKSTEP)
-        executor = SingleThreadedExecutor(context=ctx)
-        executor.add_node(dyn)
-        executor.add_node(ctl)
-        dyn.run(executor)
-        assert dyn.missed_steps == steps - 1
-        # Body x momentum change = -(wheel torque) x (time it was applied); J_s,xx = 12 - 0.01.
-        held = steps if policy == 'hold' else 1
-        H = dyn.plant.angular_momentum(dyn.x)
-        np.testing.assert_allclose(H[0], 0.0, atol=1e-12)          # no external torque
-        speed = dyn.x[dyn.plant.slices['wheels']][0]
-        w_x = dyn.x[4]
-        np.testing.assert_allclose(0.01 * (speed + w_x), tau * held, rtol=1e-9)  # wheel absolute momentum
-        ctl.destroy_node()
-        dyn.destroy_node()
-    finally:
-        rclpy.try_shutdown(context=ctx)
+        dyn.run(graph.executor)
+    assert dyn.missed_steps == steps - 1
+    # Body x momentum change = -(wheel torque) x (time it was applied); J_s,xx = 12 - 0.01.
+    held = steps if policy == 'hold' else 1
+    H = dyn.plant.angular_momentum(dyn.x)
+    np.testing.assert_allclose(H[0], 0.0, atol=1e-12)          # no external torque
+    speed = dyn.x[dyn.plant.slices['wheels']][0]
+    w_x = dyn.x[4]
+    np.testing.assert_allclose(0.01 * (speed + w_x), tau * held, rtol=1e-9)  # wheel absolute momentum
