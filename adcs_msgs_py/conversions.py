@@ -8,6 +8,7 @@ catch it through :class:`adcs_msgs_py.guard.RejectCounter`, which counts and war
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -60,18 +61,20 @@ def clock_msg(t_ns: int) -> Clock:
 # --- validation helpers -------------------------------------------------------------------
 
 def _finite(name: str, values, length: int | None = None) -> np.ndarray:
-    arr = np.asarray(values, dtype=float)
-    if length is not None and arr.shape != (length,):
-        raise InvalidMessage(f'{name}: expected {length} values, got {arr.size}')
-    if not np.all(np.isfinite(arr)):
-        raise InvalidMessage(f'{name}: non-finite value in {arr.tolist()}')
-    return arr
+    # Plain-float checks: messages carry a handful of numbers, and numpy's per-call overhead
+    # would dominate (this runs on every message of the lockstep loop).
+    values = [float(v) for v in values]
+    if length is not None and len(values) != length:
+        raise InvalidMessage(f'{name}: expected {length} values, got {len(values)}')
+    if not all(map(math.isfinite, values)):
+        raise InvalidMessage(f'{name}: non-finite value in {values}')
+    return np.array(values)
 
 
 def checked_quaternion(name: str, xyzw, tol: float = UNIT_QUATERNION_TOLERANCE) -> np.ndarray:
     """Validate a unit quaternion (x, y, z, w); return it as an array (renormalised within tol)."""
     q = _finite(name, xyzw, 4)
-    norm = float(np.linalg.norm(q))
+    norm = math.sqrt(float(q @ q))
     if abs(norm - 1.0) > tol:
         raise InvalidMessage(f'{name}: quaternion norm {norm:.9g} is not 1 (tolerance {tol:g})')
     return q / norm

@@ -18,11 +18,24 @@ from scipy.spatial.transform import Rotation
 EULER_213 = 'YXZ'
 
 
+_NEXT = np.array([1, 2, 0])
+_PREV = np.array([2, 0, 1])
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product of 3-vectors along the last axis (batchable).
+
+    Same result as :func:`numpy.cross`, which spends ~30 µs per call on argument handling: this
+    is the plant's innermost operation (8 calls per RK4 step), so it is written out.
+    """
+    return a[..., _NEXT] * b[..., _PREV] - a[..., _PREV] * b[..., _NEXT]
+
+
 def quat_kinematics(q: np.ndarray, w: np.ndarray) -> np.ndarray:
     """dq/dt for body rate ``w`` (seed 004 eq. 4): dq_v = 1/2 (q4 w - w x q_v), dq4 = -1/2 w.q_v."""
     qv, q4 = q[..., :3], q[..., 3:4]
-    dqv = 0.5 * (q4 * w - np.cross(w, qv))
-    dq4 = -0.5 * np.sum(w * qv, axis=-1, keepdims=True)
+    dqv = 0.5 * (q4 * w - cross(w, qv))
+    dq4 = -0.5 * (w * qv).sum(axis=-1, keepdims=True)
     return np.concatenate([dqv, dq4], axis=-1)
 
 
@@ -30,8 +43,8 @@ def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Hamilton product ``p ⊗ q`` (scalar last)."""
     pv, p4 = p[..., :3], p[..., 3:4]
     qv, q4 = q[..., :3], q[..., 3:4]
-    v = p4 * qv + q4 * pv + np.cross(pv, qv)
-    s = p4 * q4 - np.sum(pv * qv, axis=-1, keepdims=True)
+    v = p4 * qv + q4 * pv + cross(pv, qv)
+    s = p4 * q4 - (pv * qv).sum(axis=-1, keepdims=True)
     return np.concatenate([v, s], axis=-1)
 
 

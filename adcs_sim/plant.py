@@ -37,7 +37,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from adcs_sim.attitude import quat_kinematics
+from adcs_sim.attitude import cross, quat_kinematics
 
 MU_EARTH = 3.986004418e14  # m^3/s^2
 R_EARTH = 6378137.0  # m
@@ -46,8 +46,8 @@ R_EARTH = 6378137.0  # m
 def rotate_to_body(q: np.ndarray, v_inertial: np.ndarray) -> np.ndarray:
     """``R(q)^T v``: an inertial vector in body axes (``q`` body-in-inertial, scalar last)."""
     qv, q4 = q[..., :3], q[..., 3:4]
-    t = 2.0 * np.cross(v_inertial, qv)
-    return v_inertial + q4 * t + np.cross(t, qv)
+    t = 2.0 * cross(v_inertial, qv)
+    return v_inertial + q4 * t + cross(t, qv)
 
 
 # --- actuators -------------------------------------------------------------------------------
@@ -150,13 +150,13 @@ class ReactionWheels(Actuator):
     def motor_torque(self, speed: np.ndarray, cmd: WheelCommand) -> np.ndarray:
         """Motor torque actually produced for wheel speeds ``speed`` under ``cmd``."""
         value = cmd.value
-        if np.any(cmd.speed_mode):
+        if cmd.speed_mode.any():
             loop = self.spin_inertia * self.speed_gain * (value - speed)
             value = np.where(cmd.speed_mode, loop, value)
-        tau = np.clip(value, -self.max_torque, self.max_torque)
+        tau = np.minimum(np.maximum(value, -self.max_torque), self.max_torque)
         if self._speed_limited:
             tau = np.where((np.abs(speed) >= self.max_speed) & (tau * speed > 0), 0.0, tau)
-        return np.where(self.available, tau, 0.0)
+        return tau * self.available
 
     def friction_torque(self, speed: np.ndarray) -> np.ndarray:
         return -self.viscous * speed - self.coulomb * np.sign(speed)
@@ -243,7 +243,7 @@ class CircularOrbit:
     def gravity_gradient(self, t: float, q: np.ndarray, inertia: np.ndarray) -> np.ndarray:
         """Gravity-gradient torque ``3 n^2 c x (J c)``, c = nadir unit vector in body axes."""
         c = rotate_to_body(q, -self.position_unit(t))
-        return 3.0 * self.mean_motion ** 2 * np.cross(c, c @ inertia.T)
+        return 3.0 * self.mean_motion ** 2 * cross(c, c @ inertia.T)
 
 
 # --- the plant --------------------------------------------------------------------------------
@@ -365,7 +365,7 @@ class Plant:
             ta, aux = a.torque(t, xa, w, commands[a.name])
             tau = tau + ta
             auxes.append(aux)
-        wdot = (tau - np.cross(w, H)) @ self.inertia_struct_inv.T
+        wdot = (tau - cross(w, H)) @ self.inertia_struct_inv.T
         parts = [quat_kinematics(q, w), wdot]
         for a, aux in zip(self.actuators, auxes):
             parts.append(a.derivative(t, x[..., self.slices[a.name]], w, wdot, commands[a.name], aux))

@@ -39,12 +39,8 @@ class ControllerNode(AdcsNode):
             self.wheel_limit = np.asarray(p['wheels.max_torque'], dtype=float)
             self.available = np.ones(len(names), dtype=bool)
             self.allocation = wheel_allocation_matrix(self.wheel_axes, self.available)
-            s = topics.spec(topics.WHEELS_CMD)
-        else:
-            s = topics.spec(topics.TORQUE_CMD)
-        self.pub_cmd = self.create_publisher(s.msg_type, s.name, s.qos)
-        s = topics.spec(topics.CONTROLLER_STATUS)
-        self.pub_status = self.create_publisher(s.msg_type, s.name, s.qos)
+        self.pub_cmd = self.publisher(topics.WHEELS_CMD if self.actuator == 'wheels' else topics.TORQUE_CMD)
+        self.pub_status = self.publisher(topics.CONTROLLER_STATUS)
         self.sub_state = None
 
     # --- to implement -----------------------------------------------------------------------
@@ -60,8 +56,7 @@ class ControllerNode(AdcsNode):
         recorder = 1 if self.params['startup.expect_recorder'] else 0
         self.wait_for_publishers({self.pub_cmd: 1 + recorder, self.pub_status: recorder},
                                  self.params['startup.timeout'])
-        s = topics.spec(topics.STATE)
-        self.sub_state = self.create_subscription(s.msg_type, s.name, self._on_state, s.qos)
+        self.sub_state = self.subscription(topics.STATE, self._on_state)
 
     def run(self, executor) -> None:
         self.connect()

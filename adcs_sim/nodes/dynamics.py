@@ -80,16 +80,12 @@ class DynamicsNode(AdcsNode):
         self.step_ns = 0
         self.received: set[str] = set()
 
-        def pub(name):
-            s = topics.spec(name)
-            return self.create_publisher(s.msg_type, s.name, s.qos)
-
-        self.pub_clock = pub(topics.CLOCK)
-        self.pub_state = pub(topics.STATE)
-        self.pub_truth = pub(topics.TRUTH_STATE) if self.measurement.active else None
-        self.pub_wheels = pub(topics.WHEELS_STATE) if self.wheels else None
-        self.pub_applied = pub(topics.APPLIED_TORQUE)
-        self.pub_status = pub(topics.DYNAMICS_STATUS)
+        self.pub_clock = self.publisher(topics.CLOCK)
+        self.pub_state = self.publisher(topics.STATE)
+        self.pub_truth = self.publisher(topics.TRUTH_STATE) if self.measurement.active else None
+        self.pub_wheels = self.publisher(topics.WHEELS_STATE) if self.wheels else None
+        self.pub_applied = self.publisher(topics.APPLIED_TORQUE)
+        self.pub_status = self.publisher(topics.DYNAMICS_STATUS)
         self._step_publishers = [p for p in (self.pub_clock, self.pub_state, self.pub_truth,
                                              self.pub_wheels) if p is not None]
         self._state_msg = None
@@ -98,13 +94,9 @@ class DynamicsNode(AdcsNode):
 
         self.subs = {}
         if self.wheels:
-            s = topics.spec(topics.WHEELS_CMD)
-            self.subs[topics.WHEELS_CMD] = self.create_subscription(
-                s.msg_type, s.name, self._on_wheel_cmd, s.qos)
+            self.subs[topics.WHEELS_CMD] = self.subscription(topics.WHEELS_CMD, self._on_wheel_cmd)
         if 'torquers' in self.plant.slices:
-            s = topics.spec(topics.TORQUE_CMD)
-            self.subs[topics.TORQUE_CMD] = self.create_subscription(
-                s.msg_type, s.name, self._on_torque_cmd, s.qos)
+            self.subs[topics.TORQUE_CMD] = self.subscription(topics.TORQUE_CMD, self._on_torque_cmd)
 
     # --- commands ---------------------------------------------------------------------------
 
@@ -143,10 +135,11 @@ class DynamicsNode(AdcsNode):
         t_ns = self.step_ns
         x = self.x
         q, w = x[:4], x[4:7]
-        self.pub_clock.publish(cv.clock_msg(t_ns))
+        # The state first: the controllers start computing while the rest goes out.
         q_m, w_m = self.measurement.measure(q, w)
         self._state_msg = cv.state_to_msg(t_ns, q_m, w_m, self._state_msg)
         self.pub_state.publish(self._state_msg)
+        self.pub_clock.publish(cv.clock_msg(t_ns))
         if self.pub_truth is not None:
             self._truth_msg = cv.state_to_msg(t_ns, q, w, self._truth_msg)
             self.pub_truth.publish(self._truth_msg)
@@ -195,21 +188,21 @@ class DynamicsNode(AdcsNode):
         timeout = self.params['lockstep.timeout']
         pace = self.period / self.params['real_time_factor']
         wall0 = time.monotonic()
+        self.step_ns = 0
+        self.publish_state()
         for k in range(self.n_steps):
-            self.step_ns = k * self.period_ns
-            self.received.clear()
-            self.publish_state()
             if self.lockstep:
                 self._wait_commands(executor, timeout)
             else:
                 self._spin_until(executor, wall0 + k * pace)
             t = self.step_ns / cv.NS_PER_S
             torque = self.plant.control_torque(t, self.x, self.commands)
-            self.pub_applied.publish(cv.vector_to_msg(self.step_ns, torque))
             self.x = self.plant.step(t, self.x, self.commands, self.period, self.max_step)
-        self.step_ns = self.n_steps * self.period_ns
-        self.received.clear()
-        self.publish_state()
+            self.step_ns = (k + 1) * self.period_ns
+            self.received.clear()
+            # Next state out first (the controllers' critical path), then the record of this step.
+            self.publish_state()
+            self.pub_applied.publish(cv.vector_to_msg(k * self.period_ns, torque))
         self.publish_status(final=True)
         self._drain_acks()
         self.get_logger().info(f'done at t = {self.step_ns / cv.NS_PER_S:g} s; '
