@@ -20,6 +20,7 @@ setup(
     name=PACKAGE,
     version='0.1.0',
     packages=find_packages(include=['adcs_sim*', 'adcs_controllers*', 'adcs_msgs_py*']),
+    package_data={'adcs_sim': ['fastdds_profile.xml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),

@@ -35,6 +35,7 @@ from pathlib import Path
 
 from adcs_msgs_py.params import ParameterError, load_params_file
 from adcs_sim.domains import DomainLease
+from adcs_sim.nodes.base import network_hygiene_defaults
 
 DEFAULT_SCENARIO = 'microsat_pd_slew.yaml'
 READY_TIMEOUT_S = 60.0
@@ -214,6 +215,7 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
     shutil.copyfile(scenario, out / 'scenario.yaml')
     bag_dir = out / 'bag'
     lease = DomainLease(1, 99)
+    network_hygiene_defaults()
     graph = Graph(lease.env(), log_dir)
     started = False
     interrupted = []

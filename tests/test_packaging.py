@@ -341,6 +341,8 @@ def test_wheel_declares_console_scripts_and_ros_data_files(wheel):
         assert wheel.data_prefix + data_file in wheel.names, (
             f'{data_file} not among the wheel data files '
             f'({sorted(n for n in wheel.names if ".data/" in n)})')
+    # The nodes' Fast DDS profile (package data, located next to adcs_sim/nodes at run time).
+    assert f'{PACKAGE}/fastdds_profile.xml' in wheel.names
 
 
 @pytest.mark.parametrize('script', sorted(CONSOLE_SCRIPTS))
@@ -364,3 +366,12 @@ def test_setup_nodes_match_colcon_and_wheel_executables(colcon_build, wheel, mon
     assert set(NODES) <= found, f'setup.py NODES {sorted(NODES)} vs colcon lib/{PACKAGE} {sorted(found)}'
     assert set(NODES) <= scripts, f'setup.py NODES {sorted(NODES)} vs wheel console scripts {sorted(scripts)}'
     assert found == scripts, f'colcon installed {sorted(found)}, the wheel declares {sorted(scripts)}'
+
+
+def test_runner_registry_matches_setup_py():
+    """The runner starts a section's node by the module setup.py installs for that executable."""
+    from adcs_sim.registry import NODES as REGISTRY
+    assert set(REGISTRY) == set(NODES)
+    for name, info in REGISTRY.items():
+        assert NODES[name].split(':')[0] == info.module, name
+        assert info.schema.node == name, f'{name}: schema is for node {info.schema.node!r}'
