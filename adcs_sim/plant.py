@@ -299,6 +299,7 @@ class Plant:
             self.slices[a.name] = slice(start, start + a.n_states)
             start += a.n_states
         self.n_states = start
+        self._actuator_slices = [(a, self.slices[a.name]) for a in self.actuators]
 
     def actuator(self, name: str) -> Actuator:
         for a in self.actuators:
@@ -358,17 +359,17 @@ class Plant:
         q, w = x[..., :4], x[..., 4:7]
         H = w @ self.inertia_struct.T
         tau = self.environment_torque(t, q)
-        auxes = []
-        for a in self.actuators:
-            xa = x[..., self.slices[a.name]]
+        evaluated = []
+        for a, sl in self._actuator_slices:
+            xa, cmd = x[..., sl], commands[a.name]
             H = H + a.momentum(xa, w)
-            ta, aux = a.torque(t, xa, w, commands[a.name])
+            ta, aux = a.torque(t, xa, w, cmd)
             tau = tau + ta
-            auxes.append(aux)
+            evaluated.append((a, xa, cmd, aux))
         wdot = (tau - cross(w, H)) @ self.inertia_struct_inv.T
         parts = [quat_kinematics(q, w), wdot]
-        for a, aux in zip(self.actuators, auxes):
-            parts.append(a.derivative(t, x[..., self.slices[a.name]], w, wdot, commands[a.name], aux))
+        for a, xa, cmd, aux in evaluated:
+            parts.append(a.derivative(t, xa, w, wdot, cmd, aux))
         return np.concatenate(parts, axis=-1)
 
     def step(self, t: float, x: np.ndarray, commands: dict[str, Any], period: float,
@@ -381,14 +382,16 @@ class Plant:
         n = max(1, math.ceil(period / max_step - 1e-9))
         h = period / n
         f = self.derivative
+        half, sixth, third = 0.5 * h, h / 6.0, h / 3.0
         for i in range(n):
             ti = t + i * h
             k1 = f(ti, x, commands)
-            k2 = f(ti + 0.5 * h, x + 0.5 * h * k1, commands)
-            k3 = f(ti + 0.5 * h, x + 0.5 * h * k2, commands)
+            k2 = f(ti + half, x + half * k1, commands)
+            k3 = f(ti + half, x + half * k2, commands)
             k4 = f(ti + h, x + h * k3, commands)
-            x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-            x[..., :4] /= np.linalg.norm(x[..., :4], axis=-1, keepdims=True)
+            x = x + sixth * (k1 + k4) + third * (k2 + k3)
+            q = x[..., :4]
+            q /= np.sqrt((q * q).sum(axis=-1, keepdims=True))
         return x
 
 

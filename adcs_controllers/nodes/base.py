@@ -69,9 +69,10 @@ class ControllerNode(AdcsNode):
         t_ns, q, w = parsed
         torque, status = self.control(t_ns / cv.NS_PER_S, q, w)
         applied = self.publish_torque(t_ns, torque)
-        status.update({'u_x': applied[0], 'u_y': applied[1], 'u_z': applied[2],
-                       'rejected_messages': self.rejects.total})
-        self.pub_status.publish(cv.status_to_msg(t_ns, self.get_name(), status))
+        if self.pub_status.get_subscription_count():  # after the command: off the critical path
+            status.update({'u_x': applied[0], 'u_y': applied[1], 'u_z': applied[2],
+                           'rejected_messages': self.rejects.total})
+            self.pub_status.publish(cv.status_to_msg(t_ns, self.get_name(), status))
 
     def publish_torque(self, t_ns: int, torque: np.ndarray) -> np.ndarray:
         """Send body torque ``torque`` through the configured actuators; return what it commands.

@@ -139,11 +139,13 @@ class DynamicsNode(AdcsNode):
         q_m, w_m = self.measurement.measure(q, w)
         self._state_msg = cv.state_to_msg(t_ns, q_m, w_m, self._state_msg)
         self.pub_state.publish(self._state_msg)
-        self.pub_clock.publish(cv.clock_msg(t_ns))
-        if self.pub_truth is not None:
+        # The rest is for recording and observers: not even built when nobody subscribes.
+        if self.pub_clock.get_subscription_count():
+            self.pub_clock.publish(cv.clock_msg(t_ns))
+        if self.pub_truth is not None and self.pub_truth.get_subscription_count():
             self._truth_msg = cv.state_to_msg(t_ns, q, w, self._truth_msg)
             self.pub_truth.publish(self._truth_msg)
-        if self.wheels is not None:
+        if self.wheels is not None and self.pub_wheels.get_subscription_count():
             xa = x[self.plant.slices['wheels']]
             n = self.wheels.count
             speed = xa[:n]
@@ -202,7 +204,8 @@ class DynamicsNode(AdcsNode):
             self.received.clear()
             # Next state out first (the controllers' critical path), then the record of this step.
             self.publish_state()
-            self.pub_applied.publish(cv.vector_to_msg(k * self.period_ns, torque))
+            if self.pub_applied.get_subscription_count():
+                self.pub_applied.publish(cv.vector_to_msg(k * self.period_ns, torque))
         self.publish_status(final=True)
         self._drain_acks()
         self.get_logger().info(f'done at t = {self.step_ns / cv.NS_PER_S:g} s; '

@@ -87,7 +87,7 @@ class RecorderNode(AdcsNode):
             self.bag.write(topic, data)
             self.received += 1
 
-        self.subs[resolved] = self.create_subscription(msg_type, name, on_message, qos, raw=True)
+        self.subs[resolved] = self.subscription(name, on_message, qos=qos, msg_type=msg_type, raw=True)
 
     def _discover(self) -> None:
         """Subscribe to topics that appeared in the graph (in this namespace) since the last look."""
