@@ -24,6 +24,10 @@ from dataclasses import dataclass
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from adcs_msgs_py.names import (APPLIED_TORQUE, CLOCK, COMMAND_TOPICS, CONTROLLER_STATUS,  # noqa: F401
+                                DYNAMICS_STATUS, FAULTS, REFERENCE, STATE, TORQUE_CMD, TRUTH_STATE,
+                                WHEELS_CMD, WHEELS_STATE)
+
 from builtin_interfaces.msg import Time  # noqa: F401  (re-exported for type hints)
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
@@ -72,17 +76,6 @@ class TopicSpec:
         return f'{module}/msg/{self.msg_type.__name__}'
 
 
-CLOCK = '/clock'
-STATE = 'state'
-TRUTH_STATE = 'truth/state'
-WHEELS_STATE = 'wheels/state'
-WHEELS_CMD = 'wheels/cmd'
-TORQUE_CMD = 'torque_cmd'
-APPLIED_TORQUE = 'actuators/torque'
-REFERENCE = 'reference'
-FAULTS = 'faults'
-CONTROLLER_STATUS = 'controller/status'
-DYNAMICS_STATUS = 'dynamics/status'
 
 TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in (
     TopicSpec(CLOCK, Clock, QOS_CLOCK, 'simulated time, published by the dynamics node'),
@@ -117,5 +110,3 @@ def spec(name: str) -> TopicSpec:
         raise KeyError(f'unknown topic {name!r}; known topics: {sorted(TOPICS)}') from None
 
 
-# Command topics a controller may answer a state with (what the dynamics node can wait for).
-COMMAND_TOPICS = (WHEELS_CMD, TORQUE_CMD)

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import yaml
 
-from adcs_msgs_py import topics
+from adcs_msgs_py import names as topics
 from adcs_sim import bag as bagio
 from adcs_sim.attitude import eigenaxis_angle, error_quaternion, euler_213
 

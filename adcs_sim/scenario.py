@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from adcs_msgs_py import topics
+from adcs_msgs_py import names as topics
 from adcs_msgs_py.params import (Param, ParameterError, Schema, all_non_negative, all_positive,
                                  non_negative, positive)
 from adcs_sim.plant import (CircularOrbit, Disturbance, Plant, ReactionWheels, Torquers,

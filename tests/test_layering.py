@@ -1,0 +1,23 @@
+"""The layering rule: plant, laws, schemas and analysis import no rclpy (Monte Carlo and offline
+analysis use them without ROS). Checked in a fresh interpreter, so nothing else pre-imports it."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from conftest import ROOT
+
+PURE_MODULES = [
+    'adcs_sim.plant', 'adcs_sim.attitude', 'adcs_sim.scenario', 'adcs_sim.analysis',
+    'adcs_controllers.laws.pd', 'adcs_controllers.laws.allocation', 'adcs_controllers.schemas',
+    'adcs_msgs_py.params', 'adcs_msgs_py.names',
+]
+
+
+@pytest.mark.parametrize('module', PURE_MODULES)
+def test_module_imports_no_rclpy(module):
+    code = f'import sys, {module}; print("rclpy" in sys.modules)'
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, cwd=ROOT, check=True)
+    assert out.stdout.strip() == 'False', f'{module} pulls in rclpy'
