@@ -42,6 +42,7 @@ SIGTERM, then SIGKILL), also on Ctrl-C or SIGTERM of this script.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import queue
@@ -107,10 +108,13 @@ def _on_sigterm(signum, frame):
 
 # --- (i) ping-pong roles (run in child processes) --------------------------------------------------
 
-def _role_node(name: str):
+@contextlib.contextmanager
+def _role_node(name: str, interruptible: bool = True):
+    """(node, executor) on a private context; Ctrl-C / SIGTERM end the role quietly when
+    ``interruptible``; the node and context are always cleaned up."""
     import rclpy
     from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
 
     context = Context()
@@ -120,7 +124,14 @@ def _role_node(name: str):
     node = rclpy.create_node(name, context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
-    return rclpy, context, node, executor
+    quiet = (KeyboardInterrupt, ExternalShutdownException) if interruptible else ()
+    try:
+        yield node, executor
+    except quiet:
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
 
 
 def _wait(ready, timeout: float, what: str) -> None:
@@ -134,21 +145,14 @@ def _wait(ready, timeout: float, what: str) -> None:
 def role_echo() -> int:
     """B: echo every ping back; subscribe only once the pong publisher is matched (as controllers)."""
     from nav_msgs.msg import Odometry
-    from rclpy.executors import ExternalShutdownException
 
     from adcs_msgs_py.topics import QOS_LOCKSTEP
 
-    rclpy, context, node, executor = _role_node('bench_echo')
-    try:
+    with _role_node('bench_echo') as (node, executor):
         pub = node.create_publisher(Odometry, PONG, QOS_LOCKSTEP)
         _wait(lambda: pub.get_subscription_count() >= 1, 30.0, 'the pinger to subscribe')
         node.create_subscription(Odometry, PING, pub.publish, QOS_LOCKSTEP)
         executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
     return 0
 
 
@@ -158,13 +162,12 @@ def role_ping(round_trips: int, warmup: int) -> int:
 
     from adcs_msgs_py.topics import QOS_LOCKSTEP
 
-    rclpy, context, node, executor = _role_node('bench_ping')
     got = {'seq': -1}
 
     def on_pong(msg):
         got['seq'] = msg.header.stamp.nanosec
 
-    try:
+    with _role_node('bench_ping', interruptible=False) as (node, executor):
         pub = node.create_publisher(Odometry, PING, QOS_LOCKSTEP)
         node.create_subscription(Odometry, PONG, on_pong, QOS_LOCKSTEP)
         _wait(lambda: pub.get_subscription_count() >= 1, 30.0, 'the echo to subscribe')
@@ -186,21 +189,15 @@ def role_ping(round_trips: int, warmup: int) -> int:
                 executor.spin_once(timeout_sec=remaining)
         elapsed = time.perf_counter() - t0
         print(json.dumps({'round_trips': round_trips, 'seconds': elapsed}), flush=True)
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
     return 0
 
 
 def role_status_observer() -> int:
     """Print (JSON lines) 'ready', 'matched' once a dynamics/status publisher is discovered, then the
     wall-clock receipt time of every ``dynamics/status`` message."""
-    from rclpy.executors import ExternalShutdownException
-
     from adcs_msgs_py import topics
     from adcs_msgs_py.conversions import status_values
 
-    rclpy, context, node, executor = _role_node('bench_status_observer')
     s = topics.spec(topics.DYNAMICS_STATUS)
 
     def on_status(msg):
@@ -208,18 +205,13 @@ def role_status_observer() -> int:
         final = any(status_values(st).get('final') == 'true' for st in msg.status)
         print(json.dumps({'wall': now, 'final': final}), flush=True)
 
-    try:
+    with _role_node('bench_status_observer') as (node, executor):
         sub = node.create_subscription(s.msg_type, s.name, on_status, s.qos)
         print(json.dumps({'ready': True}), flush=True)
         while sub.get_publisher_count() < 1:
             executor.spin_once(timeout_sec=0.01)
         print(json.dumps({'matched': True}), flush=True)
         executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
     return 0
 
 
