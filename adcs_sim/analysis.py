@@ -6,20 +6,32 @@ Definitions (every metric printed by ``adcs-run`` and ``adcs-analyze``):
   the bag's scenario gives ``target.attitude``): ``q_e = q_ref* ⊗ q``. The *eigenaxis error* is
   its rotation angle ``2 atan2(|q_e,v|, |q_e,4|)``; the *2-1-3 Euler errors* are the three angles
   of ``q_e`` in the 2-1-3 sequence (scipy ``'YXZ'``), as seed 004 measures its settling time.
-* **Settling time** to a tolerance: the time after which the error stays inside the band to the
-  end of the record (*last exit*, not first entry), linearly interpolated between the last
-  sample outside and the first inside; 0 if always inside; ``inf`` if the run ends outside. For
-  Euler angles the band must hold on all three axes at once (the max of the absolute angles).
+* **Settling time** to a tolerance: the time after which the error stays inside the band
+  (``error <= tol``) to the end of the record (*last exit*, not first entry), linearly
+  interpolated between the last sample outside and the first inside; the first sample time
+  ``t0`` (0 for a run starting at 0) if always inside; ``inf`` if the run ends outside. A NaN
+  sample counts as outside. For Euler angles the band must hold on all three axes at once (the
+  max of the absolute angles); per axis, each angle on its own. ``first_entry_time`` is the other
+  reading (first time the error reaches the band, interpolated the same way); the two differ
+  when the error overshoots out of the band again. Sampling: for a smooth error crossing the
+  band at ``t*`` with slope ``e'``, the interpolated time is within ``max|e''| Δt² / (8 |e'|)``
+  of ``t*`` (tested); an excursion out of the band between two samples is not seen.
 * **Integrated torque** ``∫‖u‖ dt`` and **control energy** ``∫uᵀu dt`` of the applied body
   torque ``u`` (``actuators/torque``): the torque is held over each control period (zero-order
   hold), so the integrals are exact sums ``Σ ‖u_k‖ Δt_k`` with ``Δt_k`` the time to the next
   sample (the last one up to the end of the run). ``‖·‖`` is the Euclidean norm.
-* **Peak torque** per body axis ``max |u_i|``; **peak wheel speed** ``max |Ω|`` over all wheels
-  (rad/s, relative to the body); **missed steps** from the final ``dynamics/status``.
+* **Peak torque** per body axis ``max |u_i|`` over the applied-torque samples; **peak wheel
+  speed** ``max |Ω|`` over all wheels and samples (rad/s, relative to the body); **missed
+  steps** from the last ``dynamics/status`` that reports them.
+
+:func:`run_metrics` gives these at one tolerance; :func:`settling_times` the settling times at
+several (e.g. 0.5° and 1° for a comparison table).
 """
 from __future__ import annotations
 
+import gc
 import math
+from collections import defaultdict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,21 +47,29 @@ NS = 1e-9
 # --- metrics on arrays ------------------------------------------------------------------------
 
 def settling_time(t: np.ndarray, error: np.ndarray, tol: float) -> float:
-    """Time after which ``error`` stays ``<= tol`` to the end (last exit, interpolated)."""
+    """Time after which ``error`` stays ``<= tol`` to the end (last exit, interpolated).
+
+    ``t[0]`` if every sample is inside, ``inf`` if the last one is outside, NaN if there are no
+    samples. ``t`` ascending; a NaN error counts as outside.
+    """
     t = np.asarray(t, dtype=float)
     e = np.asarray(error, dtype=float)
-    outside = np.flatnonzero(e > tol)
+    outside = np.flatnonzero(~(e <= tol))
     if outside.size == 0:
         return float(t[0]) if t.size else math.nan
     i = outside[-1]
     if i == e.size - 1:
         return math.inf
     e0, e1 = e[i], e[i + 1]
+    if not math.isfinite(e0):
+        return float(t[i + 1])
     return float(t[i] + (e0 - tol) / (e0 - e1) * (t[i + 1] - t[i]))
 
 
 def first_entry_time(t: np.ndarray, error: np.ndarray, tol: float) -> float:
-    """First time ``error`` reaches ``tol`` (interpolated); ``inf`` if never."""
+    """First time ``error`` reaches ``tol`` (interpolated): ``t[0]`` if it starts inside, ``inf`` if
+    never. Unlike :func:`settling_time`, later exits from the band do not count."""
+    t = np.asarray(t, dtype=float)
     e = np.asarray(error, dtype=float)
     inside = np.flatnonzero(e <= tol)
     if inside.size == 0:
@@ -58,6 +78,8 @@ def first_entry_time(t: np.ndarray, error: np.ndarray, tol: float) -> float:
     if i == 0:
         return float(t[0])
     e0, e1 = e[i - 1], e[i]
+    if not math.isfinite(e0):
+        return float(t[i])
     return float(t[i - 1] + (e0 - tol) / (e0 - e1) * (t[i] - t[i - 1]))
 
 
@@ -79,9 +101,28 @@ def integrated_square(t: np.ndarray, u: np.ndarray, t_end: float) -> float:
 
 # --- a run's time series -------------------------------------------------------------------
 
+ODOMETRY = 'nav_msgs/msg/Odometry'
+VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
+JOINT_STATE = 'sensor_msgs/msg/JointState'
+DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
+# Topics RunData reads (names relative to the run's namespace) and the type each must have.
+READ_TYPES = {
+    topics.STATE: ODOMETRY, topics.TRUTH_STATE: ODOMETRY, topics.APPLIED_TORQUE: VECTOR3_STAMPED,
+    topics.WHEELS_STATE: JOINT_STATE, topics.DYNAMICS_STATUS: DIAGNOSTIC_ARRAY,
+    topics.CONTROLLER_STATUS: DIAGNOSTIC_ARRAY, topics.FAULTS: DIAGNOSTIC_ARRAY,
+}
+# Topics whose absence RunData reports in ``missing_topics`` (only ``state`` is required).
+REPORTED_TOPICS = (topics.STATE, topics.APPLIED_TORQUE, topics.WHEELS_STATE, topics.DYNAMICS_STATUS,
+                   topics.CONTROLLER_STATUS)
+
+
 @dataclass
 class RunData:
-    """Time series of one run, as recorded (seconds, SI units)."""
+    """Time series of one run, as recorded (seconds, SI units).
+
+    Rows of each series are in stamp order (file order among equal stamps). ``q``/``w`` come from
+    ``truth/state`` when the bag has it (measurement noise configured), else from ``state``.
+    """
 
     t: np.ndarray                      # state stamps
     q: np.ndarray                      # (N, 4) true attitude
@@ -95,58 +136,159 @@ class RunData:
     missed_steps: int | None = None
     q_ref: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))
     scenario: dict | None = None
+    controller_status: list = field(default_factory=list)  # (t, name, {key: value text}) per status
+    faults: list = field(default_factory=list)  # (t, level, name, message) per status on faults
+    topic_counts: dict = field(default_factory=dict)  # messages per topic (relative to the namespace)
+    # How the bag was read:
+    truncated: bool = False            # no MCAP summary/footer (writer killed): data up to the last whole chunk
+    message_count: int = 0             # messages read from the bag, all topics
+    missing_topics: list = field(default_factory=list)  # of REPORTED_TOPICS, those with no message
+    namespace: str = '/'               # the run's topic prefix ('/' or e.g. '/sat1/')
 
     @property
     def t_end(self) -> float:
         return float(self.t[-1]) if self.t.size else 0.0
 
     @classmethod
-    def from_bag(cls, path) -> 'RunData':
-        """Read a bag of the graph (complete or truncated) into arrays."""
-        ns = None
-        want = {topics.STATE, topics.TRUTH_STATE, topics.APPLIED_TORQUE, topics.WHEELS_STATE,
-                topics.DYNAMICS_STATUS}
-        state, truth, torque, wheels, missed = [], [], [], [], None
-        names: list = []
-        for topic, _, msg in bagio.read_messages(path):
-            # Topics may be namespaced (/sat1/state): match on the name relative to the namespace.
-            if ns is None and topic.endswith('/' + topics.STATE):
-                ns = topic[:-len(topics.STATE)]
-            rel = topic[len(ns):] if ns and topic.startswith(ns) else topic.lstrip('/')
-            if rel not in want:
-                continue
-            stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * NS
-            if rel in (topics.STATE, topics.TRUTH_STATE):
-                o, a = msg.pose.pose.orientation, msg.twist.twist.angular
-                (state if rel == topics.STATE else truth).append((stamp, o.x, o.y, o.z, o.w, a.x, a.y, a.z))
-            elif rel == topics.APPLIED_TORQUE:
-                v = msg.vector
-                torque.append((stamp, v.x, v.y, v.z))
-            elif rel == topics.WHEELS_STATE:
-                names = list(msg.name)
-                wheels.append((stamp, *msg.velocity, *msg.effort))
+    def from_bag(cls, path, namespace: str | None = None) -> 'RunData':
+        """Read a bag of the graph into arrays: ours or any rosbag2 bag with the graph's topics.
+
+        MCAP (complete or truncated: everything up to the last whole chunk) or sqlite3 storage.
+        Topics may be namespaced (``/sat1/state``): ``namespace`` picks one; by default it is the
+        prefix of a ``state`` topic with the most of the graph's topics beside it. Only ``state``
+        (``nav_msgs/Odometry``) is required; other topics are read when present and their absence
+        listed in ``missing_topics``. One streaming pass; fixed-layout messages are decoded with
+        numpy from their CDR bytes (:func:`adcs_sim.bag.decode_batch`).
+
+        Raises ValueError (not a bag, no ``state`` messages) or OSError (no such path), each with
+        a one-line message.
+        """
+        # The status records are millions of small acyclic objects on a long run: the cyclic
+        # garbage collector, triggered again and again by their allocation, doubled the time.
+        gc_enabled = gc.isenabled()
+        gc.disable()
+        try:
+            return cls._from_bag(path, namespace)
+        finally:
+            if gc_enabled:
+                gc.enable()
+
+    @classmethod
+    def _from_bag(cls, path, namespace: str | None = None) -> 'RunData':
+        fixed = None if namespace is None else ('/' + namespace.strip('/') + '/').replace('//', '/')
+
+        def select(topic: str, type_name: str) -> bool:
+            if fixed is not None:
+                return topic.startswith(fixed) and READ_TYPES.get(topic[len(fixed):]) == type_name
+            return any(READ_TYPES[rel] == type_name and (topic == '/' + rel or topic.endswith('/' + rel))
+                       for rel in READ_TYPES)
+
+        reader = bagio.ColumnReader(path, select)
+        columns: dict[str, list] = defaultdict(list)     # topic -> [(first row number, Columns)]
+        diagnostics: dict[str, list] = defaultdict(list)  # topic -> [(stamps, statuses)]
+        seen: dict[str, int] = defaultdict(int)
+        for batch in reader:
+            if batch.type_name == DIAGNOSTIC_ARRAY:
+                diagnostics[batch.topic].append(bagio.decode_diagnostics(batch))
             else:
-                for status in msg.status:
-                    for kv in status.values:
-                        if kv.key == 'missed_steps':
-                            missed = int(float(kv.value))
-        rows = np.array(truth or state, dtype=float).reshape(-1, 8)
-        if rows.shape[0] == 0:
-            raise ValueError(f'{path}: no {topics.STATE} messages: not a run of the graph')
-        run = cls(t=rows[:, 0], q=rows[:, 1:5], w=rows[:, 5:8], missed_steps=missed)
-        if torque:
-            arr = np.array(torque, dtype=float)
-            run.t_u, run.u = arr[:, 0], arr[:, 1:4]
-        if wheels:
-            arr = np.array(wheels, dtype=float)
-            n = len(names)
-            run.t_wheels, run.wheel_names = arr[:, 0], names
-            run.wheel_speed, run.wheel_torque = arr[:, 1:1 + n], arr[:, 1 + n:1 + 2 * n]
-        scenario_text = bagio.read_metadata(path).get('scenario')
+                columns[batch.topic].extend((seen[batch.topic], c) for c in bagio.decode_batch(batch))
+            seen[batch.topic] += len(batch)
+        counts = {name: n for name, n in reader.topic_counts.items() if n}
+        ns = fixed if fixed is not None else _namespace(counts, reader.topics)
+        state_topic = ns + topics.STATE
+        if not any(c.rows.size for _, c in columns.get(state_topic, [])):
+            what = f'{state_topic} ({ODOMETRY})'
+            if state_topic in reader.topics and reader.topics[state_topic] != ODOMETRY:
+                what = f'{state_topic} of type {ODOMETRY} (it is {reader.topics[state_topic]})'
+            raise ValueError(f'{path}: no {what} messages: not a run of the graph')
+        truth = _merged(columns.get(ns + topics.TRUTH_STATE, []))
+        t, cols = truth if truth[0].size else _merged(columns[state_topic])
+        run = cls(t=t, q=cols['orientation'], w=cols['angular'])
+        t_u, cols = _merged(columns.get(ns + topics.APPLIED_TORQUE, []))
+        if t_u.size:
+            run.t_u, run.u = t_u, cols['vector']
+        _set_wheels(run, columns.get(ns + topics.WHEELS_STATE, []))
+        for stamp, statuses in _merged_statuses(diagnostics.get(ns + topics.DYNAMICS_STATUS, [])):
+            for status in statuses:
+                if 'missed_steps' in status[4]:
+                    try:
+                        run.missed_steps = int(float(status[4]['missed_steps']))
+                    except ValueError:
+                        pass
+        run.controller_status = [(stamp, s[1], s[4]) for stamp, statuses in
+                                 _merged_statuses(diagnostics.get(ns + topics.CONTROLLER_STATUS, []))
+                                 for s in statuses]
+        run.faults = [(stamp, int(s[0]), s[1], s[2]) for stamp, statuses in
+                      _merged_statuses(diagnostics.get(ns + topics.FAULTS, [])) for s in statuses]
+        run.topic_counts = {_relative(name, ns): n for name, n in counts.items()}
+        run.truncated = reader.truncated
+        run.message_count = reader.message_count
+        run.missing_topics = [rel for rel in REPORTED_TOPICS if not counts.get(ns + rel)]
+        run.namespace = ns
+        scenario_text = reader.metadata.get('scenario', {}).get('text')
         if scenario_text:
             run.scenario = yaml.safe_load(scenario_text)
             run.q_ref = target_attitude(run.scenario)
         return run
+
+
+def _relative(topic: str, ns: str) -> str:
+    return topic[len(ns):] if topic.startswith(ns) else topic.lstrip('/')
+
+
+def _namespace(counts: dict[str, int], types: dict[str, str]) -> str:
+    """The prefix of the ``state`` topic with the most of the graph's topics beside it ('/' first)."""
+    best = None
+    for name, n in counts.items():
+        if not name.endswith('/' + topics.STATE) or types.get(name) != ODOMETRY:
+            continue
+        prefix = name[:-len(topics.STATE)]
+        score = sum(1 for rel in set(READ_TYPES) | set(REPORTED_TOPICS) if counts.get(prefix + rel))
+        key = (-score, len(prefix), prefix)
+        best = key if best is None or key < best else best
+    return best[2] if best else '/'
+
+
+def _merged(parts: list, names=None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Concatenate decoded columns ([(first row, Columns)]) in stamp order (file order on ties).
+
+    ``names``: the fields to merge (default all)."""
+    parts = [(row0, c) for row0, c in parts if c.rows.size]
+    if not parts:
+        return np.zeros(0), {}
+    seq = np.concatenate([row0 + c.rows for row0, c in parts])
+    stamp_ns = np.concatenate([c.stamp_ns for _, c in parts])
+    order = np.lexsort((seq, stamp_ns))
+    t = np.concatenate([c.stamp for _, c in parts])[order]
+    fields = {name: np.concatenate([c.fields[name] for _, c in parts])[order]
+              for name in (names or parts[0][1].fields)}
+    return t, fields
+
+
+def _set_wheels(run: RunData, parts: list) -> None:
+    """Wheel series from JointState columns: the joints named in the last message (others dropped)."""
+    parts = [(row0, c) for row0, c in parts if c.rows.size]
+    if not parts:
+        return
+    names = max(parts, key=lambda p: p[0] + p[1].rows[-1])[1].extra
+    n = len(names)
+    keep = []
+    for row0, c in parts:
+        if c.extra != names or c.fields['velocity'].shape[1] != n:
+            continue
+        if c.fields['effort'].shape[1] != n:
+            c.fields['effort'] = np.full((c.rows.size, n), math.nan)
+        keep.append((row0, c))
+    t, fields = _merged(keep, ('velocity', 'effort'))
+    run.t_wheels, run.wheel_names = t, list(names)
+    run.wheel_speed, run.wheel_torque = fields['velocity'], fields['effort']
+
+
+def _merged_statuses(parts: list) -> list[tuple[float, list]]:
+    """(stamp, statuses) of DiagnosticArray messages in stamp order (file order on ties)."""
+    merged = [(stamp, statuses) for stamps, batch in parts for stamp, statuses in zip(stamps.tolist(), batch)]
+    merged.sort(key=lambda r: r[0])
+    return merged
 
 
 def target_attitude(scenario: dict) -> np.ndarray:
@@ -160,12 +302,27 @@ def target_attitude(scenario: dict) -> np.ndarray:
     return np.array([0.0, 0.0, 0.0, 1.0])
 
 
+def attitude_errors_deg(run: RunData) -> tuple[np.ndarray, np.ndarray]:
+    """(eigenaxis error (N,), absolute 2-1-3 Euler errors (N, 3) in sequence order y, x, z), degrees."""
+    qe = error_quaternion(run.q, run.q_ref)
+    return np.degrees(eigenaxis_angle(qe)), np.degrees(np.abs(euler_213(qe)))
+
+
+def settling_times(run: RunData, tols_deg=(0.5, 1.0)) -> dict[float, dict]:
+    """Settling times at several tolerances: ``{tol: {'eigenaxis': s, 'euler213': s,
+    'euler213_per_axis': [s_y, s_x, s_z]}}`` (definitions in the module docstring)."""
+    eigen, euler = attitude_errors_deg(run)
+    worst = euler.max(axis=1)
+    return {tol: {'eigenaxis': settling_time(run.t, eigen, tol),
+                  'euler213': settling_time(run.t, worst, tol),
+                  'euler213_per_axis': [settling_time(run.t, euler[:, i], tol) for i in range(3)]}
+            for tol in tols_deg}
+
+
 def run_metrics(run: RunData, tol_deg: float = 0.5, eigen_tol_deg: float | None = None) -> dict:
     """The run's metrics (see the module docstring for each definition)."""
     eigen_tol_deg = tol_deg if eigen_tol_deg is None else eigen_tol_deg
-    qe = error_quaternion(run.q, run.q_ref)
-    eigen = np.degrees(eigenaxis_angle(qe))
-    euler = np.degrees(np.abs(euler_213(qe)))
+    eigen, euler = attitude_errors_deg(run)
     out = {
         'duration_s': run.t_end,
         f'settling_eigenaxis_{eigen_tol_deg:g}deg_s': settling_time(run.t, eigen, eigen_tol_deg),

@@ -1,0 +1,229 @@
+#!/usr/bin/env python3
+"""How long does the analysis of a long run take, next to just reading its bag with rosbags?
+
+Writes a synthetic 24-hour run at 10 Hz (864 000 control steps) into a temporary bag with
+:class:`adcs_sim.bag.BagWriter` (MCAP, zstd chunks of 64 KiB like the recorder), every message
+serialised by rosbags from a message object. Per step, the topics and types of a run of the graph:
+``/clock``, ``/state`` (nav_msgs/Odometry), ``/wheels/state`` and ``/wheels/cmd``
+(sensor_msgs/JointState), ``/actuators/torque`` (geometry_msgs/Vector3Stamped) and
+``/controller/status`` (diagnostic_msgs/DiagnosticArray, the PD controller's five values); and
+``/dynamics/status`` at the start and the end. The attitude decays exponentially about a fixed
+axis, so the settling time is known and checked.
+
+Then it times, best of ``--repeat`` (default 1) each:
+
+* **analysis**: ``RunData.from_bag(bag)`` + ``run_metrics(run)`` (everything ``adcs-analyze``
+  computes, including the controller status records);
+* **rosbags raw**: rosbags' ``AnyReader`` iterating over every message of the same bag and
+  deserialising it (``reader.deserialize(raw, connection.msgtype)``), nothing else;
+
+and prints both, their ratio (analysis / raw; the target is <= 2) and the analysis' throughput.
+
+Not a test (it takes minutes: most of it is writing the bag and the rosbags pass). Options:
+``--hours``, ``--rate`` (Hz), ``--keep DIR`` (write the bag there and keep it), ``--bag DIR``
+(time an existing bag instead of writing one; then the synthetic checks are skipped).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from adcs_sim import bag as bagio  # noqa: E402
+from adcs_sim.analysis import RunData, run_metrics  # noqa: E402
+
+TAU = 3600.0          # s, time constant of the synthetic attitude error
+ANGLE0 = math.radians(30.0)
+AXIS = np.array([1.0, 2.0, 2.0]) / 3.0
+_INF = {'sec': 2147483647, 'nsec': 4294967295}
+QOS = [{'history': 'keep_last', 'depth': 10, 'reliability': 'reliable', 'durability': 'volatile',
+        'deadline': _INF, 'lifespan': _INF, 'liveliness': 'automatic', 'liveliness_lease_duration': _INF,
+        'avoid_ros_namespace_conventions': False}]
+
+
+def synthetic(n: int, period: float):
+    """(t, q, w, u, wheel speed) of an exponentially decaying eigenaxis rotation."""
+    t = np.arange(n) * period
+    angle = ANGLE0 * np.exp(-t / TAU)
+    q = np.column_stack([np.outer(np.sin(angle / 2), AXIS), np.cos(angle / 2)])
+    w = np.outer(-angle / TAU, AXIS)
+    u = 0.01 * np.column_stack([np.sin(t / 500.0), np.cos(t / 700.0), np.sign(np.sin(t / 900.0))])
+    speed = np.column_stack([100 * np.sin(t / 1000.0), 50 * np.cos(t / 800.0), 10.0 + 0 * t])
+    return t, q, w, u, speed
+
+
+def write_bag(path: Path, hours: float, rate: float) -> tuple[int, tuple]:
+    store = bagio.typestore()
+    T = store.types
+    Time, Header = T['builtin_interfaces/msg/Time'], T['std_msgs/msg/Header']
+    period = 1.0 / rate
+    n = int(round(hours * 3600 * rate)) + 1
+    t, q, w, u, speed = synthetic(n, period)
+    zeros3, cov = np.zeros(3), np.zeros(36)
+    vec = T['geometry_msgs/msg/Vector3']
+    odom = T['nav_msgs/msg/Odometry'](
+        header=Header(stamp=Time(sec=0, nanosec=0), frame_id='inertial'), child_frame_id='body',
+        pose=T['geometry_msgs/msg/PoseWithCovariance'](
+            pose=T['geometry_msgs/msg/Pose'](position=T['geometry_msgs/msg/Point'](x=0.0, y=0.0, z=0.0),
+                                             orientation=T['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0, w=1.0)),
+            covariance=cov),
+        twist=T['geometry_msgs/msg/TwistWithCovariance'](
+            twist=T['geometry_msgs/msg/Twist'](linear=vec(x=0.0, y=0.0, z=0.0), angular=vec(x=0.0, y=0.0, z=0.0)),
+            covariance=cov))
+    names = ['rw_x', 'rw_y', 'rw_z']
+    wheels = T['sensor_msgs/msg/JointState'](header=Header(stamp=Time(sec=0, nanosec=0), frame_id=''),
+                                             name=names, position=zeros3, velocity=zeros3, effort=zeros3)
+    cmd = T['sensor_msgs/msg/JointState'](header=Header(stamp=Time(sec=0, nanosec=0), frame_id=''),
+                                          name=names, position=np.zeros(0), velocity=np.zeros(0), effort=zeros3)
+    torque = T['geometry_msgs/msg/Vector3Stamped'](header=Header(stamp=Time(sec=0, nanosec=0), frame_id='body'),
+                                                   vector=vec(x=0.0, y=0.0, z=0.0))
+    clock = T['rosgraph_msgs/msg/Clock'](clock=Time(sec=0, nanosec=0))
+    KV, Status = T['diagnostic_msgs/msg/KeyValue'], T['diagnostic_msgs/msg/DiagnosticStatus']
+    Array = T['diagnostic_msgs/msg/DiagnosticArray']
+
+    def status(name, values):
+        return Array(header=Header(stamp=Time(sec=0, nanosec=0), frame_id=''), status=[Status(
+            level=0, name=name, message='', hardware_id='',
+            values=[KV(key=k, value=v) for k, v in values.items()])])
+
+    writer = bagio.BagWriter(path, chunk_size=65536)
+    types = {'/clock': 'rosgraph_msgs/msg/Clock', '/state': 'nav_msgs/msg/Odometry',
+             '/wheels/state': 'sensor_msgs/msg/JointState', '/wheels/cmd': 'sensor_msgs/msg/JointState',
+             '/actuators/torque': 'geometry_msgs/msg/Vector3Stamped',
+             '/controller/status': 'diagnostic_msgs/msg/DiagnosticArray',
+             '/dynamics/status': 'diagnostic_msgs/msg/DiagnosticArray'}
+    for name, type_name in types.items():
+        writer.add_topic(name, type_name, QOS)
+    ser = store.serialize_cdr
+
+    def dyn_status(k, final):
+        return ser(status('dynamics', {'step': str(k), 'missed_steps': '0', 'final': final}),
+                   'diagnostic_msgs/msg/DiagnosticArray')
+
+    writer.write('/dynamics/status', dyn_status(0, 'false'))
+    count = 1
+    pose, twist = odom.pose.pose.orientation, odom.twist.twist.angular
+    tq = torque.vector
+    for k in range(n):
+        sec, nsec = divmod(k * int(round(period * 1e9)), 1_000_000_000)
+        for msg in (odom.header, wheels.header, cmd.header, clock):
+            stamp = msg.stamp if hasattr(msg, 'stamp') else msg.clock
+            stamp.sec, stamp.nanosec = sec, nsec
+        pose.x, pose.y, pose.z, pose.w = q[k]
+        twist.x, twist.y, twist.z = w[k]
+        wheels.velocity = speed[k]
+        wheels.effort = -u[k]
+        cmd.effort = -u[k]
+        writer.write('/clock', ser(clock, 'rosgraph_msgs/msg/Clock'))
+        writer.write('/state', ser(odom, 'nav_msgs/msg/Odometry'))
+        writer.write('/wheels/state', ser(wheels, 'sensor_msgs/msg/JointState'))
+        ctrl = status('pd_controller', {'mode': 'pd', 'u_x': repr(float(u[k, 0])), 'u_y': repr(float(u[k, 1])),
+                                        'u_z': repr(float(u[k, 2])), 'rejected_messages': '0'})
+        ctrl.header.stamp.sec, ctrl.header.stamp.nanosec = sec, nsec
+        writer.write('/controller/status', ser(ctrl, 'diagnostic_msgs/msg/DiagnosticArray'))
+        writer.write('/wheels/cmd', ser(cmd, 'sensor_msgs/msg/JointState'))
+        count += 5
+        if k < n - 1:  # the torque applied over [t_k, t_k+1], stamped t_k
+            torque.header.stamp.sec, torque.header.stamp.nanosec = sec, nsec
+            tq.x, tq.y, tq.z = u[k]
+            writer.write('/actuators/torque', ser(torque, 'geometry_msgs/msg/Vector3Stamped'))
+            count += 1
+        if k % 100_000 == 0:
+            print(f'  writing: {k}/{n} steps', file=sys.stderr, flush=True)
+    status_end = status('dynamics', {'step': str(n - 1), 'missed_steps': '0', 'final': 'true'})
+    status_end.header.stamp.sec, status_end.header.stamp.nanosec = sec, nsec
+    writer.write('/dynamics/status', ser(status_end, 'diagnostic_msgs/msg/DiagnosticArray'))
+    writer.close()
+    return count + 1, (t, q, w, u, speed)
+
+
+def time_analysis(bag: Path):
+    t0 = time.perf_counter()
+    run = RunData.from_bag(bag)
+    metrics = run_metrics(run)
+    return time.perf_counter() - t0, run, metrics
+
+
+def time_rosbags(bag: Path):
+    from rosbags.highlevel import AnyReader
+    t0 = time.perf_counter()
+    n = 0
+    with AnyReader([bag], default_typestore=bagio.typestore()) as reader:
+        for conn, _, raw in reader.messages():
+            reader.deserialize(raw, conn.msgtype)
+            n += 1
+    return time.perf_counter() - t0, n
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--hours', type=float, default=24.0)
+    parser.add_argument('--rate', type=float, default=10.0, help='control rate, Hz')
+    parser.add_argument('--repeat', type=int, default=1)
+    parser.add_argument('--keep', type=Path, default=None, help='write the bag here and keep it')
+    parser.add_argument('--bag', type=Path, default=None, help='time an existing bag')
+    args = parser.parse_args(argv)
+    tmp = None
+    truth = None
+    try:
+        if args.bag:
+            bag = args.bag
+        else:
+            if args.keep:
+                bag = args.keep
+            else:
+                tmp = Path(tempfile.mkdtemp(prefix='adcs_analysis_speed_'))
+                bag = tmp / 'bag'
+            t0 = time.perf_counter()
+            written, truth = write_bag(bag, args.hours, args.rate)
+            size = sum(f.stat().st_size for f in bag.iterdir())
+            print(f'bag: {bag} ({args.hours:g} h at {args.rate:g} Hz: {len(truth[0])} state messages, '
+                  f'{written} messages, {size / 1e6:.0f} MB; written in {time.perf_counter() - t0:.0f} s)')
+        analysis, raw = [], []
+        for _ in range(args.repeat):
+            dt, run, metrics = time_analysis(bag)
+            analysis.append(dt)
+            dt_raw, n_raw = time_rosbags(bag)
+            raw.append(dt_raw)
+        if truth is not None:
+            t, q, w, u, speed = truth
+            assert np.allclose(run.t, t, rtol=0, atol=1e-9)  # stamps are integer ns
+            assert np.array_equal(run.q, q) and np.array_equal(run.w, w)
+            assert np.array_equal(run.u, u[:-1]) and np.array_equal(run.wheel_speed, speed)
+            assert n_raw == run.message_count and len(run.controller_status) == len(t)
+            assert run.controller_status[-1][2]['u_z'] == repr(float(u[-1, 2]))
+            expected = TAU * math.log(30.0 / 0.5)   # eigenaxis error 30 deg * exp(-t / TAU) = 0.5 deg
+            got = metrics['settling_eigenaxis_0.5deg_s']
+            period = 1.0 / args.rate
+            if expected < t[-1]:
+                assert 0 <= got - expected <= period ** 2 / (8 * TAU) + 1e-6, (got, expected)
+            else:
+                assert got == math.inf, got
+            print(f'checked: RunData equals the synthetic series; settling {got:.4f} s '
+                  f'(exact {expected:.4f} s)')
+        a, r = min(analysis), min(raw)
+        print(f'messages: {run.message_count} ({run.t.size} state)')
+        print(f'analysis (RunData.from_bag + run_metrics): {a:8.2f} s   '
+              f'({run.message_count / a / 1e6:.2f} M messages/s)')
+        print(f'rosbags raw (AnyReader + deserialize):     {r:8.2f} s   '
+              f'({n_raw / r / 1e6:.2f} M messages/s)')
+        print(f'ratio analysis / raw: {a / r:.3f}  (target <= 2)')
+        if args.repeat > 1:
+            print('  per repeat: analysis ' + ', '.join(f'{x:.2f}' for x in analysis)
+                  + ' s; raw ' + ', '.join(f'{x:.2f}' for x in raw) + ' s')
+    finally:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
