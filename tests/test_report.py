@@ -1,0 +1,292 @@
+"""Reports and comparisons (``adcs-analyze``) on synthetic bags: no ROS process, known signals.
+
+Each synthetic run is a rotation about body x whose angle falls linearly from 30° to 0 at a
+known rate (linear between samples, so the interpolated settling times are exact), a piecewise
+constant applied torque, linearly growing wheel speeds, a controller status with a mode switch,
+and the final ``dynamics/status``. Expected numbers are computed from these definitions here.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from rosbags.typesys import Stores, get_typestore
+
+from adcs_sim.analyze import main as analyze_main
+from adcs_sim.bag import BagWriter
+
+STORE = get_typestore(Stores.ROS2_JAZZY)
+T = STORE.types
+ODOM, JOINTS, VEC = 'nav_msgs/msg/Odometry', 'sensor_msgs/msg/JointState', 'geometry_msgs/msg/Vector3Stamped'
+DIAG = 'diagnostic_msgs/msg/DiagnosticArray'
+SCENARIO = """# synthetic run for the report tests
+dynamics:
+  ros__parameters:
+    inertia: [12.0, 14.0, 10.0]
+    wheels: {names: [rw_x, rw_y, rw_z]}
+"""
+N = 201              # samples at t = 0, 1, ..., 200 s
+THETA0 = 30.0        # deg, rotation about x at t = 0
+U_ON = 50            # the torque is applied for t < 50 s (50 control periods of 1 s)
+FIGURES = ['attitude_error', 'quaternion', 'euler_213', 'body_rates', 'torque', 'wheels',
+           'phase_portrait', 'controller_status']
+
+
+def _header(t: float):
+    sec, frac = divmod(t, 1.0)
+    return T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](sec=int(sec), nanosec=int(round(frac * 1e9))),
+                                    frame_id='')
+
+
+def _odometry(t, q, w):
+    g = T
+    cov = np.zeros(36)
+    pose = g['geometry_msgs/msg/Pose'](position=g['geometry_msgs/msg/Point'](x=0.0, y=0.0, z=0.0),
+                                       orientation=g['geometry_msgs/msg/Quaternion'](x=q[0], y=q[1], z=q[2], w=q[3]))
+    zero = g['geometry_msgs/msg/Vector3'](x=0.0, y=0.0, z=0.0)
+    twist = g['geometry_msgs/msg/Twist'](linear=zero, angular=g['geometry_msgs/msg/Vector3'](x=w[0], y=w[1], z=w[2]))
+    return g[ODOM](header=_header(t), child_frame_id='body',
+                   pose=g['geometry_msgs/msg/PoseWithCovariance'](pose=pose, covariance=cov),
+                   twist=g['geometry_msgs/msg/TwistWithCovariance'](twist=twist, covariance=cov))
+
+
+def _diag(t, statuses):
+    """statuses: [(level, name, message, {key: value})]."""
+    return T[DIAG](header=_header(t), status=[
+        T['diagnostic_msgs/msg/DiagnosticStatus'](
+            level=level, name=name, message=message, hardware_id='',
+            values=[T['diagnostic_msgs/msg/KeyValue'](key=k, value=str(v)) for k, v in values.items()])
+        for level, name, message, values in statuses])
+
+
+def synthetic_signals(rate_deg_s: float, torque: np.ndarray, wheel_rate: np.ndarray):
+    t = np.arange(N, dtype=float)
+    theta = np.maximum(THETA0 - rate_deg_s * t, 0.0)              # deg, about body x
+    half = np.radians(theta) / 2
+    q = np.column_stack([np.sin(half), np.zeros(N), np.zeros(N), np.cos(half)])
+    w = np.column_stack([np.where(theta > 0, -np.radians(rate_deg_s), 0.0), np.zeros(N), np.zeros(N)])
+    u = np.where((t < U_ON)[:, None], torque[None, :], 0.0)        # applied torque, t = 0 .. N-2
+    speed = t[:, None] * wheel_rate[None, :]
+    return t, q, w, u, speed
+
+
+def write_bag(path, rate_deg_s=0.3, torque=(1e-3, -2e-3, 0.5e-3), wheel_rate=(0.1, -0.2, 0.05),
+              missed=0, faults=(), skip=(), chunk_size=4096):
+    """A bag as the graph records it (topic names, types, stamps), from known signals."""
+    torque, wheel_rate = np.asarray(torque), np.asarray(wheel_rate)
+    t, q, w, u, speed = synthetic_signals(rate_deg_s, torque, wheel_rate)
+    bag = BagWriter(path, chunk_size=chunk_size, metadata={'scenario': SCENARIO})
+    for name, type_name in [('/state', ODOM), ('/wheels/state', JOINTS), ('/actuators/torque', VEC),
+                            ('/controller/status', DIAG), ('/dynamics/status', DIAG), ('/faults', DIAG)]:
+        if name not in skip:
+            bag.add_topic(name, type_name, [])
+
+    def put(topic, msg, type_name):
+        if topic not in skip:
+            bag.write(topic, STORE.serialize_cdr(msg, type_name))
+
+    faults = sorted(faults)
+    for k in range(N):
+        put('/state', _odometry(t[k], q[k], w[k]), ODOM)
+        put('/wheels/state', T[JOINTS](header=_header(t[k]), name=['rw_x', 'rw_y', 'rw_z'],
+                                       position=np.zeros(3), velocity=speed[k], effort=-torque * (t[k] < U_ON)),
+            JOINTS)
+        if k < N - 1:
+            mode = 'slew' if t[k] < U_ON else 'coast'
+            put('/controller/status', _diag(t[k], [(0, 'ctrl', '', {
+                'mode': mode, 'u_x': repr(1.5 * float(u[k, 0])), 'u_y': repr(1.5 * float(u[k, 1])),
+                'u_z': repr(1.5 * float(u[k, 2])),
+                'lyapunov': repr(float(np.radians(max(THETA0 - rate_deg_s * t[k], 0)) ** 2)),
+                'rejected_messages': 0})]), DIAG)
+            put('/actuators/torque', T[VEC](header=_header(t[k]), vector=T['geometry_msgs/msg/Vector3'](
+                x=u[k, 0], y=u[k, 1], z=u[k, 2])), VEC)
+        for tf, level, name, message in faults:
+            if tf == t[k]:
+                put('/faults', _diag(t[k], [(level, name, message, {})]), DIAG)
+        if k in (0, N - 1):
+            put('/dynamics/status', _diag(t[k], [(0, 'dynamics', '', {
+                'missed_steps': 0 if k == 0 else missed, 'mode': 'lockstep'})]), DIAG)
+        if k % 20 == 0:
+            bag.flush()
+    bag.close()
+    return path
+
+
+def expected(rate_deg_s, torque, wheel_rate, missed):
+    """The comparison numbers of a synthetic run, from the definitions."""
+    torque, wheel_rate = np.asarray(torque), np.asarray(wheel_rate)
+    t_end = N - 1
+    return {
+        'settling_euler213_theta1_x_1deg_s': (THETA0 - 1.0) / rate_deg_s,
+        'settling_euler213_theta1_x_0.5deg_s': (THETA0 - 0.5) / rate_deg_s,
+        'settling_euler213_theta2_y_1deg_s': 0.0, 'settling_euler213_theta3_z_0.5deg_s': 0.0,
+        'settling_euler213_all_1deg_s': (THETA0 - 1.0) / rate_deg_s,
+        'settling_eigenaxis_0.5deg_s': (THETA0 - 0.5) / rate_deg_s,
+        'integrated_torque_Nms': U_ON * np.linalg.norm(torque),
+        'control_energy_N2m2s': U_ON * float(torque @ torque),
+        'peak_torque_x_Nm': abs(torque[0]), 'peak_torque_y_Nm': abs(torque[1]), 'peak_torque_z_Nm': abs(torque[2]),
+        'peak_wheel_speed_rad_s': float(np.abs(wheel_rate).max() * t_end),
+        'missed_steps': missed,
+    }
+
+
+RUNS = {  # run name -> write_bag arguments
+    'run_a': dict(rate_deg_s=0.3, torque=(1e-3, -2e-3, 0.5e-3), wheel_rate=(0.1, -0.2, 0.05), missed=0,
+                  faults=[(0.0, 0, 'rw_x', 'ok'), (50.0, 2, 'rw_x', 'wheel stuck'), (51.0, 2, 'rw_x', 'wheel stuck')]),
+    'run_b': dict(rate_deg_s=0.15, torque=(-3e-3, 1e-3, 2e-3), wheel_rate=(0.3, 0.1, -0.1), missed=3),
+}
+
+
+@pytest.fixture(scope='module')
+def bags(tmp_path_factory):
+    root = tmp_path_factory.mktemp('runs')
+    return {name: write_bag(root / name / 'bag', **kw) for name, kw in RUNS.items()}
+
+
+def _svg_text(path) -> str:
+    return path.read_text()
+
+
+def test_report_of_one_run_beside_the_bag(bags, capsys):
+    bag = bags['run_a']
+    assert analyze_main([str(bag), '--json']) == 0
+    captured = capsys.readouterr()
+    metrics = json.loads(captured.out)[str(bag)]  # --json output is unchanged: pure JSON on stdout
+    assert metrics['settling_eigenaxis_0.5deg_s'] == pytest.approx((THETA0 - 0.5) / 0.3)
+    out = bag.parent / 'report'
+    assert f'report: {out / "report.md"}' in captured.err
+    text = (out / 'report.md').read_text()
+    assert text.startswith('# Run report: run_a')
+    assert 'recording | complete' in text and 'truncated' not in text
+    assert '```yaml\n# synthetic run for the report tests\ndynamics:' in text
+    assert '| `integrated_torque_Nms` | ' + f'{50 * np.linalg.norm([1e-3, -2e-3, 0.5e-3]):.6g}' in text
+    for name in FIGURES:
+        assert f']({name}.png)' in text and f']({name}.svg)' in text, name
+        for ext in ('png', 'svg'):
+            assert (out / f'{name}.{ext}').stat().st_size > 1000, (name, ext)
+    assert (out / 'attitude_error.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    assert 'Skipped: no thruster topic recorded' in text and not list(out.glob('thrusters.*'))
+    assert 'Missing topics: none.' in text
+    # The fault: one onset at 50 s (the repeated ERROR at 51 s and the OK at 0 s are no events),
+    # in the text and as a marker with its legend on the time plots.
+    assert 'fault at t = 50 s: `rw_x`: wheel stuck' in text
+    assert text.count('fault at t =') == 1
+    for name in ('attitude_error', 'euler_213', 'torque', 'wheels', 'controller_status'):
+        assert 'fault: rw_x (t = 50 s)' in _svg_text(out / f'{name}.svg'), name
+    # Controller status: the string 'mode' as a timeline, numeric keys as panels, u_* elsewhere.
+    status_svg = _svg_text(out / 'controller_status.svg')
+    assert all(s in status_svg for s in ('slew', 'coast', 'lyapunov', 'rejected_messages'))
+    assert '`mode` (timeline), `lyapunov`, `rejected_messages`' in text
+    # Commanded (status u_x, u_y, u_z: 1.5 x applied here) and applied torque in one figure.
+    torque_svg = _svg_text(out / 'torque.svg')
+    assert 'commanded' in torque_svg and 'applied' in torque_svg
+    assert 'no commanded torque' not in text and 'no applied torque' not in text
+
+
+def test_missing_topics_give_the_figures_they_can(tmp_path, capsys):
+    bag = write_bag(tmp_path / 'partial' / 'bag', skip=('/wheels/state', '/controller/status', '/faults'))
+    out = tmp_path / 'out'
+    assert analyze_main([str(bag), '--out', str(out)]) == 0
+    assert f'report: {out / "report.md"}' in capsys.readouterr().out
+    text = (out / 'report.md').read_text()
+    assert '**Missing topics** (no messages in the bag): `wheels/state`, `controller/status`.' in text
+    assert 'Skipped: no wheel states (wheels/state).' in text
+    assert 'Skipped: no controller status (controller/status).' in text
+    assert 'no commanded torque recorded' in text  # torque figure: applied only
+    assert 'No fault events' in text
+    made = sorted(p.stem for p in out.glob('*.png'))
+    assert made == sorted(set(FIGURES) - {'wheels', 'controller_status'})
+    assert not (tmp_path / 'partial' / 'report').exists()  # --out was honoured
+
+
+def test_truncated_bag_is_recovered_and_says_so(bags, tmp_path):
+    bag = tmp_path / 'killed' / 'bag'
+    shutil.copytree(bags['run_b'], bag)
+    (bag / 'metadata.yaml').unlink()
+    mcap = next(bag.glob('*.mcap'))
+    data = mcap.read_bytes()
+    mcap.write_bytes(data[:len(data) // 2])
+    from adcs_sim.bag import read_raw
+    readable = sum(1 for _ in read_raw(bag))
+    total = N + N + (N - 1) * 2 + 2  # state, wheels, status + torque, dynamics/status
+    assert 0 < readable < total
+    assert analyze_main([str(bag), '--no-report']) == 0
+    assert not (bag.parent / 'report').exists()  # --no-report writes nothing
+    assert analyze_main([str(bag)]) == 0
+    text = (bag.parent / 'report' / 'report.md').read_text()
+    assert f'recovered from a truncated file' in text
+    assert f'{readable} messages recovered' in text
+    assert (bag.parent / 'report' / 'attitude_error.png').stat().st_size > 1000
+
+
+@pytest.mark.parametrize('kind', ['text file', 'empty folder', 'missing path', 'junk .mcap'])
+def test_not_a_bag_is_one_line_on_stderr(tmp_path, capsys, kind):
+    path = tmp_path / 'input'
+    if kind == 'text file':
+        path.write_text('hello\n')
+    elif kind == 'empty folder':
+        path.mkdir()
+    elif kind == 'junk .mcap':
+        path.mkdir()
+        (path / 'input_0.mcap').write_bytes(bytes(range(256)) * 8)
+    assert analyze_main([str(path)]) == 1
+    captured = capsys.readouterr()
+    assert captured.out == ''
+    lines = captured.err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f'adcs-analyze: {path}: '), captured.err
+    assert 'Traceback' not in captured.err
+    assert not (tmp_path / 'report').exists()
+
+
+def test_comparison_table_and_overlaid_figures(bags, tmp_path, capsys):
+    out = tmp_path / 'cmp'
+    assert analyze_main(['--compare', str(bags['run_a']), str(bags['run_b']), '--out', str(out), '--no-report']) == 0
+    assert not out.exists()  # --no-report: metrics only
+    assert analyze_main(['--compare', str(bags['run_a']), str(bags['run_b']), '--out', str(out)]) == 0
+    assert 'comparison:' in capsys.readouterr().out
+    with open(out / 'comparison.csv', newline='') as f:
+        rows = list(csv.reader(f))
+    assert rows[0] == ['metric', 'run_a', 'run_b']
+    table = {r[0]: r[1:] for r in rows[1:]}
+    assert all(len(v) == 2 for v in table.values())
+    for col, name in enumerate(['run_a', 'run_b']):
+        kw = RUNS[name]
+        for key, value in expected(kw['rate_deg_s'], kw['torque'], kw['wheel_rate'], kw['missed']).items():
+            assert float(table[key][col]) == pytest.approx(value, rel=1e-6, abs=1e-9), (name, key)
+    assert table['thruster_impulse_Ns'] == ['n/a', 'n/a']
+    md = (out / 'comparison.md').read_text()
+    assert '| metric | run_a | run_b | meaning |' in md
+    for name in ('compare_attitude_error', 'compare_torque_norm', 'compare_wheel_speed_norm'):
+        assert f']({name}.png)' in md
+        for ext in ('png', 'svg'):
+            assert (out / f'{name}.{ext}').stat().st_size > 1000
+        svg = _svg_text(out / f'{name}.svg')
+        assert 'run_a' in svg and 'run_b' in svg  # one labelled line per run
+
+
+def test_comparison_default_folder_and_bad_member(bags, tmp_path, capsys):
+    """Without --out: comparison/ beside the runs; an unreadable bag is reported, the rest compared."""
+    junk = tmp_path / 'junk.txt'
+    junk.write_text('not a bag')
+    status = analyze_main(['--compare', str(bags['run_a']), str(bags['run_b']), str(junk), '--json'])
+    assert status == 1
+    captured = capsys.readouterr()
+    assert set(json.loads(captured.out)) == {str(bags['run_a']), str(bags['run_b'])}
+    assert [line for line in captured.err.splitlines() if line.startswith('adcs-analyze:')] == \
+        [line for line in captured.err.splitlines() if str(junk) in line]
+    out = bags['run_a'].parent.parent / 'comparison'
+    assert math.isclose(float(next(r for r in csv.reader(open(out / 'comparison.csv')) if r[0] == 'missed_steps')[2]), 3)
+
+
+def test_report_module_is_pure():
+    """No rclpy and no pyplot (GUI backends) behind the report module."""
+    code = 'import sys, adcs_sim.report; print("rclpy" in sys.modules, "matplotlib.pyplot" in sys.modules)'
+    from conftest import ROOT
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, cwd=ROOT, check=True)
+    assert out.stdout.split() == ['False', 'False']
