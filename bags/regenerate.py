@@ -1,0 +1,108 @@
+#!/usr/bin/env python3
+"""Regenerate the reference recordings in ``bags/``: one ``adcs-run`` per scenario in ``config/``.
+
+``bags/<scenario>/`` gets the run's ``bag/`` (rosbag2 MCAP), ``metrics.json`` and
+``scenario.yaml``; the run's ``logs/`` are not kept. Each run goes to ``bags/<scenario>.tmp/``
+first (ignored by git) and replaces the old recording only when it succeeded.
+
+    .venv/bin/python bags/regenerate.py                 # every config/*.yaml
+    .venv/bin/python bags/regenerate.py microsat_pd_slew
+    .venv/bin/python bags/regenerate.py --check         # no run: do the kept metrics still match?
+
+``adcs-run`` leases its own ROS_DOMAIN_ID and keeps discovery on localhost. ``--check`` recomputes
+every recording's metrics from its bag with the current :mod:`adcs_sim.analysis` and compares
+them with its ``metrics.json`` (what tests/test_any_bag.py also checks).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+CONFIG = ROOT / 'config'
+MAX_TOTAL_BYTES = 20_000_000
+
+
+def runner_command() -> list[str]:
+    exe = Path(sys.executable).parent / 'adcs-run'
+    return [str(exe)] if exe.exists() else [sys.executable, '-m', 'adcs_sim.runner']
+
+
+def regenerate(name: str) -> Path:
+    scenario = CONFIG / f'{name}.yaml'
+    if not scenario.exists():
+        raise SystemExit(f'regenerate: no scenario {scenario}')
+    tmp = HERE / f'{name}.tmp'
+    shutil.rmtree(tmp, ignore_errors=True)
+    cmd = [*runner_command(), str(scenario), '--out', str(tmp), '--no-progress']
+    print('$', ' '.join(cmd), flush=True)
+    result = subprocess.run(cmd, cwd=ROOT)
+    if result.returncode != 0:
+        raise SystemExit(f'regenerate: adcs-run failed for {name} (status {result.returncode}); '
+                         f'output kept in {tmp}')
+    shutil.rmtree(tmp / 'logs', ignore_errors=True)
+    # The run's report (report/: report.md + PNG/SVG figures), so the docs can show it.
+    from adcs_sim.analyze import main as analyze
+    if analyze([str(tmp / 'bag'), '--out', str(tmp / 'report')]) != 0:
+        raise SystemExit(f'regenerate: adcs-analyze failed for {name}; output kept in {tmp}')
+    dest = HERE / name
+    shutil.rmtree(dest, ignore_errors=True)
+    tmp.rename(dest)
+    return dest
+
+
+def jsonable(metrics: dict) -> dict:
+    """What the runner writes to metrics.json (inf/nan as strings), for comparison."""
+    def conv(v):
+        if isinstance(v, float) and not math.isfinite(v):
+            return str(v)
+        if isinstance(v, list):
+            return [conv(x) for x in v]
+        return v
+    return json.loads(json.dumps({k: conv(v) for k, v in metrics.items()}))
+
+
+def check(folder: Path) -> list[str]:
+    """Differences between a recording's metrics.json and its bag's metrics computed now."""
+    sys.path.insert(0, str(ROOT))
+    from adcs_sim.analysis import RunData, run_metrics
+    kept = json.loads((folder / 'metrics.json').read_text())
+    now = jsonable(run_metrics(RunData.from_bag(folder / 'bag')))
+    return [f'{folder.name}: {k}: kept {kept[k]!r}, now {now.get(k)!r}'
+            for k in kept if now.get(k) != kept[k]]
+
+
+def total_bytes() -> int:
+    return sum(f.stat().st_size for d in HERE.iterdir() if d.is_dir() and not d.name.endswith('.tmp')
+               for f in d.rglob('*') if f.is_file())
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('scenarios', nargs='*', help='scenario names (default: every config/*.yaml)')
+    parser.add_argument('--check', action='store_true', help='only compare kept metrics with the bags')
+    args = parser.parse_args(argv)
+    names = args.scenarios or sorted(p.stem for p in CONFIG.glob('*.yaml'))
+    if args.check:
+        problems = [p for name in names for p in check(HERE / name)]
+        print('\n'.join(problems) or f'ok: {len(names)} recording(s) match their metrics.json')
+        return 1 if problems else 0
+    for name in names:
+        dest = regenerate(name)
+        print(f'{dest.relative_to(ROOT)}: ' + ', '.join(sorted(p.name for p in dest.iterdir())))
+    size = total_bytes()
+    print(f'bags/: {size / 1e6:.2f} MB in recordings')
+    if size > MAX_TOTAL_BYTES:
+        print(f'regenerate: bags/ exceeds {MAX_TOTAL_BYTES / 1e6:.0f} MB', file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
