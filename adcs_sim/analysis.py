@@ -342,6 +342,20 @@ def run_metrics(run: RunData, tol_deg: float = 0.5, eigen_tol_deg: float | None 
     return out
 
 
+def jsonable_metrics(metrics: dict) -> dict:
+    """Metrics as JSON-safe values: inf / nan (also inside lists) as the strings 'inf' / 'nan'.
+
+    The form of ``metrics.json`` and of ``adcs-analyze --json`` (strict JSON has no Infinity).
+    """
+    def conv(v):
+        if isinstance(v, float) and not math.isfinite(v):
+            return str(v)
+        if isinstance(v, list):
+            return [conv(x) for x in v]
+        return v
+    return {k: conv(v) for k, v in metrics.items()}
+
+
 def format_metrics(metrics: dict) -> str:
     """Human-readable table of :func:`run_metrics`."""
     def fmt(v):

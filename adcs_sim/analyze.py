@@ -16,19 +16,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from pathlib import Path
 
-from adcs_sim.analysis import format_metrics, run_metrics
-
-
-def _jsonable(value):
-    if isinstance(value, float) and not math.isfinite(value):
-        return str(value)
-    if isinstance(value, list):
-        return [_jsonable(v) for v in value]
-    return value
+from adcs_sim.analysis import format_metrics, jsonable_metrics, run_metrics
 
 
 def _report_dir(out: Path | None, path: str, name: str, several: bool) -> Path:
@@ -64,7 +55,7 @@ def main(argv=None) -> int:
             status = 1
     results = {p: run_metrics(r.data, args.tolerance_deg, args.eigen_tolerance_deg) for p, r in runs.items()}
     if args.json:
-        print(json.dumps({p: {k: _jsonable(v) for k, v in m.items()} for p, m in results.items()}, indent=2))
+        print(json.dumps({p: jsonable_metrics(m) for p, m in results.items()}, indent=2))
     else:
         for path, metrics in results.items():
             print(f'{path}:')

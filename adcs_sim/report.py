@@ -485,11 +485,9 @@ METRIC_NOTES = {
 }
 
 
-def _note(key: str) -> str:
-    for prefix, note in METRIC_NOTES.items():
-        if key == prefix or key.startswith(prefix):
-            return note
-    return ''
+def _note(key: str, notes: dict = METRIC_NOTES) -> str:
+    """The explanation of a metric: the first entry of ``notes`` whose key prefixes ``key``."""
+    return next((note for prefix, note in notes.items() if key.startswith(prefix)), '')
 
 
 def fmt(value, digits: int = 6) -> str:
@@ -622,11 +620,8 @@ COMPARISON_NOTES = {
 }
 
 
-def _comparison_note(key: str) -> str:
-    for prefix, note in COMPARISON_NOTES.items():
-        if key.startswith(prefix):
-            return note
-    return ''
+def _note_cmp(key: str) -> str:
+    return _note(key, COMPARISON_NOTES)
 
 
 def _csv_value(value) -> str:
@@ -682,7 +677,7 @@ def write_comparison(runs: list[Run], out, tol_deg: float = 0.5,
               '| --- | ' + ' | '.join('---' for _ in names) + ' | --- |']
     for k in keys:
         lines.append(f'| `{k}` | ' + ' | '.join(fmt(row[k]) for row in table)
-                     + f' | {_md_escape(_comparison_note(k))} |')
+                     + f' | {_md_escape(_note_cmp(k))} |')
     lines += ['', '## Figures', '']
     for name, title, caption, fig in _comparison_figures(runs, names, eigen_tol_deg):
         _save(fig, out, name)

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import shutil
 import signal
@@ -205,7 +204,7 @@ class _Progress:
 def run_scenario(scenario: Path, out: Path, duration: float | None = None, progress: bool = True,
                  tol_deg: float = 0.5) -> dict:
     """Run one scenario end to end; return its metrics. Raises RunError / ParameterError."""
-    from adcs_sim.analysis import RunData, run_metrics
+    from adcs_sim.analysis import RunData, jsonable_metrics, run_metrics
     from adcs_sim.registry import NODES
     validated = validate_scenario(scenario, duration)
     if out.exists() and any(out.iterdir()):
@@ -279,9 +278,7 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
         for s, h in old_handlers.items():
             signal.signal(s, h)
     metrics = run_metrics(RunData.from_bag(bag_dir), tol_deg)
-    (out / 'metrics.json').write_text(json.dumps(
-        {k: (v if not isinstance(v, float) or math.isfinite(v) else str(v)) for k, v in metrics.items()},
-        indent=2))
+    (out / 'metrics.json').write_text(json.dumps(jsonable_metrics(metrics), indent=2))
     return metrics
 
 

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import shutil
 import subprocess
 import sys
@@ -57,23 +56,12 @@ def regenerate(name: str) -> Path:
     return dest
 
 
-def jsonable(metrics: dict) -> dict:
-    """What the runner writes to metrics.json (inf/nan as strings), for comparison."""
-    def conv(v):
-        if isinstance(v, float) and not math.isfinite(v):
-            return str(v)
-        if isinstance(v, list):
-            return [conv(x) for x in v]
-        return v
-    return json.loads(json.dumps({k: conv(v) for k, v in metrics.items()}))
-
-
 def check(folder: Path) -> list[str]:
     """Differences between a recording's metrics.json and its bag's metrics computed now."""
     sys.path.insert(0, str(ROOT))
-    from adcs_sim.analysis import RunData, run_metrics
+    from adcs_sim.analysis import RunData, jsonable_metrics, run_metrics
     kept = json.loads((folder / 'metrics.json').read_text())
-    now = jsonable(run_metrics(RunData.from_bag(folder / 'bag')))
+    now = json.loads(json.dumps(jsonable_metrics(run_metrics(RunData.from_bag(folder / 'bag')))))
     return [f'{folder.name}: {k}: kept {kept[k]!r}, now {now.get(k)!r}'
             for k in kept if now.get(k) != kept[k]]
 

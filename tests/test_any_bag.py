@@ -19,7 +19,7 @@ from rosbags.typesys import Stores, get_typestore
 from scipy.spatial.transform import Rotation
 
 from adcs_sim import bag as bagio
-from adcs_sim.analysis import REPORTED_TOPICS, RunData, run_metrics
+from adcs_sim.analysis import REPORTED_TOPICS, RunData, jsonable_metrics, run_metrics
 from conftest import ROOT
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
@@ -242,12 +242,6 @@ def test_sqlite3_bag_through_read_raw_and_by_its_db3_file(tmp_path):
 
 # --- a real recording ------------------------------------------------------------------------
 
-def _jsonable(metrics: dict) -> dict:
-    conv = lambda v: str(v) if isinstance(v, float) and not math.isfinite(v) else v  # noqa: E731
-    return json.loads(json.dumps({k: [conv(x) for x in v] if isinstance(v, list) else conv(v)
-                                  for k, v in metrics.items()}))
-
-
 RECORDINGS = sorted(p.parent for p in BAGS.glob('*/metrics.json') if not p.parent.name.endswith('.tmp'))
 
 
@@ -255,7 +249,8 @@ def test_reference_recordings_exist_for_every_scenario_and_are_small():
     scenarios = sorted(p.stem for p in (ROOT / 'config').glob('*.yaml'))
     assert [p.name for p in RECORDINGS] == scenarios
     for folder in RECORDINGS:
-        assert sorted(p.name for p in folder.iterdir()) == ['bag', 'metrics.json', 'scenario.yaml']
+        assert sorted(p.name for p in folder.iterdir()) == ['bag', 'metrics.json', 'report', 'scenario.yaml']
+        assert (folder / 'report' / 'report.md').is_file()  # what the docs link to
     total = sum(f.stat().st_size for folder in RECORDINGS for f in folder.rglob('*') if f.is_file())
     assert total < 20_000_000
 
@@ -264,7 +259,7 @@ def test_reference_recordings_exist_for_every_scenario_and_are_small():
 def test_reference_recording_metrics_unchanged(folder):
     """The metrics computed now from each kept bag are the ones adcs-run printed when it was made."""
     kept = json.loads((folder / 'metrics.json').read_text())
-    now = _jsonable(run_metrics(RunData.from_bag(folder / 'bag')))
+    now = json.loads(json.dumps(jsonable_metrics(run_metrics(RunData.from_bag(folder / 'bag')))))
     assert {k: now.get(k) for k in kept} == kept
 
 
