@@ -302,10 +302,17 @@ def target_attitude(scenario: dict) -> np.ndarray:
     return np.array([0.0, 0.0, 0.0, 1.0])
 
 
+def attitude_errors(run: RunData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(error quaternion (N, 4), eigenaxis error (N,) deg, signed 2-1-3 Euler errors (N, 3) deg in
+    sequence order y, x, z)."""
+    qe = error_quaternion(run.q, run.q_ref)
+    return qe, np.degrees(eigenaxis_angle(qe)), np.degrees(euler_213(qe))
+
+
 def attitude_errors_deg(run: RunData) -> tuple[np.ndarray, np.ndarray]:
     """(eigenaxis error (N,), absolute 2-1-3 Euler errors (N, 3) in sequence order y, x, z), degrees."""
-    qe = error_quaternion(run.q, run.q_ref)
-    return np.degrees(eigenaxis_angle(qe)), np.degrees(np.abs(euler_213(qe)))
+    _, eigen, euler = attitude_errors(run)
+    return eigen, np.abs(euler)
 
 
 def settling_times(run: RunData, tols_deg=(0.5, 1.0)) -> dict[float, dict]:

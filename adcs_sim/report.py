@@ -33,8 +33,7 @@ from matplotlib.ticker import MaxNLocator
 
 from adcs_msgs_py import names as topics
 from adcs_sim import bag as bagio
-from adcs_sim.analysis import RunData, run_metrics
-from adcs_sim.attitude import eigenaxis_angle, error_quaternion, euler_213
+from adcs_sim.analysis import RunData, attitude_errors, run_metrics, settling_times
 
 ERROR_LEVEL = 2  # diagnostic_msgs/DiagnosticStatus.ERROR
 DPI = 110
@@ -136,12 +135,6 @@ def load_run(path, name: str | None = None) -> Run:
 
 
 # --- derived series -------------------------------------------------------------------------
-
-def attitude_errors(run: RunData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(error quaternion (N, 4), eigenaxis error (deg), 2-1-3 Euler errors (deg, sequence order y x z))."""
-    qe = error_quaternion(run.q, run.q_ref)
-    return qe, np.degrees(eigenaxis_angle(qe)), np.degrees(euler_213(qe))
-
 
 def status_series(run: RunData) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Controller status values per key: ``{key: (t, values)}``, values float where all parse, else str.
@@ -266,16 +259,17 @@ class Context:
     events: list
     tol_deg: float
     eigen_tol_deg: float
+    metrics: dict          # run_metrics of the run at these tolerances
+    errors: tuple          # attitude_errors(run): computed once for all the figures
 
 
 def fig_attitude_error(c: Context):
-    _, eigen, _ = attitude_errors(c.run)
+    _, eigen, _ = c.errors
     fig, (ax,) = _figure(height=3.4)
     ax.plot(c.run.t, _positive(eigen), color='C0', label='eigenaxis error')
     ax.set_yscale('log')
     ax.axhline(c.eigen_tol_deg, color='0.3', linestyle=':', label=f'tolerance {c.eigen_tol_deg:g}°')
-    metrics = run_metrics(c.run, c.tol_deg, c.eigen_tol_deg)
-    ts = metrics[f'settling_eigenaxis_{c.eigen_tol_deg:g}deg_s']
+    ts = c.metrics[f'settling_eigenaxis_{c.eigen_tol_deg:g}deg_s']
     if math.isfinite(ts):
         ax.axvline(ts, color='C2', linestyle='-.', linewidth=1, label=f'settled to {c.eigen_tol_deg:g}° at {ts:.1f} s')
     ax.set_ylabel('eigenaxis error (deg, log scale)')
@@ -302,7 +296,7 @@ EULER_AXES = 'yxz'  # body axis of each angle, in sequence order
 
 
 def fig_euler(c: Context):
-    _, _, euler = attitude_errors(c.run)
+    _, _, euler = c.errors
     fig, (ax, ax_log) = _figure(rows=2, height=2.6)
     for i in range(3):
         ax.plot(c.run.t, euler[:, i], **LINE[EULER_AXES[i]], label=EULER_LABELS[i])
@@ -383,7 +377,7 @@ def fig_thrusters(c: Context):
 
 
 def fig_phase(c: Context):
-    qe, _, _ = attitude_errors(c.run)
+    qe, _, _ = c.errors
     qe = qe * np.where(qe[:, 3:4] < 0, -1.0, 1.0)  # the shortest-path sign (q4 >= 0)
     fig = Figure(figsize=(8.0, 4.6), layout='constrained')
     ax = fig.subplots()
@@ -514,8 +508,8 @@ def write_report(run: Run, out, tol_deg: float = 0.5, eigen_tol_deg: float | Non
     data = run.data
     eigen_tol_deg = tol_deg if eigen_tol_deg is None else eigen_tol_deg
     events = fault_events(data)
-    ctx = Context(data, events, tol_deg, eigen_tol_deg)
     metrics = run_metrics(data, tol_deg, eigen_tol_deg)
+    ctx = Context(data, events, tol_deg, eigen_tol_deg, metrics, attitude_errors(data))
     missing = missing_topics(data)
 
     lines = [f'# Run report: {run.name}', '', '| | |', '| --- | --- |',
@@ -589,12 +583,10 @@ _EULER_INDEX = {'theta1_x': 1, 'theta2_y': 0, 'theta3_z': 2}
 def comparison_rows(run: RunData, bands=(1.0, 0.5), eigen_tol_deg: float = 0.5) -> dict:
     """The comparison metrics of one run: ``{row key: value}`` (see :data:`COMPARISON_ROWS`)."""
     rows = {}
-    for band in bands:
-        m = run_metrics(run, band, eigen_tol_deg)
-        per_axis = m['settling_euler213_per_axis_s']
+    for band, settled in settling_times(run, bands).items():
         for label, i in _EULER_INDEX.items():
-            rows[f'settling_euler213_{label}_{band:g}deg_s'] = per_axis[i]
-        rows[f'settling_euler213_all_{band:g}deg_s'] = m[f'settling_euler213_{band:g}deg_s']
+            rows[f'settling_euler213_{label}_{band:g}deg_s'] = settled['euler213_per_axis'][i]
+        rows[f'settling_euler213_all_{band:g}deg_s'] = settled['euler213']
     m = run_metrics(run, bands[-1], eigen_tol_deg)
     rows[f'settling_eigenaxis_{eigen_tol_deg:g}deg_s'] = m[f'settling_eigenaxis_{eigen_tol_deg:g}deg_s']
     rows['final_eigenaxis_error_deg'] = m['final_eigenaxis_error_deg']
