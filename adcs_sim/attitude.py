@@ -71,13 +71,6 @@ def eigenaxis_angle(q: np.ndarray) -> np.ndarray:
     return 2.0 * np.arctan2(np.linalg.norm(q[..., :3], axis=-1), np.abs(q[..., 3]))
 
 
-def rotation_matrix(q: np.ndarray) -> np.ndarray:
-    """Body-to-inertial direction cosine matrix ``R(q)`` (via scipy)."""
-    q = np.asarray(q, dtype=float)
-    flat = Rotation.from_quat(q.reshape(-1, 4)).as_matrix()
-    return flat.reshape(q.shape[:-1] + (3, 3))
-
-
 def euler_213(q: np.ndarray) -> np.ndarray:
     """2-1-3 Euler angles (rad) of ``q``, in sequence order (about y, then x, then z)."""
     q = np.asarray(q, dtype=float)
