@@ -15,6 +15,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 import yaml
 
 REQUIRED = object()
@@ -43,6 +44,9 @@ Check = Callable[[Any], 'str | None']
 class Param:
     """One parameter: name (dotted), kind, default (or REQUIRED), length, check, doc.
 
+    ``batch``: the batch engine accepts different values of it across the runs of one batch
+    (the plant or law code takes it with a leading batch axis); other parameters must agree.
+
     Doubles (and double-array elements) must be finite unless ``finite=False`` (limits where
     ``.inf`` means "none"); NaN is refused always.
     """
@@ -55,6 +59,7 @@ class Param:
     check: Check | None = None
     choices: tuple[str, ...] | None = None
     finite: bool = True
+    batch: bool = False  # may differ between the runs of one batch (a Monte Carlo dispersion)
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -147,6 +152,30 @@ class Schema:
                 raise
         return out
 
+    def stack(self, runs: list[dict[str, Any]]) -> dict[str, Any]:
+        """Validated sections of N runs -> one section whose varying values have a leading axis N.
+
+        A value equal in every run stays as it is; one that differs becomes an array (N, ...) and
+        must be declared ``batch=True``, else :class:`ParameterError` names it.
+        """
+        if not runs:
+            raise ValueError('no runs to stack')
+        out: dict[str, Any] = {}
+        for name, first in runs[0].items():
+            values = [r[name] for r in runs]
+            if all(v == first for v in values[1:]):
+                out[name] = first
+            elif name in self.by_name and self.by_name[name].batch:
+                try:
+                    out[name] = np.asarray(values)
+                except ValueError:
+                    raise ParameterError(name, 'has a different length in some runs of the batch',
+                                         self.node) from None
+            else:
+                raise ParameterError(name, 'differs between the runs of one batch, which the batch '
+                                     'engine does not support for this parameter', self.node)
+        return out
+
     def describe(self) -> str:
         """Markdown table of the parameters (used by ``--help`` and the docs)."""
         rows = ['| parameter | type | default | meaning |', '| --- | --- | --- | --- |']
@@ -192,6 +221,18 @@ def flatten(tree: Mapping[str, Any], prefix: str = '') -> dict[str, Any]:
         else:
             flat[name] = value
     return flat
+
+
+def unflatten(flat: Mapping[str, Any]) -> dict[str, Any]:
+    """{dotted.name: value} -> nested dict: the inverse of :func:`flatten` (for writing params files)."""
+    out: dict[str, Any] = {}
+    for key, value in flat.items():
+        node = out
+        *parents, leaf = key.split('.')
+        for part in parents:
+            node = node.setdefault(part, {})
+        node[leaf] = value
+    return out
 
 
 def load_params_file(path: str) -> dict[str, dict[str, Any]]:

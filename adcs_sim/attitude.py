@@ -31,6 +31,22 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[..., _NEXT] * b[..., _PREV] - a[..., _PREV] * b[..., _NEXT]
 
 
+def matvec(M: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``M v`` for matrices ``M`` (..., m, k) and vectors ``v`` (..., k), batch axes broadcast.
+
+    Written as ``k`` element-wise multiply-adds in a fixed order (no BLAS), so a run's result
+    does not depend on which other runs share its batch nor on the batch size: a campaign gives
+    the same numbers bit for bit however it is split (BLAS kernels change their summation
+    order with the array shapes). For the papers' 3 x 3 and n x 3 matrices it is also faster
+    than ``einsum`` on small batches.
+    """
+    M = np.asarray(M)
+    out = M[..., 0] * v[..., None, 0]
+    for j in range(1, M.shape[-1]):
+        out = out + M[..., j] * v[..., None, j]
+    return out
+
+
 def quat_kinematics(q: np.ndarray, w: np.ndarray) -> np.ndarray:
     """dq/dt for body rate ``w`` (seed 004 eq. 4): dq_v = 1/2 (q4 w - w x q_v), dq4 = -1/2 w.q_v."""
     qv, q4 = q[..., :3], q[..., 3:4]
@@ -72,7 +88,12 @@ def eigenaxis_angle(q: np.ndarray) -> np.ndarray:
 
 
 def euler_213(q: np.ndarray) -> np.ndarray:
-    """2-1-3 Euler angles (rad) of ``q``, in sequence order (about y, then x, then z)."""
+    """2-1-3 Euler angles (rad) of ``q``, in sequence order (about y, then x, then z); NaN for a
+    non-finite or zero quaternion (a diverged run's last sample)."""
     q = np.asarray(q, dtype=float)
-    flat = Rotation.from_quat(q.reshape(-1, 4)).as_euler(EULER_213)
-    return flat.reshape(q.shape[:-1] + (3,))
+    flat = q.reshape(-1, 4)
+    good = np.isfinite(flat).all(axis=1) & (np.abs(flat).sum(axis=1) > 0)
+    out = np.full((flat.shape[0], 3), np.nan)
+    if good.any():
+        out[good] = Rotation.from_quat(flat[good]).as_euler(EULER_213)
+    return out.reshape(q.shape[:-1] + (3,))

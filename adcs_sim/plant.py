@@ -27,7 +27,12 @@ angular momentum, remove spin inertia from ``J``, and apply a body torque comput
 zero-order-hold command and the state. The integrator knows nothing about any particular actuator,
 so new actuator models (thrusters, magnetorquers) are added as new classes, not by editing it.
 
-Every array function accepts a leading batch axis: ``x`` of shape ``(..., n_states)``.
+Every array function accepts a leading batch axis: ``x`` of shape ``(..., n_states)``. So do the
+physical parameters a Monte Carlo campaign disperses (inertia ``(..., 3, 3)``, wheel spin
+inertia and limits ``(..., n)``, torquer limits, initial state): one :class:`Plant` then holds a
+whole batch of different spacecraft (:mod:`adcs_sim.batch`). Matrix-vector products are
+:func:`~adcs_sim.attitude.matvec` (fixed summation order), so a run's numbers do not depend on
+the other runs of its batch.
 """
 from __future__ import annotations
 
@@ -37,7 +42,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from adcs_sim.attitude import cross, quat_kinematics
+from adcs_sim.attitude import cross, matvec, quat_kinematics
 
 MU_EARTH = 3.986004418e14  # m^3/s^2
 R_EARTH = 6378137.0  # m
@@ -116,7 +121,7 @@ class ReactionWheels(Actuator):
         n = len(self.names)
         self.axes = np.asarray(self.axes, dtype=float).reshape(n, 3)
         self.axes = self.axes / np.linalg.norm(self.axes, axis=1, keepdims=True)
-        as_n = lambda v, d: np.full(n, d, dtype=float) if v is None else np.asarray(v, dtype=float).reshape(n)  # noqa: E731
+        as_n = lambda v, d: _per_wheel(v, d, n)  # noqa: E731
         self.spin_inertia = as_n(self.spin_inertia, 0.0)
         self.max_torque = as_n(self.max_torque, np.inf)
         self.max_speed = as_n(self.max_speed, np.inf)
@@ -125,6 +130,7 @@ class ReactionWheels(Actuator):
         self.speed_gain = as_n(self.speed_gain, 1.0)
         self.initial_speed = as_n(self.initial_speed, 0.0)
         self.n_states = 2 * n
+        self._axes_t = np.ascontiguousarray(self.axes.T)
         self.available = np.ones(n, dtype=bool)
         self._has_friction = bool(np.any(self.viscous) or np.any(self.coulomb))
         self._speed_limited = bool(np.any(np.isfinite(self.max_speed)))
@@ -134,15 +140,16 @@ class ReactionWheels(Actuator):
         return len(self.names)
 
     def initial_state(self) -> np.ndarray:
-        return np.concatenate([self.initial_speed, np.zeros(self.count)])
+        speed = self.initial_speed
+        return np.concatenate([speed, np.zeros(speed.shape)], axis=-1)
 
     def spin_inertia_matrix(self) -> np.ndarray:
-        return np.einsum('i,ij,ik->jk', self.spin_inertia, self.axes, self.axes)
+        return np.einsum('...i,ij,ik->...jk', self.spin_inertia, self.axes, self.axes)
 
     def momentum(self, xa, w):
         # Absolute spin (relative speed + body rate about the axis): J_s w + this = J w + sum a Js Omega.
-        absolute = xa[..., :self.count] + w @ self.axes.T
-        return (absolute * self.spin_inertia) @ self.axes
+        absolute = xa[..., :self.count] + matvec(self.axes, w)
+        return matvec(self._axes_t, absolute * self.spin_inertia)
 
     def zero_command(self) -> WheelCommand:
         return WheelCommand(np.zeros(self.count), np.zeros(self.count, dtype=bool))
@@ -166,11 +173,11 @@ class ReactionWheels(Actuator):
         tau = self.motor_torque(speed, cmd)
         if self._has_friction:
             tau = tau + self.friction_torque(speed)
-        return -(tau @ self.axes), tau
+        return -matvec(self._axes_t, tau), tau
 
     def derivative(self, t, xa, w, wdot, cmd, aux):
         speed = xa[..., :self.count]
-        accel = aux / self.spin_inertia - wdot @ self.axes.T
+        accel = aux / self.spin_inertia - matvec(self.axes, wdot)
         return np.concatenate([accel, speed], axis=-1)
 
 
@@ -182,7 +189,8 @@ class Torquers(Actuator):
     name: str = 'torquers'
 
     def __post_init__(self) -> None:
-        self.max_torque = np.broadcast_to(np.asarray(self.max_torque, dtype=float), (3,)).copy()
+        limit = np.asarray(self.max_torque, dtype=float)
+        self.max_torque = np.broadcast_to(limit, limit.shape[:-1] + (3,) if limit.ndim else (3,)).copy()
 
     def zero_command(self) -> np.ndarray:
         return np.zeros(3)
@@ -243,7 +251,7 @@ class CircularOrbit:
     def gravity_gradient(self, t: float, q: np.ndarray, inertia: np.ndarray) -> np.ndarray:
         """Gravity-gradient torque ``3 n^2 c x (J c)``, c = nadir unit vector in body axes."""
         c = rotate_to_body(q, -self.position_unit(t))
-        return 3.0 * self.mean_motion ** 2 * cross(c, c @ inertia.T)
+        return 3.0 * self.mean_motion ** 2 * cross(c, matvec(inertia, c))
 
 
 # --- the plant --------------------------------------------------------------------------------
@@ -275,9 +283,7 @@ class Plant:
     def __init__(self, inertia, actuators: list[Actuator] = (), disturbance: Disturbance | None = None,
                  orbit: CircularOrbit | None = None, gravity_gradient: bool = False) -> None:
         self.inertia = np.asarray(inertia, dtype=float)
-        problem = check_inertia(self.inertia)
-        if problem:
-            raise ValueError(problem)
+        _check_inertias(self.inertia, 'inertia')
         self.actuators = list(actuators)
         names = [a.name for a in self.actuators]
         if len(set(names)) != len(names):
@@ -289,9 +295,7 @@ class Plant:
         self.gravity_gradient = gravity_gradient
         spin = sum((a.spin_inertia_matrix() for a in self.actuators), np.zeros((3, 3)))
         self.inertia_struct = self.inertia - spin
-        problem = check_inertia(self.inertia_struct, 'inertia minus wheel spin inertia')
-        if problem:
-            raise ValueError(problem)
+        _check_inertias(self.inertia_struct, 'inertia minus wheel spin inertia')
         self.inertia_struct_inv = np.linalg.inv(self.inertia_struct)
         self.slices: dict[str, slice] = {}
         start = 7
@@ -308,9 +312,12 @@ class Plant:
         raise KeyError(name)
 
     def initial_state(self, q, w) -> np.ndarray:
+        """State vector from attitude and rate; batch axes of any part (and of the actuators'
+        initial states) broadcast against each other."""
         parts = [np.asarray(q, dtype=float), np.asarray(w, dtype=float)]
         parts += [a.initial_state() for a in self.actuators]
-        return np.concatenate(parts)
+        batch = np.broadcast_shapes(*(p.shape[:-1] for p in parts))
+        return np.concatenate([np.broadcast_to(p, batch + p.shape[-1:]) for p in parts], axis=-1)
 
     def zero_commands(self) -> dict[str, Any]:
         return {a.name: a.zero_command() for a in self.actuators}
@@ -326,7 +333,7 @@ class Plant:
     def angular_momentum(self, x: np.ndarray) -> np.ndarray:
         """Total angular momentum in body axes."""
         w = x[..., 4:7]
-        H = w @ self.inertia_struct.T
+        H = matvec(self.inertia_struct, w)
         for a in self.actuators:
             H = H + a.momentum(x[..., self.slices[a.name]], w)
         return H
@@ -339,11 +346,11 @@ class Plant:
     def kinetic_energy(self, x: np.ndarray) -> np.ndarray:
         """Rotational kinetic energy of body and wheels."""
         w = x[..., 4:7]
-        T = 0.5 * np.sum(w * (w @ self.inertia_struct.T), axis=-1)
+        T = 0.5 * np.sum(w * matvec(self.inertia_struct, w), axis=-1)
         for a in self.actuators:
             if isinstance(a, ReactionWheels):
                 s = x[..., self.slices[a.name]][..., :a.count]
-                absolute = s + w @ a.axes.T
+                absolute = s + matvec(a.axes, w)
                 T = T + 0.5 * np.sum(a.spin_inertia * absolute ** 2, axis=-1)
         return T
 
@@ -357,7 +364,7 @@ class Plant:
 
     def derivative(self, t: float, x: np.ndarray, commands: dict[str, Any]) -> np.ndarray:
         q, w = x[..., :4], x[..., 4:7]
-        H = w @ self.inertia_struct.T
+        H = matvec(self.inertia_struct, w)
         tau = self.environment_torque(t, q)
         evaluated = []
         for a, sl in self._actuator_slices:
@@ -366,7 +373,7 @@ class Plant:
             ta, aux = a.torque(t, xa, w, cmd)
             tau = tau + ta
             evaluated.append((a, xa, cmd, aux))
-        wdot = (tau - cross(w, H)) @ self.inertia_struct_inv.T
+        wdot = matvec(self.inertia_struct_inv, tau - cross(w, H))
         parts = [quat_kinematics(q, w), wdot]
         for a, xa, cmd, aux in evaluated:
             parts.append(a.derivative(t, xa, w, wdot, cmd, aux))
@@ -393,6 +400,26 @@ class Plant:
             q = x[..., :4]
             q /= np.sqrt((q * q).sum(axis=-1, keepdims=True))
         return x
+
+
+def _per_wheel(value, default: float, n: int) -> np.ndarray:
+    """A per-wheel parameter as an array (..., n): ``default`` when None, batch axes kept."""
+    if value is None:
+        return np.full(n, default, dtype=float)
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim == 0 or arr.shape[-1] != n:
+        raise ValueError(f'expected one value per wheel ({n}), got shape {arr.shape}')
+    return arr
+
+
+def _check_inertias(J: np.ndarray, what: str) -> None:
+    """Raise ValueError unless ``J`` (3, 3) or each of a batch (..., 3, 3) is a physical inertia."""
+    if J.shape[-2:] != (3, 3):
+        raise ValueError(f'{what} must be 3x3 (or a batch of 3x3), got shape {J.shape}')
+    for i, Ji in enumerate(J.reshape(-1, 3, 3)):
+        problem = check_inertia(Ji, what)
+        if problem:
+            raise ValueError(problem if J.ndim == 2 else f'run {i}: {problem}')
 
 
 def rotate_to_inertial(q: np.ndarray, v_body: np.ndarray) -> np.ndarray:

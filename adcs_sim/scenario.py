@@ -19,10 +19,24 @@ from adcs_sim.plant import (CircularOrbit, Disturbance, Plant, ReactionWheels, T
 UNIT_TOLERANCE = 1e-3  # an initial quaternion further than this from unit norm is refused
 
 
-def inertia_matrix(values: list[float]) -> np.ndarray:
-    """3 principal moments or 9 row-major entries -> 3x3 matrix."""
+def inertia_matrix(values) -> np.ndarray:
+    """3 principal moments or 9 row-major entries -> 3x3 matrix (batch: (..., 3) -> (..., 3, 3))."""
     arr = np.asarray(values, dtype=float)
-    return np.diag(arr) if arr.size == 3 else arr.reshape(3, 3)
+    if arr.shape[-1] == 3:
+        return arr[..., :, None] * np.eye(3)
+    return arr.reshape(arr.shape[:-1] + (3, 3))
+
+
+def step_timing(v: dict) -> tuple[int, np.ndarray | int]:
+    """(control period in integer ns, number of control steps) of a ``dynamics`` section.
+
+    The one definition of the simulated time grid: step ``k`` starts at ``k * period_ns`` ns, on
+    the graph and in the batch engine alike. A batched ``duration`` gives one count per run.
+    """
+    period_ns = int(round(float(v['control_period']) * 1e9))
+    duration_ns = np.round(np.asarray(v['duration'], dtype=float) * 1e9)
+    n_steps = np.floor(duration_ns / period_ns + 1e-9).astype(np.int64)
+    return period_ns, (int(n_steps) if n_steps.ndim == 0 else n_steps)
 
 
 def _check_inertia_values(values) -> str | None:
@@ -37,7 +51,7 @@ def check_unit_quaternion(values) -> str | None:
 
 
 def inertia_param(doc: str) -> Param:
-    return Param('inertia', 'double_array', doc=doc, length=(3, 9), check=_check_inertia_values)
+    return Param('inertia', 'double_array', doc=doc, length=(3, 9), check=_check_inertia_values, batch=True)
 
 
 def wheel_params(with_physics: bool) -> list[Param]:
@@ -48,23 +62,23 @@ def wheel_params(with_physics: bool) -> list[Param]:
         Param('wheels.axes', 'double_array', default=[],
               doc='spin axes in body axes, 3 per wheel, flattened (need not be unit)'),
         Param('wheels.max_torque', 'double_array', default=[],
-              doc='motor torque limit per wheel (N m, > 0; .inf for none)', check=all_positive, finite=False),
+              doc='motor torque limit per wheel (N m, > 0; .inf for none)', check=all_positive, finite=False, batch=True),
     ]
     if with_physics:
         params += [
             Param('wheels.spin_inertia', 'double_array', default=[],
-                  doc='spin inertia per wheel (kg m^2, > 0); included in `inertia`', check=all_positive),
+                  doc='spin inertia per wheel (kg m^2, > 0); included in `inertia`', check=all_positive, batch=True),
             Param('wheels.max_speed', 'double_array', default=[],
                   doc='speed limit per wheel (rad/s, > 0; .inf for none)', check=all_positive,
-                  finite=False),
+                  finite=False, batch=True),
             Param('wheels.viscous_friction', 'double_array', default=[],
-                  doc='viscous friction per wheel (N m s/rad, >= 0; default 0)', check=all_non_negative),
+                  doc='viscous friction per wheel (N m s/rad, >= 0; default 0)', check=all_non_negative, batch=True),
             Param('wheels.coulomb_friction', 'double_array', default=[],
-                  doc='Coulomb friction per wheel (N m, >= 0; default 0)', check=all_non_negative),
+                  doc='Coulomb friction per wheel (N m, >= 0; default 0)', check=all_non_negative, batch=True),
             Param('wheels.speed_loop_gain', 'double_array', default=[],
-                  doc='speed-mode loop bandwidth per wheel (1/s, > 0; default 1)', check=all_positive),
+                  doc='speed-mode loop bandwidth per wheel (1/s, > 0; default 1)', check=all_positive, batch=True),
             Param('wheels.initial_speed', 'double_array', default=[],
-                  doc='initial speed per wheel relative to the body (rad/s; default 0)'),
+                  doc='initial speed per wheel relative to the body (rad/s; default 0)', batch=True),
         ]
     return params
 
@@ -149,17 +163,17 @@ def startup_params() -> list[Param]:
 DYNAMICS_SCHEMA = Schema('dynamics', [
     inertia_param('total inertia incl. wheel spin inertia (kg m^2): 3 principal moments or 9 entries'),
     Param('initial.attitude', 'double_array', default=[0.0, 0.0, 0.0, 1.0], length=4,
-          check=check_unit_quaternion, doc='initial quaternion [x, y, z, w], body in inertial'),
+          check=check_unit_quaternion, doc='initial quaternion [x, y, z, w], body in inertial', batch=True),
     Param('initial.rate', 'double_array', default=[0.0, 0.0, 0.0], length=3,
-          doc='initial body rate (rad/s, body axes)'),
+          doc='initial body rate (rad/s, body axes)', batch=True),
     *wheel_params(with_physics=True),
     Param('torquers.enabled', 'bool', default=False, doc='ideal external torquers (torque_cmd)'),
     Param('torquers.max_torque', 'double_array', default=[math.inf] * 3, length=3, check=all_positive,
-          finite=False, doc='per-axis torquer limit (N m; .inf for none)'),
-    Param('disturbance.constant', 'double_array', default=[0.0] * 3, length=3, doc='N m, body axes'),
-    Param('disturbance.amplitude', 'double_array', default=[0.0] * 3, length=3, doc='N m, body axes'),
-    Param('disturbance.frequency', 'double_array', default=[0.0] * 3, length=3, doc='rad/s'),
-    Param('disturbance.phase', 'double_array', default=[0.0] * 3, length=3, doc='rad'),
+          finite=False, doc='per-axis torquer limit (N m; .inf for none)', batch=True),
+    Param('disturbance.constant', 'double_array', default=[0.0] * 3, length=3, doc='N m, body axes', batch=True),
+    Param('disturbance.amplitude', 'double_array', default=[0.0] * 3, length=3, doc='N m, body axes', batch=True),
+    Param('disturbance.frequency', 'double_array', default=[0.0] * 3, length=3, doc='rad/s', batch=True),
+    Param('disturbance.phase', 'double_array', default=[0.0] * 3, length=3, doc='rad', batch=True),
     Param('gravity_gradient', 'bool', default=False, doc='gravity-gradient torque on the orbit'),
     Param('orbit.altitude', 'double', default=0.0, check=non_negative, doc='circular orbit altitude (m)'),
     Param('orbit.inclination_deg', 'double', default=0.0, doc='deg'),
@@ -167,7 +181,7 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
     Param('orbit.arg_latitude_deg', 'double', default=0.0, doc='argument of latitude at t = 0 (deg)'),
     Param('control_period', 'double', default=1.0, check=positive,
           doc='zero-order-hold control period (s); state published each period'),
-    Param('duration', 'double', check=positive, doc='simulated duration (s)'),
+    Param('duration', 'double', check=positive, doc='simulated duration (s)', batch=True),
     Param('integrator.max_step', 'double', default=0.1, check=positive,
           doc='largest RK4 step inside a control period (s)'),
     Param('mode', 'string', default='lockstep', choices=('lockstep', 'realtime'),
@@ -181,7 +195,7 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
           doc='wall seconds to wait for a step\'s commands before applying the timeout policy'),
     Param('lockstep.timeout_policy', 'string', default='hold', choices=('hold', 'zero'),
           doc='on a missed step: hold the last command or apply zero'),
-    Param('noise.seed', 'int', default=0, doc='seed of the measurement noise generator'),
+    Param('noise.seed', 'int', default=0, doc='seed of the measurement noise generator', batch=True),
     Param('noise.attitude_std', 'double', default=0.0, check=non_negative,
           doc='star-tracker noise, rad (1 sigma per axis, small-angle rotation)'),
     Param('noise.rate_std', 'double', default=0.0, check=non_negative, doc='gyro noise, rad/s (1 sigma)'),
@@ -199,7 +213,7 @@ def build_plant(v: dict) -> Plant:
     names = v['wheels.names']
     if names:
         n = len(names)
-        opt = lambda key, default: v[key] if v[key] else [default] * n  # noqa: E731
+        opt = lambda key, default: v[key] if np.size(v[key]) else [default] * n  # noqa: E731
         actuators.append(ReactionWheels(
             names=list(names), axes=np.asarray(v['wheels.axes']).reshape(n, 3),
             spin_inertia=v['wheels.spin_inertia'], max_torque=v['wheels.max_torque'],
@@ -221,7 +235,7 @@ def build_plant(v: dict) -> Plant:
 
 def initial_state(plant: Plant, v: dict) -> np.ndarray:
     q = np.asarray(v['initial.attitude'], dtype=float)
-    return plant.initial_state(q / np.linalg.norm(q), v['initial.rate'])
+    return plant.initial_state(q / np.linalg.norm(q, axis=-1, keepdims=True), v['initial.rate'])
 
 
 RECORDER_SCHEMA = Schema('recorder', [

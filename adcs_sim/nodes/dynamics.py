@@ -16,41 +16,17 @@ acknowledged by their subscribers.
 """
 from __future__ import annotations
 
-import math
 import time
 
-import numpy as np
 from rclpy.duration import Duration
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import RejectCounter
-from adcs_sim.attitude import quat_multiply, quat_normalize
 from adcs_sim.nodes.base import AdcsNode, main_for
 from adcs_sim.plant import ReactionWheels, WheelCommand
-from adcs_sim.scenario import DYNAMICS_SCHEMA, build_plant, command_topics, initial_state
-
-
-class MeasurementModel:
-    """Seeded star-tracker and gyro errors applied to the published state (truth kept apart)."""
-
-    def __init__(self, seed: int, attitude_std: float, rate_std: float, gyro_bias) -> None:
-        self.rng = np.random.default_rng(seed)
-        self.attitude_std = attitude_std
-        self.rate_std = rate_std
-        self.gyro_bias = np.asarray(gyro_bias, dtype=float)
-        self.active = attitude_std > 0 or rate_std > 0 or bool(np.any(self.gyro_bias))
-
-    def measure(self, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        if not self.active:
-            return q, w
-        dtheta = self.rng.normal(0.0, self.attitude_std, 3) if self.attitude_std > 0 else np.zeros(3)
-        dq = quat_normalize(np.concatenate([0.5 * dtheta, [1.0]]))
-        q_meas = quat_normalize(quat_multiply(q, dq))
-        w_meas = w + self.gyro_bias
-        if self.rate_std > 0:
-            w_meas = w_meas + self.rng.normal(0.0, self.rate_std, 3)
-        return q_meas, w_meas
+from adcs_sim.scenario import DYNAMICS_SCHEMA, build_plant, command_topics, initial_state, step_timing
+from adcs_sim.sensors import MeasurementModel
 
 
 class DynamicsNode(AdcsNode):
@@ -62,9 +38,8 @@ class DynamicsNode(AdcsNode):
         self.plant = build_plant(p)
         self.x = initial_state(self.plant, p)
         self.commands = self.plant.zero_commands()
-        self.period_ns = cv.ns_from_seconds(p['control_period'])
+        self.period_ns, self.n_steps = step_timing(p)
         self.period = self.period_ns / cv.NS_PER_S
-        self.n_steps = int(math.floor(cv.ns_from_seconds(p['duration']) / self.period_ns + 1e-9))
         self.max_step = p['integrator.max_step']
         self.lockstep = p['mode'] == 'lockstep'
         self.awaited = command_topics(p) if self.lockstep else []
