@@ -24,18 +24,18 @@ def controller_params() -> list[Param]:
         Param('saturation', 'string', default='clip', choices=('clip', 'scale'),
               doc='torque saturation: per actuator (clip) or whole vector (scale)'),
         Param('torquers.max_torque', 'double', default=float('inf'), check=positive, finite=False,
-              doc='torquer limit per axis (N m; .inf for none) when actuator is torquers'),
+              doc='torquer limit per axis (N m; .inf for none) when actuator is torquers', batch=True),
         *startup_params(),
     ]
 
 
 PD_SCHEMA = Schema('pd_controller', [
     inertia_param("the controller's inertia model (kg m^2): 3 principal moments or 9 entries"),
-    Param('kp', 'double', check=non_negative, doc='proportional gain (1/s^2), multiplied by the inertia'),
-    Param('kd', 'double', check=non_negative, doc='derivative gain (1/s), multiplied by the inertia'),
+    Param('kp', 'double', check=non_negative, doc='proportional gain (1/s^2), multiplied by the inertia', batch=True),
+    Param('kd', 'double', check=non_negative, doc='derivative gain (1/s), multiplied by the inertia', batch=True),
     Param('target.attitude', 'double_array', default=[0.0, 0.0, 0.0, 1.0], length=4,
-          check=check_unit_quaternion, doc='commanded attitude [x, y, z, w]'),
-    Param('target.rate', 'double_array', default=[0.0, 0.0, 0.0], length=3, doc='commanded rate (rad/s)'),
+          check=check_unit_quaternion, doc='commanded attitude [x, y, z, w]', batch=True),
+    Param('target.rate', 'double_array', default=[0.0, 0.0, 0.0], length=3, doc='commanded rate (rad/s)', batch=True),
     Param('shortest_path', 'bool', default=False,
           doc='flip q when q4 < 0 (not in seed 004 eq. 13, which is applied as printed by default)'),
     *controller_params(),

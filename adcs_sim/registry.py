@@ -1,14 +1,17 @@
 """The node executables of the package: section name -> module and parameter schema.
 
 A scenario file has one section per node, named like the executable (``dynamics``,
-``pd_controller``, ``recorder``); the runner starts exactly those. Keep in step with setup.py's
+``pd_controller``, ``recorder``); the runner starts exactly those. A controller's entry also
+names its pure law class: the node and the batch engine (:mod:`adcs_sim.batch`) both build it. Keep in step with setup.py's
 ``NODES`` (a test checks it).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from adcs_msgs_py.params import Schema
+from adcs_controllers.laws.pd import PdLaw
 from adcs_controllers.schemas import PD_SCHEMA
 from adcs_sim.scenario import DYNAMICS_SCHEMA, RECORDER_SCHEMA
 
@@ -18,10 +21,11 @@ class NodeInfo:
     module: str
     schema: Schema
     role: str  # 'dynamics', 'controller' (subscribes to state, sends commands), 'recorder', 'other'
+    law: Any = None  # controllers: the pure law class, built from the validated section
 
 
 NODES: dict[str, NodeInfo] = {
     'dynamics': NodeInfo('adcs_sim.nodes.dynamics', DYNAMICS_SCHEMA, 'dynamics'),
     'recorder': NodeInfo('adcs_sim.nodes.recorder', RECORDER_SCHEMA, 'recorder'),
-    'pd_controller': NodeInfo('adcs_controllers.nodes.pd_controller', PD_SCHEMA, 'controller'),
+    'pd_controller': NodeInfo('adcs_controllers.nodes.pd_controller', PD_SCHEMA, 'controller', PdLaw),
 }

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from adcs_sim.attitude import matvec
+
 
 def wheel_allocation_matrix(axes: np.ndarray, available: np.ndarray | None = None) -> np.ndarray:
     """n x 3 matrix ``M`` with ``tau = M u`` the minimum-norm wheel torques for body torque ``u``.
@@ -44,4 +46,44 @@ def saturate(tau: np.ndarray, limit: np.ndarray, mode: str = 'clip') -> np.ndarr
 
 def body_torque_from_wheels(axes: np.ndarray, tau: np.ndarray) -> np.ndarray:
     """Body torque ``-sum_i a_i tau_i`` produced by wheel motor torques ``tau`` (..., n)."""
-    return -(tau @ np.asarray(axes, dtype=float))
+    return -matvec(np.asarray(axes, dtype=float).T, tau)
+
+
+class Actuation:
+    """The controller's side of its actuators: desired body torque -> actuator commands.
+
+    Built from a validated controller section (``actuator``, ``wheels.*``, ``saturation``,
+    ``torquers.max_torque``; limits may carry a batch axis). :meth:`command` is what the
+    controller node publishes and what the batch engine applies, so both saturate and allocate
+    identically.
+    """
+
+    def __init__(self, p: dict) -> None:
+        self.kind = p['actuator']
+        self.saturation = p['saturation']
+        if self.kind == 'wheels':
+            names = p['wheels.names']
+            self.wheel_names = list(names)
+            self.axes = np.asarray(p['wheels.axes'], dtype=float).reshape(len(names), 3)
+            self.axes = self.axes / np.linalg.norm(self.axes, axis=1, keepdims=True)
+            self.limit = np.asarray(p['wheels.max_torque'], dtype=float)
+            self.set_available(np.ones(len(names), dtype=bool))
+        else:
+            self.limit = np.asarray(p['torquers.max_torque'], dtype=float)[..., None] * np.ones(3)
+
+    def set_available(self, available: np.ndarray) -> None:
+        """Re-allocate over the wheels marked available (a wheel failure)."""
+        self.available = np.asarray(available, dtype=bool)
+        self.allocation = wheel_allocation_matrix(self.axes, self.available)
+
+    def command(self, torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(command values, body torque they produce) for desired body torque ``torque`` (..., 3).
+
+        Wheels: minimum-norm motor torques over the available wheels, saturated per wheel
+        (``clip``) or as a vector (``scale``); torquers: the torque saturated per axis.
+        """
+        if self.kind == 'wheels':
+            tau = saturate(matvec(self.allocation, torque), self.limit, self.saturation)
+            return tau, body_torque_from_wheels(self.axes, tau)
+        applied = saturate(torque, self.limit, self.saturation)
+        return applied, applied

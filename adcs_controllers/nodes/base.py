@@ -1,9 +1,11 @@
 """The controller-node template: state in, law out, command stamped with the state's stamp.
 
-A concrete controller implements :meth:`ControllerNode.control` (arrays in, body torque out,
-plus status values) and nothing ROS-specific. The base class
+A concrete controller is its schema and its law: a pure object with ``control(t, q, w) ->
+(torque, status)`` (``adcs_controllers/laws``), registered with the schema in
+:data:`adcs_sim.registry.NODES` so the batch engine runs the very same object. The base class
 
-* validates parameters (schema), builds the wheel allocation over the available wheels;
+* validates parameters (schema), builds the law and the actuation (allocation over the
+  available wheels, saturation: :class:`~adcs_controllers.laws.allocation.Actuation`);
 * publishes commands on ``wheels/cmd`` (minimum-norm allocation, saturation) or ``torque_cmd``;
 * before subscribing to ``state``, waits until its command publisher is matched by the dynamics
   node (and the recorder, when one is expected) — so by the time the dynamics node sees this
@@ -17,37 +19,31 @@ import numpy as np
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import RejectCounter
-from adcs_controllers.laws.allocation import saturate, wheel_allocation_matrix
+from adcs_controllers.laws.allocation import Actuation
 from adcs_sim.nodes.base import AdcsNode
-from adcs_sim.scenario import inertia_matrix
 
 
 class ControllerNode(AdcsNode):
-    """Base class of the controller nodes. Subclasses set ``schema`` and implement ``control``."""
+    """Base class of the controller nodes. Subclasses set ``schema``; the law is the registry's
+    (:data:`adcs_sim.registry.NODES`) for the schema's section, the object the batch engine uses."""
 
     def __init__(self, context) -> None:
         super().__init__(context)
+        from adcs_sim.registry import NODES
         p = self.params
-        self.inertia = inertia_matrix(p['inertia']) if 'inertia' in p else None
+        self.law = NODES[self.schema.node].law(p)
+        self.actuation = Actuation(p)
         self.actuator = p['actuator']
         self.rejects = RejectCounter(self.get_logger())
         if self.actuator == 'wheels':
-            names = p['wheels.names']
-            self.wheel_names = list(names)
-            self.wheel_axes = np.asarray(p['wheels.axes'], dtype=float).reshape(len(names), 3)
-            self.wheel_axes /= np.linalg.norm(self.wheel_axes, axis=1, keepdims=True)
-            self.wheel_limit = np.asarray(p['wheels.max_torque'], dtype=float)
-            self.available = np.ones(len(names), dtype=bool)
-            self.allocation = wheel_allocation_matrix(self.wheel_axes, self.available)
+            self.wheel_names = self.actuation.wheel_names
         self.pub_cmd = self.publisher(topics.WHEELS_CMD if self.actuator == 'wheels' else topics.TORQUE_CMD)
         self.pub_status = self.publisher(topics.CONTROLLER_STATUS)
         self.sub_state = None
 
-    # --- to implement -----------------------------------------------------------------------
-
     def control(self, t: float, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, dict]:
-        """Desired body torque (N m) and status values for state (q, w) at time t."""
-        raise NotImplementedError
+        """Desired body torque (N m) and status values for state (q, w) at time t: the law's."""
+        return self.law.control(t, q, w)
 
     # --- plumbing ---------------------------------------------------------------------------
 
@@ -75,16 +71,11 @@ class ControllerNode(AdcsNode):
             self.pub_status.publish(cv.status_to_msg(t_ns, self.get_name(), status))
 
     def publish_torque(self, t_ns: int, torque: np.ndarray) -> np.ndarray:
-        """Send body torque ``torque`` through the configured actuators; return what it commands.
-
-        Wheels: minimum-norm motor torques over the available wheels, then saturation; the
-        returned body torque is what the saturated wheel torques produce.
-        """
+        """Send body torque ``torque`` through the configured actuators; return what it commands
+        (:class:`~adcs_controllers.laws.allocation.Actuation`)."""
+        values, applied = self.actuation.command(torque)
         if self.actuator == 'wheels':
-            tau = saturate(self.allocation @ torque, self.wheel_limit, self.params['saturation'])
-            self.pub_cmd.publish(cv.wheel_cmd_to_msg(t_ns, self.wheel_names, effort=tau))
-            return -(tau @ self.wheel_axes)
-        limit = self.params['torquers.max_torque']
-        applied = saturate(torque, np.full(3, limit), self.params['saturation'])
-        self.pub_cmd.publish(cv.vector_to_msg(t_ns, applied))
+            self.pub_cmd.publish(cv.wheel_cmd_to_msg(t_ns, self.wheel_names, effort=values))
+        else:
+            self.pub_cmd.publish(cv.vector_to_msg(t_ns, values))
         return applied
