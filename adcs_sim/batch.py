@@ -1,0 +1,184 @@
+"""Batch engine: N runs of one scenario advanced together, no ROS in the loop (numpy only).
+
+The graph is the faithful one-run-at-a-time path; campaigns (:mod:`adcs_sim.campaign`) need
+thousands of runs. This engine runs the *same* code as the graph with a leading batch axis:
+
+* the plant (:class:`adcs_sim.plant.Plant`, built by :func:`adcs_sim.scenario.build_plant` from
+  the ``dynamics`` section) with the same fixed-step RK4 and zero-order hold over each control
+  period, on the same time grid (:func:`adcs_sim.scenario.step_timing`);
+* the same measurement model (:class:`adcs_sim.sensors.MeasurementModel`);
+* the controller section's law object (:data:`adcs_sim.registry.NODES` ``[section].law``, the
+  one its node builds) and the same actuation (:class:`adcs_controllers.laws.allocation.Actuation`:
+  minimum-norm allocation and saturation).
+
+Each step mirrors the lockstep graph: the state at ``t_k`` is measured, the law computes a torque,
+the actuation turns it into commands, the applied body torque is recorded (``actuators/torque``)
+and the plant integrates ``[t_k, t_k+1]`` holding the commands. The runs of a batch may differ in
+any parameter declared ``batch=True`` in its schema (inertia, initial state, gains, limits,
+duration, noise seed...); :meth:`adcs_msgs_py.params.Schema.stack` checks that.
+
+Runs that end early (a shorter ``duration``) or diverge (a non-finite state) are *masked*: they
+keep being carried through the array operations but their state is frozen and nothing more is
+recorded for them; the loop ends when no run is active. Every matrix product goes through
+:func:`adcs_sim.attitude.matvec`, so a run's numbers are the same bit for bit whichever runs share
+its batch.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from adcs_msgs_py.params import ParameterError
+from adcs_sim.analysis import RunData, run_metrics
+from adcs_sim.plant import ReactionWheels, WheelCommand
+from adcs_sim.scenario import build_plant, initial_state, step_timing
+from adcs_sim.sensors import MeasurementModel
+
+NS_PER_S = 1_000_000_000
+
+
+@dataclass
+class BatchResult:
+    """Time series of N runs on a common time grid; NaN where a run has no sample."""
+
+    t: np.ndarray                 # (K + 1,) state times, s
+    q: np.ndarray                 # (N, K + 1, 4) true attitude
+    w: np.ndarray                 # (N, K + 1, 3) true body rate
+    u: np.ndarray                 # (N, K, 3) applied body torque, held over [t_k, t_k+1]
+    n_steps: np.ndarray           # (N,) control steps simulated per run
+    failure: list = field(default_factory=list)  # per run: None, or why it stopped early
+    wheel_names: list = field(default_factory=list)
+    wheel_speed: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))  # (N, K + 1, n)
+    q_ref: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))  # (4,) or (N, 4)
+
+    @property
+    def n_runs(self) -> int:
+        return self.q.shape[0]
+
+    def run_data(self, i: int) -> RunData:
+        """Run ``i`` as the analysis library's :class:`~adcs_sim.analysis.RunData` (what a bag of
+        the same run would give), so batch metrics are computed by the very same functions."""
+        k = int(self.n_steps[i])
+        q_ref = self.q_ref[i] if self.q_ref.ndim == 2 else self.q_ref
+        run = RunData(t=self.t[:k + 1], q=self.q[i, :k + 1], w=self.w[i, :k + 1],
+                      t_u=self.t[:k], u=self.u[i, :k], q_ref=q_ref, missed_steps=0)
+        if self.wheel_names:
+            run.t_wheels, run.wheel_names = self.t[:k + 1], list(self.wheel_names)
+            run.wheel_speed = self.wheel_speed[i, :k + 1]
+        return run
+
+    def metrics(self, i: int, tol_deg: float = 0.5) -> dict:
+        """:func:`adcs_sim.analysis.run_metrics` of run ``i``."""
+        return run_metrics(self.run_data(i), tol_deg)
+
+
+class BatchSimulation:
+    """A batch of runs of one scenario: validated sections with batched values (see module doc).
+
+    ``sections``: ``{section: params}`` as :meth:`Schema.stack` returns them (a ``dynamics``
+    section, at most one controller section; ``recorder`` and other sections are ignored).
+    ``n_runs``: the batch size (values without a batch axis are shared by every run).
+    """
+
+    def __init__(self, sections: dict[str, dict], n_runs: int) -> None:
+        from adcs_controllers.laws.allocation import Actuation
+        from adcs_sim.registry import NODES
+        if n_runs < 1:
+            raise ValueError(f'a batch needs at least one run, got {n_runs}')
+        if 'dynamics' not in sections:
+            raise ParameterError('dynamics', 'the batch needs a dynamics section')
+        self.n_runs = n_runs
+        self.dynamics = d = sections['dynamics']
+        controllers = [s for s in sections if s in NODES and NODES[s].role == 'controller']
+        unsupported = [s for s in sections if s in NODES and NODES[s].role == 'other']
+        if unsupported:
+            raise ParameterError(unsupported[0], f'section {unsupported[0]!r} is not supported by '
+                                 'the batch engine')
+        if len(controllers) > 1:
+            raise ParameterError(controllers[1], f'more than one controller section ({controllers})')
+        self.controller = controllers[0] if controllers else None
+        self.plant = build_plant(d)
+        self.period_ns, steps = step_timing(d)
+        self.n_steps = np.broadcast_to(np.asarray(steps, dtype=np.int64), (n_runs,)).copy()
+        self.max_step = d['integrator.max_step']
+        seeds = np.broadcast_to(np.asarray(d['noise.seed']), (n_runs,))
+        self.measurement = MeasurementModel(seeds, d['noise.attitude_std'], d['noise.rate_std'],
+                                            d['noise.gyro_bias'])
+        self.law = self.actuation = None
+        if self.controller is not None:
+            p = sections[self.controller]
+            self.law = NODES[self.controller].law(p)
+            self.actuation = Actuation(p)
+            if self.actuation.kind not in self.plant.slices:
+                raise ParameterError('actuator', f'the controller commands {self.actuation.kind} '
+                                     'but the dynamics section has none', self.controller)
+        # The regulation target the metrics measure errors from (as analysis.target_attitude).
+        self.q_ref = np.array([0.0, 0.0, 0.0, 1.0])
+        if self.controller is not None and 'target.attitude' in sections[self.controller]:
+            q_ref = np.asarray(sections[self.controller]['target.attitude'], dtype=float)
+            self.q_ref = q_ref / np.linalg.norm(q_ref, axis=-1, keepdims=True)
+        self.wheels = next((a for a in self.plant.actuators if isinstance(a, ReactionWheels)), None)
+
+    def _commands(self, values: np.ndarray | None) -> dict:
+        commands = {a.name: a.zero_command() for a in self.plant.actuators}
+        if values is None:
+            return commands
+        if self.actuation.kind == 'wheels':
+            commands['wheels'] = WheelCommand(values, commands['wheels'].speed_mode)
+        else:
+            commands['torquers'] = values
+        return commands
+
+    def run(self, progress=None) -> BatchResult:
+        """Simulate every run to its end (or divergence). ``progress(steps_done)`` is called
+        after each control step if given."""
+        N, K = self.n_runs, int(self.n_steps.max())
+        plant = self.plant
+        period = self.period_ns / NS_PER_S
+        x = np.broadcast_to(initial_state(plant, self.dynamics), (N, plant.n_states)).copy()
+        q_hist = np.full((N, K + 1, 4), math.nan)
+        w_hist = np.full((N, K + 1, 3), math.nan)
+        u_hist = np.full((N, K, 3), math.nan)
+        wheel_sl = plant.slices.get('wheels')
+        n_wheels = self.wheels.count if self.wheels else 0
+        speed_hist = np.full((N, K + 1, n_wheels), math.nan)
+        q_hist[:, 0], w_hist[:, 0] = x[:, :4], x[:, 4:7]
+        if n_wheels:
+            speed_hist[:, 0] = x[:, wheel_sl][:, :n_wheels]
+        failure: list = [None] * N
+        active = self.n_steps > 0
+        done_steps = np.zeros(N, dtype=np.int64)
+        with np.errstate(all='ignore'):  # a diverging run's overflow is recorded, not warned
+            for k in range(K):
+                if not active.any():
+                    break
+                t = (k * self.period_ns) / NS_PER_S
+                values = None
+                if self.law is not None:
+                    q_m, w_m = self.measurement.measure(x[:, :4], x[:, 4:7])
+                    torque, _ = self.law.control(t, q_m, w_m)
+                    values, _ = self.actuation.command(np.broadcast_to(torque, (N, 3)))
+                commands = self._commands(values)
+                u = plant.control_torque(t, x, commands)
+                x_new = plant.step(t, x, commands, period, self.max_step)
+                finite = np.isfinite(x_new).all(axis=-1) & np.isfinite(u).all(axis=-1)
+                for i in np.flatnonzero(active & ~finite):
+                    failure[i] = f'non-finite state or torque at t = {t:g} s'
+                step = active[:, None]
+                x = np.where(step, x_new, x)
+                u_hist[active, k] = u[active]
+                q_hist[active, k + 1] = x[active, :4]
+                w_hist[active, k + 1] = x[active, 4:7]
+                if n_wheels:
+                    speed_hist[active, k + 1] = x[active][:, wheel_sl][:, :n_wheels]
+                done_steps += active
+                active = active & finite & (done_steps < self.n_steps)
+                if progress is not None:
+                    progress(k + 1)
+        t_grid = np.arange(K + 1, dtype=np.int64) * self.period_ns / NS_PER_S
+        return BatchResult(t=t_grid, q=q_hist, w=w_hist, u=u_hist, n_steps=done_steps,
+                           failure=failure, wheel_names=list(self.wheels.names) if self.wheels else [],
+                           wheel_speed=speed_hist, q_ref=np.asarray(self.q_ref, dtype=float))
+
