@@ -14,6 +14,7 @@ NODES = {
 TOOLS = {
     'adcs-run': 'adcs_sim.runner:main',
     'adcs-analyze': 'adcs_sim.analyze:main',
+    'adcs-montecarlo': 'adcs_sim.montecarlo:main',
 }
 
 setup(
@@ -25,6 +26,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/config', sorted(glob('config/*.yaml'))),
+        ('share/' + PACKAGE + '/config/campaigns', sorted(glob('config/campaigns/*.yaml'))),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

@@ -226,7 +226,8 @@ def _legend(ax, **kw) -> None:
         ax.legend(fontsize='small', **kw)
 
 
-def _save(fig: Figure, out: Path, name: str) -> list[Path]:
+def save_figure(fig: Figure, out: Path, name: str) -> list[Path]:
+    """Write ``fig`` as ``<name>.png`` and ``<name>.svg`` in ``out``; return the paths."""
     paths = [out / f'{name}.png', out / f'{name}.svg']
     fig.savefig(paths[0], dpi=DPI)
     fig.set_layout_engine('none')  # keep the layout just computed: the SVG need not redo it
@@ -567,7 +568,7 @@ def write_report(run: Run, out, tol_deg: float = 0.5, eigen_tol_deg: float | Non
             lines += [f'Skipped: {result}.', '']
             continue
         fig, caption = result
-        _save(fig, out, name)
+        save_figure(fig, out, name)
         lines += [f'![{title}]({name}.png)', '', f'{caption} ([SVG]({name}.svg))', '']
     path = out / 'report.md'
     path.write_text('\n'.join(lines))
@@ -672,7 +673,7 @@ def write_comparison(runs: list[Run], out, tol_deg: float = 0.5,
                      + f' | {_md_escape(_note_cmp(k))} |')
     lines += ['', '## Figures', '']
     for name, title, caption, fig in _comparison_figures(runs, names, eigen_tol_deg):
-        _save(fig, out, name)
+        save_figure(fig, out, name)
         lines += [f'### {title}', '', f'![{title}]({name}.png)', '', f'{caption} ([SVG]({name}.svg))', '']
     md_path = out / 'comparison.md'
     md_path.write_text('\n'.join(lines))

@@ -1,0 +1,403 @@
+"""Monte Carlo campaigns: a scenario, its dispersions, and their reproducible draws (no ROS).
+
+A campaign file (YAML) names a scenario file and how to disperse it::
+
+    campaign:
+      scenario: ../microsat_pd_slew.yaml   # relative to this file, or a bare name in config/
+      runs: 1000
+      seed: 20261123
+      chunk_size: 100                      # runs per batch / per Dask task
+      tolerance_deg: 0.5                   # settling band of the metrics
+      metrics: [settling_euler213_0.5deg_s, integrated_torque_Nms]   # default: all
+      requirements:                        # optional: runs outside are listed with their inputs
+        settling_euler213_0.5deg_s: {max: 400}
+      dispersions:                         # <section>.<parameter>: how to draw it, in this order
+        dynamics.initial.attitude: {distribution: euler213_uniform, max_deg: 30}
+        dynamics.inertia: {distribution: normal, std: [0.5, 0.5, 0.5], link: [pd_controller.inertia]}
+        pd_controller.kp: {distribution: uniform, low: 0.0015, high: 0.0025}
+
+Distributions (``shape`` is the nominal value's: a scalar or a list):
+
+* ``normal``: ``mean`` (default: the scenario's value) and ``std`` (>= 0), scalars or per element;
+* ``uniform``: ``low`` and ``high`` (``low <= high``), or ``plus_minus`` around the scenario's value;
+* ``euler213_uniform`` (quaternions): 2-1-3 Euler angles each uniform in ``[-max_deg, max_deg]``
+  (``max_deg``: one value or three in sequence order y, x, z), as seed 004 states its slews;
+* ``so3_uniform`` (quaternions): uniformly distributed on SO(3) (:meth:`Rotation.random`);
+* ``run_index`` (integers, e.g. ``dynamics.noise.seed``): ``offset`` + the run's index.
+
+``link`` copies the drawn value to other parameters (the controller's inertia model following the
+plant's, a torque limit known to both). Run ``i`` draws from its own generator
+(``SeedSequence(seed, spawn_key=(i,))``), so its inputs — and, the batch engine being
+batch-independent, its results — are the same bit for bit however the campaign is split.
+
+Everything is checked before anything runs: the campaign's own keys, each dispersion (unknown
+section or parameter, a parameter the batch engine cannot vary, std < 0, low > high, lengths),
+and every run's drawn parameters against the node schemas (a negative inertia drawn names its
+run and key). :func:`run_chunk` then simulates a list of runs with the batch engine; a run that
+diverges is a failed row with its inputs, and the campaign goes on.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from scipy.spatial.transform import Rotation
+
+from adcs_msgs_py.params import ParameterError, load_params_file, unflatten
+from adcs_sim.analysis import RunData, run_metrics
+from adcs_sim.attitude import EULER_213
+
+DISTRIBUTIONS = {
+    'normal': ({'std'}, {'mean', 'link'}),
+    'uniform': (set(), {'low', 'high', 'plus_minus', 'link'}),
+    'euler213_uniform': ({'max_deg'}, {'link'}),
+    'so3_uniform': (set(), {'link'}),
+    'run_index': (set(), {'offset', 'link'}),
+}
+CAMPAIGN_KEYS = {'scenario', 'runs', 'seed', 'chunk_size', 'tolerance_deg', 'metrics', 'requirements',
+                 'dispersions'}
+
+
+class CampaignError(ValueError):
+    """The campaign file is malformed or a run's drawn parameters are impossible."""
+
+
+def metric_names(tol_deg: float) -> list[str]:
+    """Names of the scalar metric columns at settling band ``tol_deg`` (lists are split per axis)."""
+    t = np.array([0.0, 1.0])
+    dummy = RunData(t=t, q=np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), w=np.zeros((2, 3)),
+                    t_u=t[:1], u=np.zeros((1, 3)), missed_steps=0)
+    return list(metric_columns(run_metrics(dummy, tol_deg)))
+
+
+def metric_columns(metrics: dict) -> dict[str, float]:
+    """A run's metrics as scalar columns: lists become ``name[0]``, ``name[1]``, ...; ``missed_steps``
+    (a graph-only quantity) is left out."""
+    out: dict[str, float] = {}
+    for key, value in metrics.items():
+        if key == 'missed_steps':
+            continue
+        if isinstance(value, list):
+            out.update({f'{key}[{j}]': float(v) for j, v in enumerate(value)})
+        else:
+            out[key] = float(value)
+    return out
+
+
+@dataclass
+class Dispersion:
+    """How one parameter is drawn (see the module docstring)."""
+
+    section: str
+    key: str
+    distribution: str
+    args: dict[str, Any]
+    links: list[tuple[str, str]] = field(default_factory=list)
+
+    @property
+    def target(self) -> str:
+        return f'{self.section}.{self.key}'
+
+    def draw(self, rng: np.random.Generator, nominal: Any, index: int) -> Any:
+        """One value for run ``index``, in the nominal value's form (float, int or list)."""
+        kind, a = self.distribution, self.args
+        if kind == 'run_index':
+            return int(a.get('offset', 0)) + index
+        if kind == 'so3_uniform':
+            return Rotation.random(random_state=rng).as_quat().tolist()
+        if kind == 'euler213_uniform':
+            m = np.broadcast_to(np.asarray(a['max_deg'], dtype=float), (3,))
+            angles = rng.uniform(-m, m)
+            return Rotation.from_euler(EULER_213, angles, degrees=True).as_quat().tolist()
+        base = np.asarray(nominal, dtype=float)
+        if kind == 'normal':
+            mean = np.asarray(a.get('mean', base), dtype=float)
+            value = rng.normal(np.broadcast_to(mean, base.shape), np.broadcast_to(a['std'], base.shape))
+        elif 'plus_minus' in a:
+            half = np.broadcast_to(np.asarray(a['plus_minus'], dtype=float), base.shape)
+            value = rng.uniform(base - half, base + half)
+        else:
+            value = rng.uniform(np.broadcast_to(a['low'], base.shape), np.broadcast_to(a['high'], base.shape))
+        value = np.asarray(value, dtype=float)
+        return value.tolist() if value.ndim else float(value)
+
+
+@dataclass
+class Campaign:
+    """A loaded, checked campaign: the nominal scenario (flat params per section) and dispersions."""
+
+    path: Path
+    scenario_path: Path
+    nominal: dict[str, dict[str, Any]]   # section -> {dotted key: value} as written in the scenario
+    defaults: dict[str, dict[str, Any]]  # section -> every parameter's validated nominal value
+    runs: int
+    seed: int
+    chunk_size: int
+    tol_deg: float
+    metrics: list[str]
+    requirements: dict[str, dict[str, float]]
+    dispersions: list[Dispersion]
+
+    @classmethod
+    def load(cls, path, runs: int | None = None) -> 'Campaign':
+        """Read and check a campaign file (``runs`` overrides its run count). Raises CampaignError."""
+        from adcs_sim.runner import RunError, resolve_scenario, validate_scenario
+        path = _resolve_campaign(Path(path))
+        try:
+            tree = yaml.safe_load(path.read_text(encoding='utf-8'))
+        except OSError as exc:
+            raise CampaignError(f'cannot read campaign {path}: {exc.strerror}') from None
+        except yaml.YAMLError as exc:
+            raise CampaignError(f'{path} is not valid YAML: {exc}') from None
+        if not isinstance(tree, dict) or set(tree) != {'campaign'} or not isinstance(tree['campaign'], dict):
+            raise CampaignError(f'{path}: expected one top-level mapping `campaign:`')
+        c = tree['campaign']
+        unknown = sorted(set(c) - CAMPAIGN_KEYS)
+        if unknown:
+            raise CampaignError(f'campaign.{unknown[0]}: unknown key; known: {sorted(CAMPAIGN_KEYS)}')
+        if 'scenario' not in c:
+            raise CampaignError('campaign.scenario: required (the scenario file to disperse)')
+        scenario = Path(str(c['scenario']))
+        candidate = scenario if scenario.is_absolute() else path.parent / scenario
+        try:
+            scenario_path = candidate.resolve() if candidate.exists() else resolve_scenario(str(scenario))
+            defaults = validate_scenario(scenario_path)
+            nominal = load_params_file(str(scenario_path))
+        except (RunError, ParameterError) as exc:
+            raise CampaignError(f'campaign.scenario: {exc}') from None
+        runs = _integer(c, 'runs', runs)
+        if runs < 1:
+            raise CampaignError(f'campaign.runs: must be at least 1, got {runs}')
+        seed = _integer(c, 'seed', None, default=0)
+        if seed < 0:
+            raise CampaignError(f'campaign.seed: must be >= 0, got {seed}')
+        chunk = _integer(c, 'chunk_size', None, default=100)
+        if chunk < 1:
+            raise CampaignError(f'campaign.chunk_size: must be at least 1, got {chunk}')
+        tol = c.get('tolerance_deg', 0.5)
+        if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0 < tol < 180:
+            raise CampaignError(f'campaign.tolerance_deg: must be a number in (0, 180), got {tol!r}')
+        known = metric_names(float(tol))
+        metrics = c.get('metrics') or known
+        if not isinstance(metrics, list):
+            raise CampaignError('campaign.metrics: must be a list of metric names')
+        expanded = []
+        for m in metrics:
+            cols = [k for k in known if k == m or k.startswith(f'{m}[')]
+            if not cols:
+                raise CampaignError(f'campaign.metrics: unknown metric {m!r}; known: {known}')
+            expanded += cols
+        requirements = c.get('requirements') or {}
+        for m, bound in requirements.items():
+            if m not in known:
+                raise CampaignError(f'campaign.requirements.{m}: unknown metric; known: {known}')
+            if not isinstance(bound, dict) or not bound or set(bound) - {'min', 'max'} or not all(
+                    isinstance(v, (int, float)) and not isinstance(v, bool) for v in bound.values()):
+                raise CampaignError(f'campaign.requirements.{m}: expected {{min: x}} and/or {{max: x}}')
+        campaign = cls(path=path.resolve(), scenario_path=scenario_path, nominal=nominal,
+                       defaults=defaults, runs=runs,
+                       seed=seed, chunk_size=chunk, tol_deg=float(tol), metrics=list(dict.fromkeys(expanded)),
+                       requirements={m: {k: float(v) for k, v in b.items()} for m, b in requirements.items()},
+                       dispersions=[])
+        dispersions = c.get('dispersions') or {}
+        if not isinstance(dispersions, dict):
+            raise CampaignError('campaign.dispersions: must be a mapping <section>.<parameter>: {...}')
+        campaign.dispersions = [campaign._dispersion(t, spec) for t, spec in dispersions.items()]
+        campaign.check_runs()
+        return campaign
+
+    # --- dispersions ---------------------------------------------------------------------------
+
+    def _target(self, where: str, target: str) -> tuple[str, str, Any]:
+        from adcs_sim.registry import NODES
+        section, _, key = str(target).partition('.')
+        if section not in self.nominal or section not in NODES:
+            raise CampaignError(f'{where}: no section {section!r} in {self.scenario_path.name} '
+                                f'(sections: {sorted(self.nominal)})')
+        schema = NODES[section].schema
+        param = schema.by_name.get(key)
+        if param is None:
+            raise CampaignError(f'{where}: unknown parameter {key!r} of node {section!r}; '
+                                f'known: {sorted(schema.by_name)}')
+        if not param.batch:
+            raise CampaignError(f'{where}: {section}.{key} cannot differ between runs of the batch '
+                                'engine (dispersible: '
+                                f'{sorted(p.name for p in schema.params if p.batch)})')
+        return section, key, param
+
+    def _dispersion(self, target: str, spec: Any) -> Dispersion:
+        where = f'campaign.dispersions.{target}'
+        section, key, param = self._target(where, target)
+        if not isinstance(spec, dict) or 'distribution' not in spec:
+            raise CampaignError(f'{where}: expected a mapping with `distribution:` '
+                                f'(one of {sorted(DISTRIBUTIONS)})')
+        kind = spec['distribution']
+        if kind not in DISTRIBUTIONS:
+            raise CampaignError(f'{where}.distribution: unknown {kind!r}; known: {sorted(DISTRIBUTIONS)}')
+        required, optional = DISTRIBUTIONS[kind]
+        args = {k: v for k, v in spec.items() if k != 'distribution'}
+        extra = sorted(set(args) - required - optional)
+        if extra:
+            raise CampaignError(f'{where}.{extra[0]}: not a field of {kind} '
+                                f'(fields: {sorted(required | optional)})')
+        missing = sorted(required - set(args))
+        if missing:
+            raise CampaignError(f'{where}.{missing[0]}: required by {kind}')
+        nominal = self._nominal_value(section, key)
+        quaternion = param.kind == 'double_array' and param.length == 4
+        if kind in ('euler213_uniform', 'so3_uniform') and not quaternion:
+            raise CampaignError(f'{where}: {kind} draws attitudes; {target} is not a quaternion')
+        if kind == 'run_index' and param.kind != 'int':
+            raise CampaignError(f'{where}: run_index draws integers; {target} is a {param.kind}')
+        if kind in ('normal', 'uniform') and param.kind not in ('double', 'double_array'):
+            raise CampaignError(f'{where}: {kind} draws real numbers; {target} is a {param.kind}')
+        shape = np.shape(nominal)
+        for name in ('std', 'mean', 'low', 'high', 'plus_minus', 'max_deg', 'offset'):
+            if name not in args:
+                continue
+            value = _numbers(f'{where}.{name}', args[name], (3,) if name == 'max_deg' else shape,
+                             integer=name == 'offset')
+            if name in ('std', 'plus_minus', 'max_deg') and np.any(value < 0):
+                raise CampaignError(f'{where}.{name}: must be >= 0, got {args[name]!r}')
+            args[name] = value
+        if kind == 'uniform':
+            if 'plus_minus' in args and ({'low', 'high'} & set(args)):
+                raise CampaignError(f'{where}: give either low/high or plus_minus, not both')
+            if 'plus_minus' not in args:
+                if not {'low', 'high'} <= set(args):
+                    raise CampaignError(f'{where}: uniform needs low and high (or plus_minus)')
+                if np.any(args['low'] > args['high']):
+                    raise CampaignError(f'{where}: low must not exceed high '
+                                        f'(low {args["low"].tolist()}, high {args["high"].tolist()})')
+        links = []
+        for link in args.pop('link', []) or []:
+            lsection, lkey, _ = self._target(f'{where}.link', link)
+            if np.shape(self._nominal_value(lsection, lkey)) != shape:
+                raise CampaignError(f'{where}.link: {link} does not have the shape of {target}')
+            links.append((lsection, lkey))
+        return Dispersion(section, key, kind, args, links)
+
+    def _nominal_value(self, section: str, key: str) -> Any:
+        """The scenario's value of ``section.key`` (its default when the file does not set it)."""
+        return self.defaults[section][key]
+
+    def draw(self, index: int) -> dict[str, Any]:
+        """The dispersed inputs of run ``index``: ``{'section.key': value}`` in file order."""
+        rng = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(index,)))
+        return {d.target: d.draw(rng, self._nominal_value(d.section, d.key), index)
+                for d in self.dispersions}
+
+    def run_given(self, index: int) -> dict[str, dict[str, Any]]:
+        """The scenario of run ``index`` as written parameters: nominal + draws (+ links)."""
+        given = {section: dict(values) for section, values in self.nominal.items()}
+        for d, value in zip(self.dispersions, self.draw(index).values()):
+            given[d.section][d.key] = value
+            for section, key in d.links:
+                given[section][key] = list(value) if isinstance(value, list) else value
+        return given
+
+    def run_sections(self, index: int) -> dict[str, dict[str, Any]]:
+        """Validated sections of run ``index``; CampaignError naming the run and the key if the
+        draw is impossible (e.g. a negative inertia)."""
+        from adcs_sim.registry import NODES
+        out = {}
+        for section, given in self.run_given(index).items():
+            try:
+                out[section] = NODES[section].schema.validate(given)
+            except ParameterError as exc:
+                raise CampaignError(f'run {index}: drawn {exc} (inputs: {self.draw(index)})') from None
+        return out
+
+    def check_runs(self) -> None:
+        """Validate every run's drawn parameters (before anything runs)."""
+        for i in range(self.runs):
+            self.run_sections(i)
+
+    def scenario_text(self, index: int) -> str:
+        """A complete scenario file for run ``index`` alone: replay it with ``adcs-run``."""
+        tree = {section: {'ros__parameters': unflatten(given)}
+                for section, given in self.run_given(index).items()}
+        header = (f'# Run {index} of campaign {self.path.name} (seed {self.seed}), scenario '
+                  f'{self.scenario_path.name} with its drawn inputs:\n')
+        header += ''.join(f'#   {k} = {v}\n' for k, v in self.draw(index).items())
+        return header + yaml.safe_dump(tree, sort_keys=False, default_flow_style=None)
+
+    def chunks(self) -> list[list[int]]:
+        return [list(range(i, min(i + self.chunk_size, self.runs))) for i in range(0, self.runs, self.chunk_size)]
+
+    def verdict(self, columns: dict[str, float]) -> list[str]:
+        """Requirements a run's metric columns violate (NaN violates)."""
+        out = []
+        for m, bound in self.requirements.items():
+            v = columns.get(m, math.nan)
+            if 'max' in bound and not v <= bound['max']:
+                out.append(f'{m} = {v:g} > {bound["max"]:g}')
+            if 'min' in bound and not v >= bound['min']:
+                out.append(f'{m} = {v:g} < {bound["min"]:g}')
+        return out
+
+
+def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
+    """Simulate runs ``indices`` as one batch; one row per run: ``run``, ``status`` (``ok``,
+    ``failed`` or ``violated``), ``reason``, the dispersed inputs and the metric columns.
+
+    A pure function of its arguments (what a Dask worker executes).
+    """
+    from adcs_sim.batch import BatchSimulation
+    from adcs_sim.registry import NODES
+    runs = [campaign.run_sections(i) for i in indices]
+    sections = {name: NODES[name].schema.stack([r[name] for r in runs]) for name in runs[0]
+                if NODES[name].role != 'recorder'}
+    result = BatchSimulation(sections, len(indices)).run()
+    rows = []
+    for j, index in enumerate(indices):
+        with np.errstate(all='ignore'):  # a diverged run's metrics overflow to inf: that is the result
+            columns = metric_columns(result.metrics(j, campaign.tol_deg))
+        status, reason = 'ok', ''
+        if result.failure[j]:
+            status, reason = 'failed', result.failure[j]
+        elif violations := campaign.verdict(columns):
+            status, reason = 'violated', '; '.join(violations)
+        rows.append({'run': index, 'status': status, 'reason': reason, 'inputs': campaign.draw(index),
+                     'metrics': {m: columns[m] for m in campaign.metrics}})
+    return rows
+
+
+def _resolve_campaign(path: Path) -> Path:
+    """A campaign path, or a bare file name found in the ``campaigns`` folder of the configs."""
+    if path.exists() or path.is_absolute() or len(path.parts) != 1:
+        return path
+    from adcs_sim.runner import config_dirs
+    for d in config_dirs():
+        if (d / 'campaigns' / path.name).exists():
+            return d / 'campaigns' / path.name
+    return path
+
+
+def _integer(c: dict, key: str, override: int | None, default: int | None = None) -> int:
+    value = override if override is not None else c.get(key, default)
+    if value is None:
+        raise CampaignError(f'campaign.{key}: required')
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise CampaignError(f'campaign.{key}: expected an integer, got {value!r}')
+    return value
+
+
+def _numbers(where: str, value: Any, shape: tuple, integer: bool = False) -> np.ndarray:
+    """A finite number or list broadcastable to ``shape``; CampaignError otherwise."""
+    flat = value if isinstance(value, list) else [value]
+    if not flat or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in flat):
+        raise CampaignError(f'{where}: expected a number or a list of numbers, got {value!r}')
+    arr = np.asarray(value, dtype=np.int64 if integer else float)
+    if not np.all(np.isfinite(arr)):
+        raise CampaignError(f'{where}: must be finite, got {value!r}')
+    try:
+        np.broadcast_to(arr, shape)
+    except ValueError:
+        raise CampaignError(f'{where}: {np.size(arr)} values do not fit the parameter '
+                            f'({math.prod(shape) or 1} values)') from None
+    return arr

@@ -1,0 +1,266 @@
+"""``adcs-montecarlo <campaign.yaml> [--runs N] [--out DIR] [--scheduler ADDR]``: a Monte Carlo
+campaign on the batch engine, scaled out with Dask.
+
+The campaign (:mod:`adcs_sim.campaign`) is checked whole before anything runs, split into chunks
+of ``chunk_size`` runs, and each chunk is simulated as one batch (:mod:`adcs_sim.batch`) by a Dask
+worker: a ``LocalCluster`` on loopback using every core by default, any running Dask scheduler
+with ``--scheduler tcp://host:port``, or no Dask at all with ``--scheduler none`` (in this
+process). The results do not depend on the split nor on the scheduler.
+
+Output folder (``--out``, default ``runs/<campaign>_<timestamp>``):
+
+* ``results.csv`` — one row per run: index, status (``ok``, ``failed``: diverged, ``violated``:
+  outside the campaign's ``requirements``), reason, dispersed inputs, metrics;
+* ``summary.json`` / ``summary.md`` — per metric: count, mean, std, min, percentiles (5, 50, 95),
+  max, and the runs that failed or violated a requirement with their inputs;
+* ``replay/run_<i>.yaml`` — for each of those runs, a complete scenario file: replay it alone on
+  the ROS graph with ``adcs-run replay/run_<i>.yaml`` (``--export-run I`` writes any run's);
+* ``figures/hist_<metric>.png|svg`` — histograms; ``campaign.yaml`` — a copy of the campaign.
+
+Exit status: 0 done (even with failed runs: they are results), 2 bad campaign (nothing ran).
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import logging
+import math
+import os
+import shutil
+import sys
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+
+from adcs_sim.campaign import Campaign, CampaignError, run_chunk
+
+PERCENTILES = (5, 50, 95)
+
+
+# --- execution ---------------------------------------------------------------------------------
+
+def execute(campaign: Campaign, scheduler: str = 'local', workers: int | None = None,
+            progress: bool = True) -> list[dict]:
+    """Run every chunk of the campaign; rows sorted by run index.
+
+    ``scheduler``: ``local`` (a Dask LocalCluster on 127.0.0.1 with ``workers`` processes,
+    default one per core), ``none`` (in this process, no Dask) or a scheduler address.
+    """
+    from tqdm import tqdm
+    chunks = campaign.chunks()
+    bar = tqdm(total=campaign.runs, unit='run', disable=not progress, dynamic_ncols=True)
+    rows: list[dict] = []
+    try:
+        if scheduler == 'none':
+            for chunk in chunks:
+                rows += run_chunk(campaign, chunk)
+                bar.update(len(chunk))
+        else:
+            from dask.distributed import Client, LocalCluster, as_completed
+            if scheduler == 'local':
+                n = workers or os.cpu_count() or 1
+                cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                       host='127.0.0.1', dashboard_address=None,
+                                       silence_logs=logging.ERROR)
+                client = Client(cluster)
+            else:
+                cluster, client = None, Client(scheduler)
+            try:
+                futures = client.map(run_chunk, [campaign] * len(chunks), chunks, pure=False)
+                for future in as_completed(futures):
+                    done = future.result()
+                    rows += done
+                    bar.update(len(done))
+            finally:
+                client.close()
+                if cluster is not None:
+                    cluster.close()
+    finally:
+        bar.close()
+    rows.sort(key=lambda r: r['run'])
+    return rows
+
+
+# --- results ---------------------------------------------------------------------------------
+
+def _input_columns(rows: list[dict]) -> list[str]:
+    cols = []
+    for key, value in rows[0]['inputs'].items():
+        cols += [f'{key}[{j}]' for j in range(len(value))] if isinstance(value, list) else [key]
+    return cols
+
+
+def _input_values(inputs: dict) -> list:
+    out = []
+    for value in inputs.values():
+        out += value if isinstance(value, list) else [value]
+    return out
+
+
+def write_results_csv(rows: list[dict], path: Path) -> None:
+    metrics = list(rows[0]['metrics'])
+    with open(path, 'w', newline='', encoding='utf-8') as f:
+        writer = csv.writer(f)
+        writer.writerow(['run', 'status', 'reason', *_input_columns(rows), *metrics])
+        for r in rows:
+            writer.writerow([r['run'], r['status'], r['reason'], *map(repr, _input_values(r['inputs'])),
+                             *(repr(r['metrics'][m]) for m in metrics)])
+
+
+def summarize(campaign: Campaign, rows: list[dict]) -> dict:
+    """Statistics per metric over the runs that did not fail (finite values; ``inf`` counted)."""
+    ok = [r for r in rows if r['status'] != 'failed']
+    stats = {}
+    for m in campaign.metrics:
+        values = np.array([r['metrics'][m] for r in ok], dtype=float)
+        finite = values[np.isfinite(values)]
+        entry = {'runs': int(values.size), 'finite': int(finite.size),
+                 'infinite': int(np.isinf(values).sum())}
+        if finite.size:
+            entry.update({'mean': float(finite.mean()), 'std': float(finite.std(ddof=1)) if finite.size > 1 else 0.0,
+                          'min': float(finite.min()), 'max': float(finite.max())})
+            entry.update({f'p{p}': float(np.percentile(finite, p)) for p in PERCENTILES})
+        stats[m] = entry
+    counts = {s: sum(r['status'] == s for r in rows) for s in ('ok', 'failed', 'violated')}
+    return {
+        'campaign': str(campaign.path), 'scenario': str(campaign.scenario_path), 'runs': len(rows),
+        'seed': campaign.seed, 'chunk_size': campaign.chunk_size, 'tolerance_deg': campaign.tol_deg,
+        'dispersions': {d.target: {'distribution': d.distribution,
+                                   **{k: np.asarray(v).tolist() for k, v in d.args.items()},
+                                   **({'link': [f'{s}.{k}' for s, k in d.links]} if d.links else {})}
+                        for d in campaign.dispersions},
+        'requirements': campaign.requirements, 'counts': counts, 'metrics': stats,
+        'not_ok': [{'run': r['run'], 'status': r['status'], 'reason': r['reason'], 'inputs': r['inputs'],
+                    'replay': f'replay/run_{r["run"]}.yaml'} for r in rows if r['status'] != 'ok'],
+    }
+
+
+def _fmt(v) -> str:
+    return f'{v:.6g}' if isinstance(v, float) else str(v)
+
+
+def summary_markdown(summary: dict) -> str:
+    lines = [f'# Monte Carlo campaign `{Path(summary["campaign"]).name}`', '',
+             f'Scenario `{Path(summary["scenario"]).name}`, {summary["runs"]} runs, seed {summary["seed"]}, '
+             f'settling band {summary["tolerance_deg"]:g} deg. '
+             + ', '.join(f'{n} {s}' for s, n in summary['counts'].items()) + '.', '',
+             '## Dispersions', '']
+    for target, spec in summary['dispersions'].items():
+        args = ', '.join(f'{k} = {v}' for k, v in spec.items() if k != 'distribution')
+        lines.append(f'- `{target}`: {spec["distribution"]}' + (f' ({args})' if args else ''))
+    if summary['requirements']:
+        lines += ['', '## Requirements', '']
+        lines += [f'- `{m}`: ' + ', '.join(f'{k} {v:g}' for k, v in b.items())
+                  for m, b in summary['requirements'].items()]
+    cols = ['mean', 'std', 'min', *(f'p{p}' for p in PERCENTILES), 'max']
+    lines += ['', '## Metrics (runs that did not fail)', '',
+              '| metric | finite | inf | ' + ' | '.join(cols) + ' |',
+              '| --- | ---: | ---: | ' + ' | '.join('---:' for _ in cols) + ' |']
+    for m, s in summary['metrics'].items():
+        lines.append(f'| `{m}` | {s["finite"]} | {s["infinite"]} | '
+                     + ' | '.join(_fmt(s.get(c, math.nan)) for c in cols) + ' |')
+    lines += ['', '## Failed runs and requirement violations', '']
+    if not summary['not_ok']:
+        lines.append('None.')
+    for r in summary['not_ok']:
+        lines.append(f'- run {r["run"]} ({r["status"]}): {r["reason"]}; replay `{r["replay"]}`; inputs '
+                     + ', '.join(f'`{k}` = {v}' for k, v in r['inputs'].items()))
+    return '\n'.join(lines) + '\n'
+
+
+def write_histograms(campaign: Campaign, rows: list[dict], out: Path) -> list[Path]:
+    from matplotlib.figure import Figure
+    from adcs_sim.report import save_figure
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for m in campaign.metrics:
+        values = np.array([r['metrics'][m] for r in rows if r['status'] != 'failed'], dtype=float)
+        finite = values[np.isfinite(values)]
+        if not finite.size:
+            continue
+        fig = Figure(figsize=(6.0, 3.4), layout='constrained')
+        ax = fig.subplots()
+        ax.hist(finite, bins=min(50, max(10, int(math.sqrt(finite.size)))), color='tab:blue', alpha=0.8)
+        for p, style in zip(PERCENTILES, (':', '--', ':')):
+            ax.axvline(np.percentile(finite, p), color='k', linestyle=style, linewidth=1,
+                       label=f'p{p} = {np.percentile(finite, p):.4g}')
+        bound = campaign.requirements.get(m, {})
+        for k, v in bound.items():
+            ax.axvline(v, color='tab:red', linewidth=1.5, label=f'requirement {k} {v:g}')
+        ax.set_xlabel(m)
+        ax.set_ylabel('runs')
+        extra = f', {values.size - finite.size} not finite' if values.size > finite.size else ''
+        ax.set_title(f'{m}: {finite.size} runs{extra}', fontsize='medium')
+        ax.grid(True, alpha=0.35)
+        ax.legend(fontsize='small')
+        safe = m.replace('[', '_').replace(']', '')
+        paths += save_figure(fig, out, f'hist_{safe}')
+    return paths
+
+
+def write_outputs(campaign: Campaign, rows: list[dict], out: Path, figures: bool = True) -> dict:
+    out.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(campaign.path, out / 'campaign.yaml')
+    write_results_csv(rows, out / 'results.csv')
+    summary = summarize(campaign, rows)
+    (out / 'summary.json').write_text(json.dumps(summary, indent=2, default=_json_default) + '\n')
+    (out / 'summary.md').write_text(summary_markdown(summary))
+    replay = out / 'replay'
+    for r in summary['not_ok']:
+        replay.mkdir(exist_ok=True)
+        (replay / f'run_{r["run"]}.yaml').write_text(campaign.scenario_text(r['run']))
+    if figures:
+        write_histograms(campaign, rows, out / 'figures')
+    return summary
+
+
+def _json_default(v):
+    if isinstance(v, float) and not math.isfinite(v):
+        return str(v)
+    raise TypeError(f'not JSON serialisable: {v!r}')
+
+
+# --- CLI -------------------------------------------------------------------------------------
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog='adcs-montecarlo', description=__doc__.splitlines()[0])
+    parser.add_argument('campaign', help='campaign YAML file')
+    parser.add_argument('--runs', type=int, default=None, help='number of runs (overrides the file)')
+    parser.add_argument('--out', type=Path, default=None, help='output folder (default runs/<campaign>_<time>)')
+    parser.add_argument('--scheduler', default='local',
+                        help="'local' (Dask LocalCluster on loopback, default), 'none' (no Dask), "
+                             'or a Dask scheduler address tcp://host:port')
+    parser.add_argument('--workers', type=int, default=None, help='LocalCluster worker processes (default: cores)')
+    parser.add_argument('--export-run', type=int, default=None, metavar='I',
+                        help='only write the scenario file of run I (to --out, default run_I.yaml) and exit')
+    parser.add_argument('--no-figures', action='store_true', help='skip the histograms')
+    parser.add_argument('--quiet', action='store_true', help='no progress bar')
+    args = parser.parse_args(argv)
+    try:
+        if args.runs is not None and args.runs < 1:
+            raise CampaignError(f'--runs: must be at least 1, got {args.runs}')
+        if args.workers is not None and args.workers < 1:
+            raise CampaignError(f'--workers: must be at least 1, got {args.workers}')
+        campaign = Campaign.load(args.campaign, args.runs)
+        if args.export_run is not None:
+            if not 0 <= args.export_run < campaign.runs:
+                raise CampaignError(f'--export-run: run {args.export_run} is not in 0..{campaign.runs - 1}')
+            target = args.out or Path(f'run_{args.export_run}.yaml')
+            target.write_text(campaign.scenario_text(args.export_run))
+            print(f'adcs-montecarlo: run {args.export_run} written to {target} (replay: adcs-run {target})')
+            return 0
+    except CampaignError as exc:
+        print(f'adcs-montecarlo: {exc}', file=sys.stderr)
+        return 2
+    out = args.out or Path('runs') / f'{Path(args.campaign).stem}_{datetime.now():%Y%m%d_%H%M%S}'
+    rows = execute(campaign, args.scheduler, args.workers, progress=not args.quiet)
+    summary = write_outputs(campaign, rows, out, figures=not args.no_figures)
+    print(summary_markdown(summary))
+    print(f'adcs-montecarlo: results in {out}')
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
