@@ -22,3 +22,4 @@ test: $(VENV)/.installed
 
 bench: $(VENV)/.installed
 	$(PY) benchmarks/lockstep_vs_pingpong.py
+	$(PY) benchmarks/batch_vs_loop.py
