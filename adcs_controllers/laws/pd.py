@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from adcs_controllers.laws.base import SectionLaw
 from adcs_sim.attitude import error_quaternion, matvec
 
 
@@ -33,20 +34,15 @@ def pd_torque(q: np.ndarray, w: np.ndarray, inertia: np.ndarray, kp, kd,
     return -matvec(inertia, kp * qv + kd * we)
 
 
-class PdLaw:
+class PdLaw(SectionLaw):
     """Eq. (13) bound to a validated ``pd_controller`` section (values may carry a batch axis).
 
     The object the node and the batch engine both call: ``control(t, q, w) -> (torque, status)``.
     """
 
     def __init__(self, p: dict) -> None:
-        from adcs_sim.scenario import inertia_matrix
-        self.inertia = inertia_matrix(p['inertia'])
-        q_ref = np.asarray(p['target.attitude'], dtype=float)
-        self.q_ref = q_ref / np.linalg.norm(q_ref, axis=-1, keepdims=True)
-        self.w_ref = np.asarray(p['target.rate'], dtype=float)
+        super().__init__(p)
         self.kp, self.kd = p['kp'], p['kd']
-        self.shortest_path = p['shortest_path']
 
     def control(self, t: float, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, dict]:
         u = pd_torque(q, w, self.inertia, self.kp, self.kd, self.q_ref, self.w_ref, self.shortest_path)

@@ -1,0 +1,38 @@
+"""What every section-bound law object shares (pure; no rclpy)."""
+from __future__ import annotations
+
+import numpy as np
+
+
+class SectionLaw:
+    """A law bound to a validated controller section: the controller's inertia model and the
+    regulation target (values may carry a batch axis). Subclasses read their gains and implement
+    ``control(t, q, w) -> (torque (..., 3), status)``; the node and the batch engine call it.
+
+    ``mode_names`` maps the integer ``status['mode']`` codes to the names the node publishes.
+    """
+
+    mode_names: dict[int, str] = {}
+
+    def __init__(self, p: dict) -> None:
+        from adcs_sim.scenario import inertia_matrix
+        self.inertia = inertia_matrix(p['inertia'])
+        q_ref = np.asarray(p['target.attitude'], dtype=float)
+        self.q_ref = q_ref / np.linalg.norm(q_ref, axis=-1, keepdims=True)
+        self.w_ref = np.asarray(p['target.rate'], dtype=float)
+        self.shortest_path = bool(p.get('shortest_path', False))
+
+    def control(self, t: float, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, dict]:
+        raise NotImplementedError
+
+    def published_status(self, status: dict) -> dict:
+        """One run's status as the node publishes it: mode codes as names, arrays as floats."""
+        out = {}
+        for key, value in status.items():
+            if key == 'mode' and np.ndim(value) == 0 and not isinstance(value, str) and self.mode_names:
+                out[key] = self.mode_names.get(int(value), str(int(value)))
+            elif isinstance(value, np.ndarray) and value.ndim == 0:
+                out[key] = float(value)
+            else:
+                out[key] = value
+        return out
