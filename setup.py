@@ -10,11 +10,15 @@ NODES = {
     'dynamics': 'adcs_sim.nodes.dynamics:main',
     'recorder': 'adcs_sim.nodes.recorder:main',
     'pd_controller': 'adcs_controllers.nodes.pd_controller:main',
+    'minnorm_controller': 'adcs_controllers.nodes.minnorm_controller:main',
+    'gsmn_controller': 'adcs_controllers.nodes.gsmn_controller:main',
+    'kt_controller': 'adcs_controllers.nodes.kt_controller:main',
 }
 TOOLS = {
     'adcs-run': 'adcs_sim.runner:main',
     'adcs-analyze': 'adcs_sim.analyze:main',
     'adcs-montecarlo': 'adcs_sim.montecarlo:main',
+    'adcs-tune-gsmn': 'adcs_controllers.tuning:main',
 }
 
 setup(

@@ -40,3 +40,52 @@ PD_SCHEMA = Schema('pd_controller', [
           doc='flip q when q4 < 0 (not in seed 004 eq. 13, which is applied as printed by default)'),
     *controller_params(),
 ], cross_check=_actuator_check, doc='quaternion PD benchmark law, seed 004 eq. (13)')
+
+
+def _target_params() -> list[Param]:
+    """The regulation target and the sign convention of the attitude error (every law has them)."""
+    return [
+        Param('target.attitude', 'double_array', default=[0.0, 0.0, 0.0, 1.0], length=4,
+              check=check_unit_quaternion, batch=True, doc='commanded attitude [x, y, z, w]'),
+        Param('target.rate', 'double_array', default=[0.0, 0.0, 0.0], length=3, batch=True,
+              doc='commanded rate (rad/s)'),
+    ]
+
+
+def _gain(name: str, doc: str) -> Param:
+    return Param(name, 'double', check=positive, batch=True, doc=doc)
+
+
+_INERTIA_MODEL = "the controller's inertia model I (kg m^2): 3 principal moments or 9 entries"
+_SHORTEST = Param('shortest_path', 'bool', default=False,
+                  doc='flip q when q4 < 0 (not in seed 004, whose laws are applied as printed by default)')
+
+MINNORM_SCHEMA = Schema('minnorm_controller', [
+    inertia_param(_INERTIA_MODEL),
+    _gain('kp', 'PD gain of the reference torque u_PD = -kp I q - kd I w (1/s^2)'),
+    _gain('kd', 'PD gain of the reference torque (1/s)'),
+    _gain('gamma', 'cross-term weight of the Lyapunov function, eq. (15) (1/s)'),
+    *_target_params(), _SHORTEST,
+    *controller_params(),
+], cross_check=_actuator_check, doc='standard minimum-norm law, seed 004 eq. (14) with V of eq. (15)')
+
+GSMN_SCHEMA = Schema('gsmn_controller', [
+    inertia_param(_INERTIA_MODEL),
+    _gain('kp1', 'low (benchmark) proportional gain, multiplied by I (1/s^2)'),
+    _gain('kd1', 'low (benchmark) derivative gain, multiplied by I (1/s)'),
+    _gain('kp2', 'high proportional gain, multiplied by I (1/s^2)'),
+    _gain('kd2', 'high derivative gain, multiplied by I (1/s)'),
+    _gain('gamma', 'cross-term weight of the Lyapunov function, eq. (15) (1/s)'),
+    Param('epsilon', 'double', check=positive, batch=True,
+          doc='switching threshold on |u2|_inf (N m): high gains below it (eq. 17)'),
+    *_target_params(), _SHORTEST,
+    *controller_params(),
+], cross_check=_actuator_check, doc='gain-scheduled minimum-norm law, seed 004 eq. (17)')
+
+KT_SCHEMA = Schema('kt_controller', [
+    inertia_param(_INERTIA_MODEL),
+    _gain('k1', 'Krstic-Tsiotras gain k1 (1/s)'),
+    _gain('k2', 'Krstic-Tsiotras gain k2 (1/s)'),
+    *_target_params(),
+    *controller_params(),
+], cross_check=_actuator_check, doc='Krstic-Tsiotras inverse-optimal law, seed 004 eq. (18)')

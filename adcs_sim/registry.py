@@ -11,8 +11,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from adcs_msgs_py.params import Schema
+from adcs_controllers.laws.inverse_optimal import GsmnLaw, KtLaw, MinNormLaw
 from adcs_controllers.laws.pd import PdLaw
-from adcs_controllers.schemas import PD_SCHEMA
+from adcs_controllers.schemas import GSMN_SCHEMA, KT_SCHEMA, MINNORM_SCHEMA, PD_SCHEMA
 from adcs_sim.scenario import DYNAMICS_SCHEMA, RECORDER_SCHEMA
 
 
@@ -28,4 +29,8 @@ NODES: dict[str, NodeInfo] = {
     'dynamics': NodeInfo('adcs_sim.nodes.dynamics', DYNAMICS_SCHEMA, 'dynamics'),
     'recorder': NodeInfo('adcs_sim.nodes.recorder', RECORDER_SCHEMA, 'recorder'),
     'pd_controller': NodeInfo('adcs_controllers.nodes.pd_controller', PD_SCHEMA, 'controller', PdLaw),
+    'minnorm_controller': NodeInfo('adcs_controllers.nodes.minnorm_controller', MINNORM_SCHEMA,
+                                   'controller', MinNormLaw),
+    'gsmn_controller': NodeInfo('adcs_controllers.nodes.gsmn_controller', GSMN_SCHEMA, 'controller', GsmnLaw),
+    'kt_controller': NodeInfo('adcs_controllers.nodes.kt_controller', KT_SCHEMA, 'controller', KtLaw),
 }

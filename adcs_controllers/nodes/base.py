@@ -66,7 +66,10 @@ class ControllerNode(AdcsNode):
         torque, status = self.control(t_ns / cv.NS_PER_S, q, w)
         applied = self.publish_torque(t_ns, torque)
         if self.pub_status.get_subscription_count():  # after the command: off the critical path
+            status = self.law.published_status(status)
+            # u_x.. what the actuators are commanded (saturated); demand_max: the law's own |u|_inf
             status.update({'u_x': applied[0], 'u_y': applied[1], 'u_z': applied[2],
+                           'demand_max': float(np.max(np.abs(torque))),
                            'rejected_messages': self.rejects.total})
             self.pub_status.publish(cv.status_to_msg(t_ns, self.get_name(), status))
 
