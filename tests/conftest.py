@@ -111,3 +111,32 @@ class InProcessGraph:
         for node in reversed(self.nodes):
             node.destroy_node()
         self.rclpy.try_shutdown(context=self.context)
+
+
+def record_pd_loop(tmp_path: Path, n: int, dynamics: dict | None = None, extra_counts: dict | None = None):
+    """Dynamics + PD controller + recorder in this process, lockstep, ``n`` steps of the PD slew
+    (``dynamics`` overrides its section); waits until the recorder has every message of the run.
+
+    Returns ``(bag folder, dynamics node)``; ``extra_counts`` ({topic: count}) adds topics to wait for.
+    """
+    from adcs_controllers.nodes.pd_controller import PdController
+    from adcs_sim.nodes.dynamics import DynamicsNode
+    from adcs_sim.nodes.recorder import RecorderNode
+
+    bag_dir = tmp_path / 'bag'
+    scenario = make_scenario(tmp_path, {
+        'dynamics': {'duration': float(n), 'startup.expect_recorder': True, **(dynamics or {})},
+        'pd_controller': {'startup.expect_recorder': True},
+        'recorder': {'output': str(bag_dir)}})
+    expected = {'/state': n + 1, '/controller/status': n + 1, '/wheels/cmd': n + 1,
+                '/dynamics/status': 2, **(extra_counts or {})}
+    with InProcessGraph(scenario) as graph:
+        rec = graph.add(RecorderNode)
+        dyn = graph.add(DynamicsNode)
+        pd = graph.add(PdController)
+        pd.connect()
+        dyn.run(graph.executor)
+        counts = rec.bag.topics
+        graph.spin_until(lambda: all(counts[t].count == c for t, c in expected.items()))
+        rec.close()
+    return bag_dir, dyn

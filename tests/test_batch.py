@@ -19,7 +19,7 @@ from adcs_sim.analysis import RunData, run_metrics
 from adcs_sim.batch import BatchSimulation
 from adcs_sim.registry import NODES
 from adcs_sim.runner import validate_scenario
-from conftest import InProcessGraph, make_scenario
+from conftest import make_scenario, record_pd_loop
 
 NOISE = {'noise.seed': 7, 'noise.attitude_std': 1e-4, 'noise.rate_std': 1e-6}
 # Q0 of the paper's slew and two other attitudes to share its batch.
@@ -46,29 +46,11 @@ def test_batch_run_matches_the_graph_run(ros_domain, tmp_path):
     + recorder in lockstep) and as run 1 of a batch of 3: same truth trajectory, same applied
     torque, same wheel speeds, same metrics — to round-off (the controller renormalises the
     received quaternion, the only operation the batch does not repeat)."""
-    from adcs_controllers.nodes.pd_controller import PdController
-    from adcs_sim.nodes.dynamics import DynamicsNode
-    from adcs_sim.nodes.recorder import RecorderNode
-
     n = 400
-    bag_dir = tmp_path / 'bag'
-    scenario = make_scenario(tmp_path, {
-        'dynamics': {'duration': float(n), 'startup.expect_recorder': True, **NOISE},
-        'pd_controller': {'startup.expect_recorder': True},
-        'recorder': {'output': str(bag_dir)}})
-    with InProcessGraph(scenario) as graph:
-        rec = graph.add(RecorderNode)
-        dyn = graph.add(DynamicsNode)
-        pd = graph.add(PdController)
-        pd.connect()
-        dyn.run(graph.executor)
-        counts = rec.bag.topics
-        graph.spin_until(lambda: counts['/truth/state'].count == n + 1
-                         and counts['/actuators/torque'].count == n
-                         and counts['/wheels/state'].count == n + 1
-                         and counts['/dynamics/status'].count == 2)
-        assert dyn.missed_steps == 0
-        rec.close()
+    bag_dir, dyn = record_pd_loop(tmp_path, n, NOISE, {'/truth/state': n + 1, '/actuators/torque': n,
+                                                       '/wheels/state': n + 1})
+    assert dyn.missed_steps == 0
+    scenario = make_scenario(tmp_path, {'dynamics': {'duration': float(n), **NOISE}})
     graph_run = RunData.from_bag(bag_dir)
 
     overrides = [{'dynamics': {'initial.attitude': Q_OTHERS[0]}}, {},

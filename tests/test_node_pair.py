@@ -17,7 +17,7 @@ from rosbags.typesys import Stores, get_typestore
 from adcs_sim import bag as bagio
 from adcs_sim.analysis import RunData, run_metrics
 from adcs_sim.runner import run_scenario
-from conftest import InProcessGraph, make_scenario
+from conftest import InProcessGraph, make_scenario, record_pd_loop
 from reference_pd import pd_slew_reference
 
 J = np.diag([12.0, 14.0, 10.0])
@@ -43,29 +43,9 @@ def assert_matches_reference(run: RunData, n_steps: int) -> None:
 
 
 def test_in_process_loop_converges_and_matches_reference(ros_domain, tmp_path):
-    from adcs_controllers.nodes.pd_controller import PdController
-    from adcs_sim.nodes.dynamics import DynamicsNode
-    from adcs_sim.nodes.recorder import RecorderNode
-
     n = 300
-    bag_dir = tmp_path / 'bag'
-    scenario = make_scenario(tmp_path, {
-        'dynamics': {'duration': float(n), 'startup.expect_recorder': True},
-        'pd_controller': {'startup.expect_recorder': True},
-        'recorder': {'output': str(bag_dir)}})
-    with InProcessGraph(scenario) as graph:
-        rec = graph.add(RecorderNode)
-        dyn = graph.add(DynamicsNode)
-        pd = graph.add(PdController)
-        pd.connect()
-        dyn.run(graph.executor)
-        counts = rec.bag.topics
-        graph.spin_until(lambda: counts['/state'].count == n + 1
-                         and counts['/controller/status'].count == n + 1
-                         and counts['/wheels/cmd'].count == n + 1
-                         and counts['/dynamics/status'].count == 2)
-        assert dyn.missed_steps == 0 and dyn.stale_commands == 0 and dyn.rejects.total == 0
-        rec.close()
+    bag_dir, dyn = record_pd_loop(tmp_path, n)
+    assert dyn.missed_steps == 0 and dyn.stale_commands == 0 and dyn.rejects.total == 0
 
     run = RunData.from_bag(bag_dir)
     assert run.t.size == n + 1

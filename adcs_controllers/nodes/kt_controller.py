@@ -5,16 +5,14 @@ from __future__ import annotations
 
 from adcs_controllers.nodes.base import ControllerNode
 from adcs_controllers.schemas import KT_SCHEMA
-from adcs_sim.nodes.base import main_for
+from adcs_sim.nodes.base import entry_point
 
 
 class KtController(ControllerNode):
     schema = KT_SCHEMA  # law: adcs_controllers.laws.inverse_optimal.KtLaw (adcs_sim.registry)
 
 
-def main(args=None) -> None:
-    raise SystemExit(main_for(KtController, args))
-
+main = entry_point(KtController)
 
 if __name__ == '__main__':
     main()

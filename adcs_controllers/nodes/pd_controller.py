@@ -3,16 +3,14 @@ from __future__ import annotations
 
 from adcs_controllers.nodes.base import ControllerNode
 from adcs_controllers.schemas import PD_SCHEMA
-from adcs_sim.nodes.base import main_for
+from adcs_sim.nodes.base import entry_point
 
 
 class PdController(ControllerNode):
     schema = PD_SCHEMA  # law: adcs_controllers.laws.pd.PdLaw (adcs_sim.registry)
 
 
-def main(args=None) -> None:
-    raise SystemExit(main_for(PdController, args))
-
+main = entry_point(PdController)
 
 if __name__ == '__main__':
     main()

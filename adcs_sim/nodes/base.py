@@ -158,3 +158,11 @@ def main_for(node_class: type[AdcsNode], args=None, handle_signals: bool = True)
             node.destroy_node()
         rclpy.try_shutdown(context=context)
     return status
+
+
+def entry_point(node_class: type[AdcsNode], **kwargs):
+    """``main(args=None)`` of a node executable: :func:`main_for` ``node_class``, exit with its status."""
+    def main(args=None) -> None:
+        raise SystemExit(main_for(node_class, args, **kwargs))
+    main.__doc__ = f'Run the {node_class.__name__} executable.'
+    return main
