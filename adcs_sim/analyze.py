@@ -7,7 +7,9 @@ Each bag also gets a report (:mod:`adcs_sim.report`): ``report.md`` with the sce
 metrics and figures (PNG + SVG), written to ``<bag>/../report/`` (a ``report`` folder beside the
 bag folder) or ``--out DIR``. ``--compare`` writes one comparison of all the bags instead
 (``comparison.csv``, ``comparison.md``, overlaid figures) to ``--out DIR`` or ``comparison/`` in
-the folder that holds the runs. ``--no-report`` only prints the metrics.
+the folder that holds the runs; with ``--reference FILE`` (published figures per run, e.g.
+``docs/seed004/paper.yaml``) it adds a published-vs-ours table with the differences.
+``--no-report`` only prints the metrics.
 
 A path that is not a readable bag gives a one-line error on stderr and exit status 1 (the other
 bags are still analysed).
@@ -42,6 +44,9 @@ def main(argv=None) -> int:
                              'per run; with --compare, the comparison folder)')
     parser.add_argument('--compare', action='store_true',
                         help='write one comparison of all the bags (CSV, Markdown, overlaid figures)')
+    parser.add_argument('--reference', type=Path, default=None,
+                        help='with --compare: a YAML of published figures per run (e.g. a paper\'s), '
+                             'added to the comparison with the relative differences')
     parser.add_argument('--no-report', action='store_true', help='only print the metrics')
     args = parser.parse_args(argv)
     from adcs_sim.report import BagError, load_run  # matplotlib only after the arguments are parsed
@@ -70,8 +75,13 @@ def main(argv=None) -> int:
             print('adcs-analyze: --compare needs at least two readable bags', file=sys.stderr)
             return 1
         out = args.out or report.default_comparison_dir(list(runs))
-        csv_path, md_path = report.write_comparison(list(runs.values()), out, args.tolerance_deg,
-                                                    args.eigen_tolerance_deg)
+        try:
+            reference = report.load_reference(args.reference) if args.reference else None
+            csv_path, md_path = report.write_comparison(list(runs.values()), out, args.tolerance_deg,
+                                                        args.eigen_tolerance_deg, reference)
+        except ValueError as exc:
+            print(f'adcs-analyze: --reference: {exc}', file=sys.stderr)
+            return 2
         print(f'comparison: {md_path} ({csv_path.name})', file=info)
         return status
     for (path, run), name in zip(runs.items(), report.unique_names(list(runs.values()))):

@@ -640,9 +640,44 @@ def default_comparison_dir(paths) -> Path:
     return Path(os.path.commonpath([str(default_report_dir(p).parent) for p in paths])) / 'comparison'
 
 
+def load_reference(path) -> dict:
+    """Published figures to compare runs with: a YAML file ``{source: text, runs: {run name:
+    {comparison row: value}}}`` (rows as in ``comparison.csv``, e.g. ``integrated_torque_Nms``,
+    ``peak_torque_x_Nm``, ``settling_euler213_theta1_x_0.5deg_s``). Raises ValueError."""
+    import yaml
+    try:
+        tree = yaml.safe_load(Path(path).read_text(encoding='utf-8'))
+    except (OSError, yaml.YAMLError) as exc:
+        raise ValueError(f'{path}: cannot read reference figures: {exc}') from None
+    if not isinstance(tree, dict) or not isinstance(tree.get('runs'), dict):
+        raise ValueError(f'{path}: expected `source:` and `runs: {{<run name>: {{<metric>: value}}}}`')
+    for name, values in tree['runs'].items():
+        if not isinstance(values, dict) or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in values.values()):
+            raise ValueError(f'{path}: runs.{name}: expected a mapping of metric names to numbers')
+    return tree
+
+
+def reference_rows(names: list[str], table: list[dict], reference: dict) -> list[tuple]:
+    """(run, metric, published, ours, relative difference) for every published figure of a run
+    being compared. ValueError for a metric name that is not a comparison row."""
+    out = []
+    for name, row in zip(names, table):
+        for key, published in (reference['runs'].get(name) or {}).items():
+            if key not in row:
+                raise ValueError(f'reference figure {name}.{key}: not a comparison metric; known: {list(row)}')
+            ours = row[key]
+            diff = (ours - published) / abs(published) if ours is not None and published else math.nan
+            out.append((name, key, float(published), ours, diff))
+    return out
+
+
 def write_comparison(runs: list[Run], out, tol_deg: float = 0.5,
-                     eigen_tol_deg: float | None = None) -> tuple[Path, Path]:
-    """Write ``comparison.csv``, ``comparison.md`` and overlaid figures; return (csv, md) paths."""
+                     eigen_tol_deg: float | None = None, reference: dict | None = None) -> tuple[Path, Path]:
+    """Write ``comparison.csv``, ``comparison.md`` and overlaid figures; return (csv, md) paths.
+
+    ``reference`` (:func:`load_reference`): published figures; adds a "published vs ours" table
+    with the relative differences (also ``reference_comparison.csv``)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     eigen_tol_deg = tol_deg if eigen_tol_deg is None else eigen_tol_deg
@@ -671,6 +706,17 @@ def write_comparison(runs: list[Run], out, tol_deg: float = 0.5,
     for k in keys:
         lines.append(f'| `{k}` | ' + ' | '.join(fmt(row[k]) for row in table)
                      + f' | {_md_escape(_note_cmp(k))} |')
+    if reference is not None:
+        published = reference_rows(names, table, reference)
+        with open(out / 'reference_comparison.csv', 'w', newline='') as f:
+            w = csv.writer(f)
+            w.writerow(['run', 'metric', 'published', 'ours', 'relative_difference'])
+            w.writerows([r[:3] + (_csv_value(r[3]), _csv_value(r[4])) for r in published])
+        lines += ['', '## Published figures vs ours', '', _md_escape(str(reference.get('source', ''))), '',
+                  '| run | metric | published | ours | difference |', '| --- | --- | ---: | ---: | ---: |']
+        for name, key, pub, ours, diff in published:
+            lines.append(f'| {_md_escape(name)} | `{key}` | {fmt(pub)} | {fmt(ours)} | '
+                         + ('n/a' if math.isnan(diff) else f'{100 * diff:+.1f} %') + ' |')
     lines += ['', '## Figures', '']
     for name, title, caption, fig in _comparison_figures(runs, names, eigen_tol_deg):
         save_figure(fig, out, name)
