@@ -1,0 +1,177 @@
+"""Seed 004 (Horri, Palmer & Roberts) reproduced through the ROS graph: the recorded bags in bags/.
+
+Each reference recording was made by ``adcs-run`` (dynamics + controller + recorder as separate
+processes, lockstep) from its config/ scenario (bags/regenerate.py). The tests read the bags,
+compute the paper's metrics with the analysis library and compare them with the paper's figures;
+each test states the paper's figure, ours and the tolerance. A first test checks that each
+recording is still what the current code computes (the batch engine on the same scenario), so a
+stale bag cannot pass for a reproduction.
+
+Figures that cannot be reproduced from the paper's text are documented in docs/seed004.md with
+what was tried; for them the paper's qualitative claim is tested.
+"""
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from adcs_sim.analysis import RunData, run_metrics, settling_times
+from adcs_sim.batch import BatchSimulation
+from adcs_sim.registry import NODES
+from adcs_sim.runner import validate_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+BAGS = ROOT / 'bags'
+
+
+@lru_cache(maxsize=None)
+def run(name: str) -> RunData:
+    return RunData.from_bag(BAGS / name / 'bag')
+
+
+@lru_cache(maxsize=None)
+def metrics(name: str) -> dict:
+    return run_metrics(run(name))
+
+
+def per_axis(name: str, tol: float) -> dict[str, float]:
+    """Settling time per body axis (2-1-3 Euler angles; the library gives them in sequence order y, x, z)."""
+    y, x, z = settling_times(run(name), (tol,))[tol]['euler213_per_axis']
+    return {'X': x, 'Y': y, 'Z': z}
+
+
+def peak_signed(name: str) -> np.ndarray:
+    """Per axis, the applied torque of largest magnitude, with its sign (Table I prints signed peaks)."""
+    u = run(name).u
+    return u[np.abs(u).argmax(axis=0), [0, 1, 2]]
+
+
+def rel(ours: float, paper: float) -> float:
+    return abs(ours - paper) / abs(paper)
+
+
+@pytest.mark.parametrize('name', ['microsat_pd_slew', 'microsat_gsmn_slew', 'microsat_minnorm_slew', 'table1_gsmn',
+                                  'table1_krstic_tsiotras'])
+def test_recording_is_what_the_code_computes(name):
+    """The graph's recording equals the batch engine's run of the same scenario (round-off):
+    the bag is current, and the graph ran the law as the pure code defines it."""
+    validated = validate_scenario(BAGS / name / 'scenario.yaml')
+    sections = {k: NODES[k].schema.stack([v]) for k, v in validated.items() if NODES[k].role != 'recorder'}
+    batch = BatchSimulation(sections, 1).run().run_data(0)
+    graph = run(name)
+    assert graph.missed_steps == 0
+    np.testing.assert_allclose(batch.t, graph.t, rtol=0, atol=1e-12)  # bag stamps: sec + nanosec
+    np.testing.assert_allclose(batch.q, graph.q, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(batch.u, graph.u, rtol=0, atol=1e-9 * np.abs(graph.u).max())
+
+
+# --- section III.F: the micro-satellite slew (0.01 N m wheels) --------------------------------
+
+def test_gsmn_settling_time_iii_f():
+    """Paper: GSMN settles to 0.5 deg on all 3 axes in 123.8 s. Ours: 128.1 s. Tolerance 5 %."""
+    ours = metrics('microsat_gsmn_slew')['settling_euler213_0.5deg_s']
+    assert rel(ours, 123.8) < 0.05, ours
+
+
+def test_gsmn_beats_pd_with_admissible_torque_iii_f():
+    """Paper: GSMN 123.8 s vs PD 228.2 s, integrated torque 0.214 vs 0.245, "admissible
+    instantaneous torque". Ours: 128.1 s vs 183.1 s, 0.187 vs 0.268; GSMN's applied torque never
+    exceeds the PD's peak on any axis (nor the 0.01 N m limit: its demand stays below it)."""
+    g, p = metrics('microsat_gsmn_slew'), metrics('microsat_pd_slew')
+    assert g['settling_euler213_0.5deg_s'] < 0.8 * p['settling_euler213_0.5deg_s']
+    assert g['integrated_torque_Nms'] < p['integrated_torque_Nms']
+    assert max(g['peak_torque_Nm']) <= max(p['peak_torque_Nm'])
+    demand = [float(s['demand_max']) for _, _, s in run('microsat_gsmn_slew').controller_status]
+    assert max(demand) < 0.01
+
+
+def test_high_gain_min_norm_exceeds_the_torque_limit_iii_f():
+    """Paper (fig. 3): the standard min-norm law with the higher gains "causes a higher initial
+    torque value, potentially causing torque saturation" - why gain scheduling is needed. Ours:
+    its demand peaks at 0.078 N m, 7.8 times the 0.01 N m the wheels give (they saturate)."""
+    demand = [float(s['demand_max']) for _, _, s in run('microsat_minnorm_slew').controller_status]
+    assert max(demand) > 0.05
+    assert max(metrics('microsat_minnorm_slew')['peak_torque_Nm']) == pytest.approx(0.01, rel=1e-9)
+    modes = {s['mode'] for _, _, s in run('microsat_minnorm_slew').controller_status}
+    assert modes == {'min_norm', 'zero_torque'}
+
+
+def test_gsmn_uses_all_three_modes_iii_f():
+    """Eq. 17: low gains first, torque off, then high gains (section IV's assumed sequence)."""
+    modes = [s['mode'] for _, _, s in run('microsat_gsmn_slew').controller_status]
+    first = {m: modes.index(m) for m in ('low_gain', 'zero_torque', 'high_gain')}
+    assert first['low_gain'] < first['zero_torque'] < first['high_gain']
+    assert 'low_gain' not in modes[first['high_gain']:]
+
+
+# --- Table I: GSMN vs Krstic-Tsiotras (140 N m) -------------------------------------------
+
+def test_kt_integrated_torque_table1():
+    """Paper: KT total integrated torque 35.66 N m s. Ours: 35.80. Tolerance 2 %."""
+    ours = metrics('table1_krstic_tsiotras')['integrated_torque_Nms']
+    assert rel(ours, 35.66) < 0.02, ours
+
+
+def test_gsmn_saves_integrated_torque_over_kt_table1():
+    """Paper: GSMN 26.95 vs KT 35.66 N m s, a 24.4 % saving. Ours: 27.67 vs 35.80, 22.7 %.
+    GSMN's own figure is 2.7 % above the paper's (not within 2 %: docs/seed004.md); the saving
+    is tested, to within 2.5 percentage points."""
+    g = metrics('table1_gsmn')['integrated_torque_Nms']
+    k = metrics('table1_krstic_tsiotras')['integrated_torque_Nms']
+    saving = 1 - g / k
+    assert abs(saving - (1 - 26.95 / 35.66)) < 0.025, saving
+    assert rel(g, 26.95) < 0.03, g
+
+
+def test_gsmn_faster_than_kt_on_every_axis_table1():
+    """Paper (Table I): GSMN settles faster than KT on every axis at 1 deg and 0.5 deg. Ours too."""
+    for tol in (1.0, 0.5):
+        g, k = per_axis('table1_gsmn', tol), per_axis('table1_krstic_tsiotras', tol)
+        for axis in 'XYZ':
+            assert g[axis] < k[axis], (tol, axis, g, k)
+
+
+def test_gsmn_peak_torque_below_kt_table1():
+    """Paper: GSMN "tuned to deliver a lower maximum instantaneous torque" (69.98 vs 139 N m).
+    Ours: 55.6 vs 133.5 N m. The paper's per-axis GSMN peaks (X -40.4, Y -16.77, Z -69.98) are not
+    reproduced: eq. 17's first torque already has X = -53.06 N m (docs/seed004.md)."""
+    g, k = np.abs(peak_signed('table1_gsmn')), np.abs(peak_signed('table1_krstic_tsiotras'))
+    assert g.max() < 0.5 * k.max()
+    assert np.all(peak_signed('table1_gsmn') < 0) and np.all(peak_signed('table1_krstic_tsiotras') < 0)
+
+
+def test_table1_control_period_is_converged():
+    """The 1 ms control period of the Table I scenarios: halving it changes the integrated torque
+    by less than 0.2 % and no per-axis settling time by more than 0.02 s (batch engine)."""
+    out = {}
+    for period in (0.001, 0.0005):
+        validated = validate_scenario(ROOT / 'config' / 'table1_gsmn.yaml')
+        validated['dynamics'].update({'control_period': period, 'integrator.max_step': period,
+                                      'duration': 12.0})
+        sections = {k: NODES[k].schema.stack([v]) for k, v in validated.items() if NODES[k].role != 'recorder'}
+        result = BatchSimulation(sections, 1).run().run_data(0)
+        out[period] = (run_metrics(result)['integrated_torque_Nms'],
+                       settling_times(result, (1.0, 0.5)))
+    (i1, s1), (i2, s2) = out[0.001], out[0.0005]
+    assert rel(i1, i2) < 0.002
+    for tol in (1.0, 0.5):
+        assert np.max(np.abs(np.subtract(s1[tol]['euler213_per_axis'], s2[tol]["euler213_per_axis"]))) < 0.02
+    assert all(math.isfinite(v) for v in s1[0.5]['euler213_per_axis'])
+
+
+def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path, capsys):
+    """docs/seed004's published-vs-ours tables come from ``adcs-analyze --compare --reference``."""
+    from adcs_sim.analyze import main as analyze
+    bags = [str(BAGS / n / 'bag') for n in ('microsat_pd_slew', 'microsat_gsmn_slew')]
+    paper = ROOT / 'docs' / 'seed004' / 'paper.yaml'
+    assert analyze([*bags, '--compare', '--reference', str(paper), '--out', str(tmp_path / 'cmp')]) == 0
+    text = (tmp_path / 'cmp' / 'comparison.md').read_text()
+    assert '| microsat_gsmn_slew | `settling_euler213_all_0.5deg_s` | 123.8 | 128.124 | +3.5 % |' in text
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('source: x\nruns:\n  microsat_gsmn_slew:\n    settling_time: 1.0\n')
+    assert analyze([*bags, '--compare', '--reference', str(bad), '--out', str(tmp_path / 'c2')]) == 2
+    assert "settling_time: not a comparison metric" in capsys.readouterr().err
