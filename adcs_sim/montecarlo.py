@@ -15,7 +15,9 @@ Output folder (``--out``, default ``runs/<campaign>_<timestamp>``):
   max, and the runs that failed or violated a requirement with their inputs;
 * ``replay/run_<i>.yaml`` — for each of those runs, a complete scenario file: replay it alone on
   the ROS graph with ``adcs-run replay/run_<i>.yaml`` (``--export-run I`` writes any run's);
-* ``figures/hist_<metric>.png|svg`` — histograms; ``campaign.yaml`` — a copy of the campaign.
+* ``figures/hist_<metric>.png|svg`` — histograms; ``campaign.yaml`` — a copy of the campaign;
+* with ``--paired-with DIR`` (another campaign's output over the same draws, e.g. another law):
+  ``paired.md`` / ``paired.json``, the run-by-run relative change of every metric.
 
 Exit status: 0 done (even with failed runs: they are results), 2 bad campaign (nothing ran).
 """
@@ -216,6 +218,59 @@ def write_outputs(campaign: Campaign, rows: list[dict], out: Path, figures: bool
     return summary
 
 
+def paired_comparison(rows: list[dict], other_csv: Path, metrics: list[str]) -> dict:
+    """Run-by-run comparison with another campaign's ``results.csv`` over the same draws.
+
+    Runs are matched by index; every input column the two share must be equal (same seed and
+    dispersions: the same spacecraft and slew), else ValueError. Per metric: the relative change
+    ``(ours - theirs) / theirs`` over the runs where both are finite and neither failed — its
+    mean, percentiles and the fraction of runs where ours is lower.
+    """
+    with open(other_csv, newline='', encoding='utf-8') as f:
+        theirs = {int(r['run']): r for r in csv.DictReader(f)}
+    columns = _input_columns(rows)
+    shared = [c for c in columns if c in next(iter(theirs.values()), {})]
+    if not shared:
+        raise ValueError(f'{other_csv}: no dispersed input in common: not a paired campaign')
+    changes: dict[str, list[float]] = {m: [] for m in metrics}
+    paired = 0
+    for r in rows:
+        t = theirs.get(r['run'])
+        if t is None or r['status'] == 'failed' or t['status'] == 'failed':
+            continue
+        ours_inputs = dict(zip(columns, _input_values(r['inputs'])))
+        if any(float(t[c]) != ours_inputs[c] for c in shared):
+            raise ValueError(f'run {r["run"]}: inputs differ from {other_csv} ({shared}): not the same draws')
+        paired += 1
+        for m in metrics:
+            if m in t:
+                a, b = r['metrics'][m], float(t[m])
+                if math.isfinite(a) and math.isfinite(b) and b != 0:
+                    changes[m].append((a - b) / b)
+    out = {'other': str(other_csv), 'paired_runs': paired, 'shared_inputs': shared, 'relative_change': {}}
+    for m, values in changes.items():
+        v = np.array(values)
+        if v.size:
+            out['relative_change'][m] = {
+                'runs': int(v.size), 'mean': float(v.mean()), 'lower_fraction': float((v < 0).mean()),
+                **{f'p{p}': float(np.percentile(v, p)) for p in PERCENTILES},
+                'min': float(v.min()), 'max': float(v.max())}
+    return out
+
+
+def paired_markdown(paired: dict, name: str) -> str:
+    lines = [f'# Run-by-run comparison: `{name}` vs `{paired["other"]}`', '',
+             f'{paired["paired_runs"]} runs paired by index, same inputs: '
+             + ', '.join(f'`{c}`' for c in paired['shared_inputs']) + '.', '',
+             'Relative change (ours − theirs) / theirs, in %; "lower" = runs where ours is lower.', '',
+             '| metric | runs | lower | mean | p5 | p50 | p95 | min | max |',
+             '| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |']
+    for m, s in paired['relative_change'].items():
+        pct = ' | '.join(f'{100 * s[k]:+.1f}' for k in ('mean', 'p5', 'p50', 'p95', 'min', 'max'))
+        lines.append(f'| `{m}` | {s["runs"]} | {100 * s["lower_fraction"]:.1f} % | {pct} |')
+    return '\n'.join(lines) + '\n'
+
+
 def _json_default(v):
     if isinstance(v, float) and not math.isfinite(v):
         return str(v)
@@ -235,6 +290,9 @@ def main(argv=None) -> int:
     parser.add_argument('--workers', type=int, default=None, help='LocalCluster worker processes (default: cores)')
     parser.add_argument('--export-run', type=int, default=None, metavar='I',
                         help='only write the scenario file of run I (to --out, default run_I.yaml) and exit')
+    parser.add_argument('--paired-with', type=Path, default=None, metavar='DIR',
+                        help="another campaign's output folder over the same draws: write paired.md/json, "
+                             'the run-by-run relative change of every metric')
     parser.add_argument('--no-figures', action='store_true', help='skip the histograms')
     parser.add_argument('--quiet', action='store_true', help='no progress bar')
     args = parser.parse_args(argv)
@@ -254,10 +312,23 @@ def main(argv=None) -> int:
     except CampaignError as exc:
         print(f'adcs-montecarlo: {exc}', file=sys.stderr)
         return 2
+    if args.paired_with is not None and not (args.paired_with / 'results.csv').exists():
+        print(f'adcs-montecarlo: --paired-with: no results.csv in {args.paired_with}', file=sys.stderr)
+        return 2
     out = args.out or Path('runs') / f'{Path(args.campaign).stem}_{datetime.now():%Y%m%d_%H%M%S}'
     rows = execute(campaign, args.scheduler, args.workers, progress=not args.quiet)
     summary = write_outputs(campaign, rows, out, figures=not args.no_figures)
     print(summary_markdown(summary))
+    if args.paired_with is not None:
+        try:
+            paired = paired_comparison(rows, args.paired_with / 'results.csv', campaign.metrics)
+        except ValueError as exc:
+            print(f'adcs-montecarlo: --paired-with: {exc}', file=sys.stderr)
+            return 1
+        (out / 'paired.json').write_text(json.dumps(paired, indent=2) + '\n')
+        text = paired_markdown(paired, campaign.path.name)
+        (out / 'paired.md').write_text(text)
+        print(text)
     print(f'adcs-montecarlo: results in {out}')
     return 0
 
