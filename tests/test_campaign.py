@@ -67,12 +67,40 @@ def test_same_seed_same_rows_however_split(tmp_path):
         assert abs(r['inputs']['pd_controller.kd'] - 0.05) <= 0.01
 
 
-def test_dask_local_cluster_gives_the_same_rows(tmp_path):
-    """Chunks of 2 runs on a 2-worker LocalCluster bound to 127.0.0.1: identical to one batch here."""
+def test_dask_gives_the_same_rows_locally_and_by_scheduler_address(tmp_path):
+    """Chunks of 2 runs on the default LocalCluster (2 workers, 127.0.0.1), and chunks of 3 on a
+    separately started cluster reached by its scheduler address (what --scheduler tcp://... does):
+    identical to one batch in this process."""
+    from dask.distributed import LocalCluster
     campaign = Campaign.load(write_campaign(tmp_path, runs=6))
     here = rows_of(campaign, 6)
     campaign.chunk_size = 2
     assert execute(campaign, scheduler='local', workers=2, progress=False) == here
+    campaign.chunk_size = 3
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host='127.0.0.1',
+                      dashboard_address=None) as cluster:
+        assert cluster.scheduler_address.startswith('tcp://127.0.0.1:')
+        assert execute(campaign, scheduler=cluster.scheduler_address, progress=False) == here
+
+
+def test_an_exported_run_replays_through_the_ros_graph(tmp_path):
+    """adcs-run of a run's exported scenario: the graph's recording is that run (batch engine, to
+    round-off)."""
+    from adcs_sim.analysis import RunData
+    from adcs_sim.runner import run_scenario
+    campaign = Campaign.load(write_campaign(tmp_path, scenario=make_scenario(tmp_path, {
+        'dynamics': {'duration': 60.0}})))
+    replay = tmp_path / 'run_5.yaml'
+    assert main([str(campaign.path), '--export-run', '5', '--out', str(replay)]) == 0
+    run_scenario(replay, tmp_path / 'graph', progress=False)
+    graph = RunData.from_bag(tmp_path / 'graph' / 'bag')
+    campaign.chunk_size = 7
+    validated = [campaign.run_sections(5)]
+    sections = {n: NODES[n].schema.stack([v[n] for v in validated]) for n in validated[0]
+                if NODES[n].role != 'recorder'}
+    batch = BatchSimulation(sections, 1).run().run_data(0)
+    np.testing.assert_allclose(graph.q, batch.q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(graph.u, batch.u, rtol=0, atol=1e-15)
 
 
 def test_a_run_replays_alone_from_its_exported_scenario(tmp_path):
