@@ -78,6 +78,15 @@ class Actuator:
         """Body torque (..., 3) under command ``cmd`` and an auxiliary value for :meth:`derivative`."""
         raise NotImplementedError
 
+    # Kinematic constraints (a stuck wheel): inertia that currently turns rigidly with the body
+    # although it is not in ``J_s``. ``constraint_version`` changes whenever it may have changed,
+    # so the plant re-solves its body equation only then.
+    constraint_version: int = 0
+
+    def locked_inertia_matrix(self) -> np.ndarray | None:
+        """Spin inertia (..., 3, 3) rigidly locked to the body now, or None for none."""
+        return None
+
     def derivative(self, t: float, xa: np.ndarray, w: np.ndarray, wdot: np.ndarray,
                    cmd: Any, aux: Any) -> np.ndarray:
         return np.zeros(xa.shape)
@@ -103,6 +112,20 @@ class ReactionWheels(Actuator):
     drive electronics' loop, used by seed 000's zero-momentum law). At the speed limit, motor
     torque that would spin the wheel faster is cut. Friction ``-viscous*Omega - coulomb*sign(Omega)``
     acts between wheel and body. A wheel marked unavailable (failed) produces no motor torque.
+
+    Faults (:meth:`apply_fault`, one mode per wheel, each replacing the previous one):
+
+    * ``failed``: ``available[i] = False``, no motor torque (friction still acts);
+    * ``degraded``: the motor torque limit becomes ``min(max_torque, value)``;
+    * ``bias``: a constant extra motor torque ``value`` (after saturation of the command);
+    * ``stuck``: the speed relative to the body is frozen. The motor applies whatever torque keeps
+      it so: with ``dOmega_i/dt = 0`` the wheel equation gives ``tau_i = Js_i a_i . dw/dt``, and
+      substituted in the body equation ``(J_s + sum_stuck Js_i a_i a_i^T) dw/dt = -w x H +
+      tau_ext - sum_free a_i tau_i``: the stuck wheel's spin inertia turns with the body. The
+      plant solves that linear system exactly (:meth:`locked_inertia_matrix`), so total angular
+      momentum is conserved. The holding torque is internal and not part of :meth:`motor_torque`
+      (reported 0 for a stuck wheel) nor of the body torque returned by :meth:`torque`;
+    * ``recovered`` / ``nominal``: back to nominal.
     """
 
     names: list[str]
@@ -132,6 +155,13 @@ class ReactionWheels(Actuator):
         self.n_states = 2 * n
         self._axes_t = np.ascontiguousarray(self.axes.T)
         self.available = np.ones(n, dtype=bool)
+        self.fault_limit = np.full(n, np.inf)   # degraded motor torque limit (N m)
+        self.bias = np.zeros(n)                  # constant extra motor torque (N m)
+        self.stuck = np.zeros(n, dtype=bool)     # speed relative to the body frozen
+        self.modes = ['nominal'] * n
+        self.constraint_version = 0
+        self._limit = self.max_torque
+        self._faulty = False
         self._has_friction = bool(np.any(self.viscous) or np.any(self.coulomb))
         self._speed_limited = bool(np.any(np.isfinite(self.max_speed)))
 
@@ -154,15 +184,48 @@ class ReactionWheels(Actuator):
     def zero_command(self) -> WheelCommand:
         return WheelCommand(np.zeros(self.count), np.zeros(self.count, dtype=bool))
 
+    FAULT_MODES = ('nominal', 'recovered', 'failed', 'degraded', 'bias', 'stuck')
+
+    def apply_fault(self, index: int, mode: str, value: float = 0.0) -> None:
+        """Put wheel ``index`` in fault ``mode`` (see the class doc); replaces its previous mode.
+
+        ``value``: the degraded torque limit (N m, >= 0) or the bias torque (N m); else ignored.
+        """
+        if mode not in self.FAULT_MODES:
+            raise ValueError(f'unknown wheel fault mode {mode!r}; known: {list(self.FAULT_MODES)}')
+        if mode == 'degraded' and not value >= 0:
+            raise ValueError(f'degraded torque limit must be >= 0, got {value!r}')
+        i = int(index)
+        was_stuck = bool(self.stuck[i])
+        self.available[i] = mode != 'failed'
+        self.stuck[i] = mode == 'stuck'
+        self.fault_limit[i] = float(value) if mode == 'degraded' else np.inf
+        self.bias[i] = float(value) if mode == 'bias' else 0.0
+        self.modes[i] = 'nominal' if mode == 'recovered' else mode
+        self._limit = np.minimum(self.max_torque, self.fault_limit)
+        self._faulty = bool(self.stuck.any() or np.any(self.bias) or np.isfinite(self.fault_limit).any())
+        if was_stuck != bool(self.stuck[i]):
+            self.constraint_version += 1
+
+    def locked_inertia_matrix(self) -> np.ndarray | None:
+        if not self.stuck.any():
+            return None
+        Js = np.where(self.stuck, self.spin_inertia, 0.0)
+        return np.einsum('...i,ij,ik->...jk', Js, self.axes, self.axes)
+
     def motor_torque(self, speed: np.ndarray, cmd: WheelCommand) -> np.ndarray:
         """Motor torque actually produced for wheel speeds ``speed`` under ``cmd``."""
         value = cmd.value
         if cmd.speed_mode.any():
             loop = self.spin_inertia * self.speed_gain * (value - speed)
             value = np.where(cmd.speed_mode, loop, value)
-        tau = np.minimum(np.maximum(value, -self.max_torque), self.max_torque)
+        tau = np.minimum(np.maximum(value, -self._limit), self._limit)
+        if self._faulty:
+            tau = tau + self.bias
         if self._speed_limited:
             tau = np.where((np.abs(speed) >= self.max_speed) & (tau * speed > 0), 0.0, tau)
+        if self._faulty:
+            tau = np.where(self.stuck, 0.0, tau)
         return tau * self.available
 
     def friction_torque(self, speed: np.ndarray) -> np.ndarray:
@@ -173,11 +236,15 @@ class ReactionWheels(Actuator):
         tau = self.motor_torque(speed, cmd)
         if self._has_friction:
             tau = tau + self.friction_torque(speed)
+            if self._faulty:  # a stuck wheel's friction is part of its (internal) holding torque
+                tau = np.where(self.stuck, 0.0, tau)
         return -matvec(self._axes_t, tau), tau
 
     def derivative(self, t, xa, w, wdot, cmd, aux):
         speed = xa[..., :self.count]
         accel = aux / self.spin_inertia - matvec(self.axes, wdot)
+        if self._faulty:
+            accel = np.where(self.stuck, 0.0, accel)
         return np.concatenate([accel, speed], axis=-1)
 
 
@@ -304,6 +371,25 @@ class Plant:
             start += a.n_states
         self.n_states = start
         self._actuator_slices = [(a, self.slices[a.name]) for a in self.actuators]
+        self._constraint_key = self._constraints()
+        self._body_inv = self.inertia_struct_inv
+
+    def _constraints(self) -> tuple[int, ...]:
+        return tuple(a.constraint_version for a in self.actuators)
+
+    def body_inertia_inverse(self) -> np.ndarray:
+        """Inverse of the inertia turning with the body now: ``J_s`` plus locked (stuck) spin
+        inertia; recomputed only when an actuator's constraints changed."""
+        key = self._constraints()
+        if key != self._constraint_key:
+            J = self.inertia_struct
+            for a in self.actuators:
+                locked = a.locked_inertia_matrix()
+                if locked is not None:
+                    J = J + locked
+            self._body_inv = np.linalg.inv(J)
+            self._constraint_key = key
+        return self._body_inv
 
     def actuator(self, name: str) -> Actuator:
         for a in self.actuators:
@@ -373,7 +459,7 @@ class Plant:
             ta, aux = a.torque(t, xa, w, cmd)
             tau = tau + ta
             evaluated.append((a, xa, cmd, aux))
-        wdot = matvec(self.inertia_struct_inv, tau - cross(w, H))
+        wdot = matvec(self.body_inertia_inverse(), tau - cross(w, H))
         parts = [quat_kinematics(q, w), wdot]
         for a, xa, cmd, aux in evaluated:
             parts.append(a.derivative(t, xa, w, wdot, cmd, aux))
