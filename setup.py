@@ -9,6 +9,7 @@ PACKAGE = 'adcs_sim'
 NODES = {
     'dynamics': 'adcs_sim.nodes.dynamics:main',
     'recorder': 'adcs_sim.nodes.recorder:main',
+    'fault_injector': 'adcs_sim.nodes.fault_injector:main',
     'pd_controller': 'adcs_controllers.nodes.pd_controller:main',
     'minnorm_controller': 'adcs_controllers.nodes.minnorm_controller:main',
     'gsmn_controller': 'adcs_controllers.nodes.gsmn_controller:main',

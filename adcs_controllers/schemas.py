@@ -2,8 +2,8 @@
 from __future__ import annotations
 
 from adcs_msgs_py.params import Param, Schema, non_negative, positive
-from adcs_sim.scenario import (check_unit_quaternion, check_wheels, inertia_param, startup_params,
-                               wheel_params)
+from adcs_sim.scenario import (check_unit_quaternion, check_wheels, expect_faults_param, inertia_param,
+                               startup_params, wheel_params)
 
 
 def _actuator_check(v: dict) -> None:
@@ -26,6 +26,7 @@ def controller_params() -> list[Param]:
         Param('torquers.max_torque', 'double', default=float('inf'), check=positive, finite=False,
               doc='torquer limit per axis (N m; .inf for none) when actuator is torquers', batch=True),
         *startup_params(),
+        expect_faults_param(),
     ]
 
 

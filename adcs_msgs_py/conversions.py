@@ -216,3 +216,52 @@ def status_values(status: DiagnosticStatus) -> dict[str, object]:
         except ValueError:
             out[kv.key] = kv.value
     return out
+
+
+# --- faults (DiagnosticArray, one status per actuator) -----------------------------------------
+
+FAULT_ERROR_MODES = ('failed', 'degraded', 'bias', 'stuck')
+FAULT_OK_MODES = ('nominal', 'recovered')
+
+
+def faults_to_msg(t_ns: int, snapshot: Mapping[str, tuple], event: int, events: int) -> DiagnosticArray:
+    """The fault state of every actuator at ``t_ns``: one status per actuator (name = actuator,
+    level ERROR for a fault and OK for nominal/recovered, message = mode) with key/values
+    ``mode``, ``value``, ``time`` (of its last event, s) and the schedule position ``event`` of
+    ``events`` (so a subscriber knows when it has the whole schedule)."""
+    msg = DiagnosticArray()
+    msg.header.stamp = stamp_from_ns(t_ns)
+    for name, (mode, value, t) in snapshot.items():
+        level = 'ERROR' if mode in FAULT_ERROR_MODES else 'OK'
+        status = DiagnosticStatus(level=STATUS_LEVELS[level], name=name, message=mode,
+                                  hardware_id='fault_injector')
+        status.values = [KeyValue(key='mode', value=mode), KeyValue(key='value', value=repr(float(value))),
+                         KeyValue(key='time', value=repr(float(t))),
+                         KeyValue(key='event', value=str(int(event))),
+                         KeyValue(key='events', value=str(int(events)))]
+        msg.status.append(status)
+    return msg
+
+
+def faults_from_msg(msg: DiagnosticArray, known: Mapping[str, int]
+                    ) -> tuple[int, int, int, dict[str, tuple[str, float]]]:
+    """``(t_ns, event, events, {actuator: (mode, value)})`` of a ``faults`` message; ValueError
+    for an unknown actuator or mode, a non-finite value or a missing key."""
+    out: dict[str, tuple[str, float]] = {}
+    event = events = -1
+    for status in msg.status:
+        if status.name not in known:
+            raise ValueError(f'faults: unknown actuator {status.name!r} (known: {sorted(known)})')
+        values = {kv.key: kv.value for kv in status.values}
+        mode = values.get('mode', status.message)
+        if mode not in FAULT_ERROR_MODES + FAULT_OK_MODES:
+            raise ValueError(f'faults: unknown mode {mode!r} for {status.name!r}')
+        try:
+            value = float(values.get('value', '0'))
+            event, events = int(values.get('event', '-1')), int(values.get('events', '-1'))
+        except ValueError as exc:
+            raise ValueError(f'faults: bad value for {status.name!r}: {exc}') from None
+        if not math.isfinite(value):
+            raise ValueError(f'faults: non-finite value {value!r} for {status.name!r}')
+        out[status.name] = (mode, value)
+    return ns_from_stamp(msg.header.stamp), event, events, out

@@ -95,7 +95,8 @@ class BatchSimulation:
         unsupported = [s for s in sections if s in NODES and NODES[s].role == 'other']
         if unsupported:
             raise ParameterError(unsupported[0], f'section {unsupported[0]!r} is not supported by '
-                                 'the batch engine')
+                                 'the batch engine (it simulates the dynamics and controller sections '
+                                 'only; fault injection runs on the node graph: adcs-run)')
         if len(controllers) > 1:
             raise ParameterError(controllers[1], f'more than one controller section ({controllers})')
         self.controller = controllers[0] if controllers else None

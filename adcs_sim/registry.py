@@ -14,7 +14,7 @@ from adcs_msgs_py.params import Schema
 from adcs_controllers.laws.inverse_optimal import GsmnLaw, KtLaw, MinNormLaw
 from adcs_controllers.laws.pd import PdLaw
 from adcs_controllers.schemas import GSMN_SCHEMA, KT_SCHEMA, MINNORM_SCHEMA, PD_SCHEMA
-from adcs_sim.scenario import DYNAMICS_SCHEMA, RECORDER_SCHEMA
+from adcs_sim.scenario import DYNAMICS_SCHEMA, FAULT_SCHEMA, RECORDER_SCHEMA
 
 
 @dataclass(frozen=True)
@@ -28,6 +28,7 @@ class NodeInfo:
 NODES: dict[str, NodeInfo] = {
     'dynamics': NodeInfo('adcs_sim.nodes.dynamics', DYNAMICS_SCHEMA, 'dynamics'),
     'recorder': NodeInfo('adcs_sim.nodes.recorder', RECORDER_SCHEMA, 'recorder'),
+    'fault_injector': NodeInfo('adcs_sim.nodes.fault_injector', FAULT_SCHEMA, 'other'),
     'pd_controller': NodeInfo('adcs_controllers.nodes.pd_controller', PD_SCHEMA, 'controller', PdLaw),
     'minnorm_controller': NodeInfo('adcs_controllers.nodes.minnorm_controller', MINNORM_SCHEMA,
                                    'controller', MinNormLaw),

@@ -92,6 +92,14 @@ def validate_scenario(path: Path, duration: float | None = None) -> dict:
         if name == 'dynamics' and duration is not None:
             given = {**given, 'duration': float(duration)}
         validated[name] = NODES[name].schema.validate(given)
+    faults = validated.get('fault_injector')
+    if faults is not None:
+        wheels = validated['dynamics']['wheels.names']
+        unknown = sorted(set(faults['schedule.actuator']) - set(wheels))
+        if unknown:
+            raise ParameterError('schedule.actuator', f'fault on actuator(s) {unknown} that the '
+                                 f'dynamics section does not have (dynamics.wheels.names: {list(wheels)})',
+                                 'fault_injector')
     return validated
 
 
@@ -232,9 +240,12 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
         graph.wait_for_line('recorder', READY_LINE, READY_TIMEOUT_S)
         others = [s for s in validated if s not in ('recorder', 'dynamics')]
         n_state_subscribers = sum(NODES[s].role == 'controller' for s in others) + 1
+        # With a fault injector, the nodes that act on faults first collect its whole schedule.
+        expect_faults = ['-p', 'startup.expect_faults:=true'] if 'fault_injector' in validated else []
         for name in others:
-            graph.start(name, NODES[name].module, [*common, '-p', 'startup.expect_recorder:=true'])
-        dyn_args = [*common, '-p', 'startup.expect_recorder:=true',
+            extra = expect_faults if NODES[name].role == 'controller' else []
+            graph.start(name, NODES[name].module, [*common, '-p', 'startup.expect_recorder:=true', *extra])
+        dyn_args = [*common, '-p', 'startup.expect_recorder:=true', *expect_faults,
                     '-p', f'startup.state_subscribers:={n_state_subscribers}']
         if duration is not None:
             dyn_args += ['-p', f'duration:={float(duration)!r}']

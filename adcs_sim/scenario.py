@@ -1,8 +1,9 @@
 """Scenario parameters of the dynamics and recorder nodes, and the plant built from them (no ROS).
 
 A scenario file is a ROS 2 params file with a section per node. This module declares the
-``dynamics`` and ``recorder`` sections (:data:`DYNAMICS_SCHEMA`, :data:`RECORDER_SCHEMA`), the
-spacecraft blocks shared with controllers (inertia, wheels), and :func:`build_plant`.
+``dynamics``, ``fault_injector`` and ``recorder`` sections (:data:`DYNAMICS_SCHEMA`,
+:data:`FAULT_SCHEMA`, :data:`RECORDER_SCHEMA`), the spacecraft blocks shared with controllers
+(inertia, wheels), :func:`build_plant` and the fault schedule (:func:`fault_schedule`).
 """
 from __future__ import annotations
 
@@ -160,6 +161,13 @@ def startup_params() -> list[Param]:
     ]
 
 
+def expect_faults_param() -> Param:
+    """Nodes that act on faults (dynamics, controllers) wait for the whole schedule before t = 0."""
+    return Param('startup.expect_faults', 'bool', default=False,
+                 doc='wait for the complete fault schedule on `faults` (a fault_injector) before '
+                     'the first step; the runner sets it when the scenario has a fault_injector')
+
+
 DYNAMICS_SCHEMA = Schema('dynamics', [
     inertia_param('total inertia incl. wheel spin inertia (kg m^2): 3 principal moments or 9 entries'),
     Param('initial.attitude', 'double_array', default=[0.0, 0.0, 0.0, 1.0], length=4,
@@ -204,6 +212,7 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
           doc='matched subscribers of `state` to wait for before t = 0 (-1: one per awaited command '
               'topic, plus the recorder)'),
     *startup_params(),
+    expect_faults_param(),
 ], cross_check=_dynamics_cross_check, doc='plant, simulated clock and lockstep loop')
 
 
@@ -252,3 +261,76 @@ RECORDER_SCHEMA = Schema('recorder', [
           doc='wall seconds between looks for new topics to record'),
     *startup_params(),
 ], doc='records every topic of the graph to a rosbag2 MCAP bag')
+
+
+# --- faults -------------------------------------------------------------------------------------
+
+FAULT_MODES = ('failed', 'degraded', 'bias', 'stuck', 'recovered')
+MAX_FAULT_EVENTS = 64  # the latched `faults` topic keeps 100 messages: the whole schedule fits
+
+
+def _fault_cross_check(v: dict) -> None:
+    times, actuators = v['schedule.time'], v['schedule.actuator']
+    modes, values = v['schedule.mode'], v['schedule.value']
+    n = len(times)
+    for key, seq in (('schedule.actuator', actuators), ('schedule.mode', modes)):
+        if len(seq) != n:
+            raise ParameterError(key, f'expected one entry per scheduled event ({n} in schedule.time), '
+                                 f'got {len(seq)}')
+    if len(values) not in (0, n):
+        raise ParameterError('schedule.value', f'expected one entry per scheduled event ({n} in '
+                             f'schedule.time) or none, got {len(values)}')
+    if n > MAX_FAULT_EVENTS:
+        raise ParameterError('schedule.time', f'at most {MAX_FAULT_EVENTS} events, got {n}')
+    bad = [t for t in times if t < 0]
+    if bad:
+        raise ParameterError('schedule.time', f'event times must be >= 0 (sim seconds), got {bad}')
+    bad = [m for m in modes if m not in FAULT_MODES]
+    if bad:
+        raise ParameterError('schedule.mode', f'unknown mode(s) {bad}; allowed: {list(FAULT_MODES)}')
+    wheels = v['wheels.names']
+    if len(set(wheels)) != len(wheels):
+        raise ParameterError('wheels.names', f'wheel names must be unique, got {wheels}')
+    unknown = [a for a in actuators if a not in wheels]
+    if unknown:
+        raise ParameterError('schedule.actuator', f'unknown actuator(s) {sorted(set(unknown))}; the '
+                             f'scenario\'s wheels (wheels.names) are {list(wheels)}')
+    for i, (mode, value) in enumerate(zip(modes, values)):
+        if mode == 'degraded' and value < 0:
+            raise ParameterError('schedule.value', f'event {i}: a degraded torque limit must be >= 0 '
+                                 f'(N m), got {value}')
+
+
+FAULT_SCHEMA = Schema('fault_injector', [
+    Param('wheels.names', 'string_array', default=[],
+          doc="the scenario's wheel names (as in the dynamics section): what a fault may name"),
+    Param('schedule.time', 'double_array', default=[], doc='event times (sim seconds, >= 0)'),
+    Param('schedule.actuator', 'string_array', default=[], doc='wheel name of each event'),
+    Param('schedule.mode', 'string_array', default=[],
+          doc='mode of each event: failed (no motor torque), degraded (torque limit = value), '
+              'bias (extra motor torque = value), stuck (speed relative to the body frozen), '
+              'recovered (nominal)'),
+    Param('schedule.value', 'double_array', default=[],
+          doc='per event: degraded limit or bias torque (N m); ignored otherwise; empty: all 0'),
+    *startup_params(),
+], cross_check=_fault_cross_check, doc='publishes the fault schedule on `faults`')
+
+
+def fault_schedule(v: dict) -> list[tuple[int, dict[str, tuple[str, float, float]]]]:
+    """The schedule of a validated ``fault_injector`` section as snapshots: ``[(t_ns, {wheel:
+    (mode, value, time of its last event)})]``, one per distinct event time (events at the same
+    time in schedule order), preceded by the all-nominal snapshot at 0. Each snapshot is the full
+    state of every wheel after the events up to its time."""
+    wheels = list(v['wheels.names'])
+    values = v['schedule.value'] or [0.0] * len(v['schedule.time'])
+    events = sorted(zip((int(round(t * 1e9)) for t in v['schedule.time']), range(len(values)),
+                        v['schedule.actuator'], v['schedule.mode'], values))
+    state = {w: ('nominal', 0.0, 0.0) for w in wheels}
+    out = [(0, dict(state))]
+    for t_ns, _, wheel, mode, value in events:
+        state[wheel] = (mode, float(value) if mode in ('degraded', 'bias') else 0.0, t_ns / 1e9)
+        if out[-1][0] == t_ns and len(out) > 1:
+            out[-1] = (t_ns, dict(state))
+        else:
+            out.append((t_ns, dict(state)))
+    return out

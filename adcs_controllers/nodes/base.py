@@ -10,9 +10,16 @@ A concrete controller is its schema and its law: a pure object with ``control(t,
 * before subscribing to ``state``, waits until its command publisher is matched by the dynamics
   node (and the recorder, when one is expected) — so by the time the dynamics node sees this
   controller subscribed, every command it sends will be delivered and recorded;
-* rejects, counts and warns about bad messages, and publishes ``controller/status`` each step.
+* rejects, counts and warns about bad messages, and publishes ``controller/status`` each step;
+* follows the latched ``faults`` topic (:mod:`adcs_sim.faults`): at the state stamped ``t_k`` it
+  applies the latest fault state stamped ``<= t_k`` (the dynamics node's rule), re-allocating
+  over the wheels that can still produce a commanded torque (not ``failed``, not ``stuck``;
+  :meth:`~adcs_controllers.laws.allocation.Actuation.set_available`) and restoring a wheel on
+  ``recovered``. With ``startup.expect_faults`` it waits for the complete schedule before it
+  subscribes to the state. ``available_wheels`` and ``late_faults`` are in its status.
 """
 from __future__ import annotations
+
 
 import numpy as np
 
@@ -20,6 +27,7 @@ from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import RejectCounter
 from adcs_controllers.laws.allocation import Actuation
+from adcs_sim.faults import FaultTracker
 from adcs_sim.nodes.base import AdcsNode
 
 
@@ -40,6 +48,10 @@ class ControllerNode(AdcsNode):
         self.pub_cmd = self.publisher(topics.WHEELS_CMD if self.actuator == 'wheels' else topics.TORQUE_CMD)
         self.pub_status = self.publisher(topics.CONTROLLER_STATUS)
         self.sub_state = None
+        self.faults = FaultTracker()
+        self.wheel_index = ({n: i for i, n in enumerate(self.wheel_names)}
+                            if self.actuator == 'wheels' else {})
+        self.sub_faults = self.subscription(topics.FAULTS, self._on_faults)
 
     def control(self, t: float, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, dict]:
         """Desired body torque (N m) and status values for state (q, w) at time t: the law's."""
@@ -55,14 +67,49 @@ class ControllerNode(AdcsNode):
         self.sub_state = self.subscription(topics.STATE, self._on_state)
 
     def run(self, executor) -> None:
+        if self.params['startup.expect_faults']:
+            self.wait_for_faults(executor)
         self.connect()
         executor.spin()
+
+    # --- faults -----------------------------------------------------------------------------
+
+    def _on_faults(self, msg) -> None:
+        parsed = self.rejects.accept(topics.FAULTS, lambda: cv.faults_from_msg(msg, self.wheel_index))
+        if parsed is not None:
+            self.faults.add(*parsed)
+
+    def wait_for_faults(self, executor) -> None:
+        """Spin until the complete fault schedule is here (before subscribing to the state)."""
+        self.spin_until(executor, f'the fault schedule on {self.sub_faults.topic_name}',
+                        lambda: self.faults.complete, self.params['startup.timeout'])
+
+    def apply_due_faults(self, t_ns: int) -> None:
+        """Re-allocate over the usable wheels if the fault state due at ``t_ns`` changed."""
+        snapshot = self.faults.due(t_ns)
+        if snapshot is None or self.actuator != 'wheels':
+            return
+        available = np.ones(len(self.wheel_names), dtype=bool)
+        for name, (mode, _) in snapshot.items():
+            available[self.wheel_index[name]] = mode not in ('failed', 'stuck')
+        if not np.array_equal(available, self.actuation.available):
+            self.actuation.set_available(available)
+            self.get_logger().info(f't = {t_ns / cv.NS_PER_S:g} s: allocating over '
+                                   f'{self.available_wheels() or "no wheels"}')
+
+    def available_wheels(self) -> str:
+        if self.actuator != 'wheels':
+            return ''
+        return ','.join(n for n, ok in zip(self.wheel_names, self.actuation.available) if ok)
+
+    # --- state -> command -------------------------------------------------------------------
 
     def _on_state(self, msg) -> None:
         parsed = self.rejects.accept(topics.STATE, lambda: cv.state_from_msg(msg))
         if parsed is None:
             return
         t_ns, q, w = parsed
+        self.apply_due_faults(t_ns)
         torque, status = self.control(t_ns / cv.NS_PER_S, q, w)
         applied = self.publish_torque(t_ns, torque)
         if self.pub_status.get_subscription_count():  # after the command: off the critical path
@@ -70,7 +117,9 @@ class ControllerNode(AdcsNode):
             # u_x.. what the actuators are commanded (saturated); demand_max: the law's own |u|_inf
             status.update({'u_x': applied[0], 'u_y': applied[1], 'u_z': applied[2],
                            'demand_max': float(np.max(np.abs(torque))),
-                           'rejected_messages': self.rejects.total})
+                           'rejected_messages': self.rejects.total,
+                           'available_wheels': self.available_wheels() or 'none',
+                           'late_faults': self.faults.late})
             self.pub_status.publish(cv.status_to_msg(t_ns, self.get_name(), status))
 
     def publish_torque(self, t_ns: int, torque: np.ndarray) -> np.ndarray:

@@ -96,6 +96,16 @@ class AdcsNode(Node):
                 raise GraphTimeout(f'{self.get_name()}: timed out after {timeout:g} s waiting for {what}')
             time.sleep(0.005)
 
+    def spin_until(self, executor, what: str, ready: Callable[[], bool], timeout: float) -> None:
+        """Spin ``executor`` until ``ready()`` (a message-borne condition), or raise GraphTimeout
+        naming ``what`` after ``timeout`` s."""
+        deadline = time.monotonic() + timeout
+        while not ready():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise GraphTimeout(f'{self.get_name()}: timed out after {timeout:g} s waiting for {what}')
+            executor.spin_once(timeout_sec=min(remaining, 0.1))
+
     def wait_for_publishers(self, required: dict, timeout: float) -> None:
         """Wait until each publisher has at least the given number of matched subscriptions."""
         for pub, count in required.items():

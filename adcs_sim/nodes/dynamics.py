@@ -11,6 +11,15 @@ Commands stamped for another step are counted as stale and ignored.
 Realtime mode paces the same loop against the wall clock (``real_time_factor``) with no waiting:
 each step uses the latest commands received.
 
+Faults: the node subscribes to the latched ``faults`` topic (the fault injector publishes its
+whole schedule at start, each array stamped with its due time; :mod:`adcs_sim.faults`). With
+``startup.expect_faults`` it waits before t = 0 until it holds the complete schedule; at each
+step ``t_k`` it applies the latest fault state stamped ``<= t_k`` to the wheels
+(:meth:`~adcs_sim.plant.ReactionWheels.apply_fault`) *before* publishing the step's state and
+integrating ``[t_k, t_k+1]``, so a fault stamped ``t_k`` shows in ``wheels/state`` at ``t_k``
+and acts over exactly that interval. A fault state received after its step is applied at the
+next step and counted as ``late_faults`` on ``dynamics/status``.
+
 The node exits with status 0 when ``duration`` is reached, after the last messages are
 acknowledged by their subscribers.
 """
@@ -23,6 +32,7 @@ from rclpy.duration import Duration
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import RejectCounter
+from adcs_sim.faults import FaultTracker
 from adcs_sim.nodes.base import AdcsNode, main_for
 from adcs_sim.plant import ReactionWheels, WheelCommand
 from adcs_sim.scenario import DYNAMICS_SCHEMA, build_plant, command_topics, initial_state, step_timing
@@ -72,6 +82,30 @@ class DynamicsNode(AdcsNode):
             self.subs[topics.WHEELS_CMD] = self.subscription(topics.WHEELS_CMD, self._on_wheel_cmd)
         if 'torquers' in self.plant.slices:
             self.subs[topics.TORQUE_CMD] = self.subscription(topics.TORQUE_CMD, self._on_torque_cmd)
+        self.faults = FaultTracker()
+        self.sub_faults = self.subscription(topics.FAULTS, self._on_faults)
+
+    # --- faults -----------------------------------------------------------------------------
+
+    def _on_faults(self, msg) -> None:
+        parsed = self.rejects.accept(topics.FAULTS, lambda: cv.faults_from_msg(msg, self.wheel_index))
+        if parsed is not None:
+            self.faults.add(*parsed)
+
+    def apply_due_faults(self) -> None:
+        """Apply the fault state due at the current step (if it changed)."""
+        snapshot = self.faults.due(self.step_ns)
+        if snapshot is None or self.wheels is None:
+            return
+        for name, (mode, value) in snapshot.items():
+            self.wheels.apply_fault(self.wheel_index[name], mode, value)
+        faulty = {n: m for n, m in zip(self.wheels.names, self.wheels.modes) if m != 'nominal'}
+        self.get_logger().info(f't = {self.step_ns / cv.NS_PER_S:g} s: wheel faults {faulty or "none"}')
+
+    def wait_for_faults(self, executor) -> None:
+        """Spin until the complete fault schedule is here (``startup.expect_faults``)."""
+        self.spin_until(executor, f'the fault schedule on {self.sub_faults.topic_name}',
+                        lambda: self.faults.complete, self.params['startup.timeout'])
 
     # --- commands ---------------------------------------------------------------------------
 
@@ -133,7 +167,8 @@ class DynamicsNode(AdcsNode):
         values = {'step': self.step_ns // self.period_ns if self.period_ns else 0,
                   'missed_steps': self.missed_steps, 'stale_commands': self.stale_commands,
                   'rejected_messages': self.rejects.total, 'final': str(final).lower(),
-                  'awaited_commands': ','.join(self.awaited) or 'none', 'mode': self.params['mode']}
+                  'awaited_commands': ','.join(self.awaited) or 'none', 'mode': self.params['mode'],
+                  'late_faults': self.faults.late}
         level = 'WARN' if self.missed_steps else 'OK'
         self.pub_status.publish(cv.status_to_msg(self.step_ns, 'dynamics', values, level))
 
@@ -158,6 +193,8 @@ class DynamicsNode(AdcsNode):
 
     def run(self, executor) -> None:
         self.wait_for_graph()
+        if self.params['startup.expect_faults']:
+            self.wait_for_faults(executor)
         self.get_logger().info(
             f'{self.params["mode"]} run: {self.n_steps} steps of {self.period:g} s, '
             f'waiting for {self.awaited or "no commands"}')
@@ -166,17 +203,20 @@ class DynamicsNode(AdcsNode):
         pace = self.period / self.params['real_time_factor']
         wall0 = time.monotonic()
         self.step_ns = 0
+        self.apply_due_faults()
         self.publish_state()
         for k in range(self.n_steps):
             if self.lockstep:
                 self._wait_commands(executor, timeout)
             else:
                 self._spin_until(executor, wall0 + k * pace)
+            self.apply_due_faults()  # one that arrived while waiting (late unless stamped t_k)
             t = self.step_ns / cv.NS_PER_S
             torque = self.plant.control_torque(t, self.x, self.commands)
             self.x = self.plant.step(t, self.x, self.commands, self.period, self.max_step)
             self.step_ns = (k + 1) * self.period_ns
             self.received.clear()
+            self.apply_due_faults()
             # Next state out first (the controllers' critical path), then the record of this step.
             self.publish_state()
             if self.pub_applied.get_subscription_count():

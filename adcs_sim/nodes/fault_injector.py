@@ -1,0 +1,55 @@
+"""Fault injector node: publishes the scenario's actuator fault schedule on ``faults``.
+
+At start it publishes the **whole schedule** on the latched (transient local, depth 100)
+``faults`` topic: first the all-nominal state stamped 0, then one ``DiagnosticArray`` per
+distinct event time, stamped with that (simulated) time, holding one status per wheel (name =
+wheel, level ERROR for failed / degraded / bias / stuck and OK for nominal / recovered, message =
+mode, key/values ``mode``, ``value``, ``time``, ``event``, ``events``). The nodes that act on
+faults apply each array when their step time reaches its stamp (:mod:`adcs_sim.faults`), so a
+fault stamped ``t_k`` holds over exactly ``[t_k, t_k+1]`` however fast the lockstep loop runs:
+publishing "when the time comes" would race the loop. The node then follows ``/clock`` only to
+log each event when it becomes due, and spins until it is stopped.
+"""
+from __future__ import annotations
+
+from adcs_msgs_py import conversions as cv
+from adcs_msgs_py import topics
+from adcs_sim.nodes.base import AdcsNode, entry_point
+from adcs_sim.scenario import FAULT_SCHEMA, fault_schedule
+
+
+class FaultInjectorNode(AdcsNode):
+    schema = FAULT_SCHEMA
+
+    def __init__(self, context) -> None:
+        super().__init__(context)
+        self.schedule = fault_schedule(self.params)
+        self.pub_faults = self.publisher(topics.FAULTS)
+        self._logged = 0  # snapshots already announced as due
+        self.sub_clock = self.subscription(topics.CLOCK, self._on_clock)
+        self.publish_schedule()
+
+    def publish_schedule(self) -> None:
+        n = len(self.schedule)
+        for i, (t_ns, snapshot) in enumerate(self.schedule):
+            self.pub_faults.publish(cv.faults_to_msg(t_ns, snapshot, i, n))
+        self.get_logger().info(f'published the fault schedule: {n - 1} event time(s)')
+
+    def _on_clock(self, msg) -> None:
+        t_ns = cv.ns_from_stamp(msg.clock)
+        while self._logged + 1 < len(self.schedule) and self.schedule[self._logged + 1][0] <= t_ns:
+            self._logged += 1
+            due_ns, snapshot = self.schedule[self._logged]
+            faulty = {w: m for w, (m, _, _) in snapshot.items() if m not in cv.FAULT_OK_MODES}
+            self.get_logger().info(f't = {due_ns / cv.NS_PER_S:g} s: faults now {faulty or "none"}')
+
+    def run(self, executor) -> None:
+        # No start-up handshake: the topic is transient local, so the recorder, the dynamics node
+        # and the controllers receive the whole schedule whenever they join.
+        executor.spin()
+
+
+main = entry_point(FaultInjectorNode)
+
+if __name__ == '__main__':
+    main()
