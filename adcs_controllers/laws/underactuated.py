@@ -1,0 +1,366 @@
+"""Underactuated (two-wheel) attitude laws of seed 000 (Horri & Palmer, "Practical implementation of
+attitude control algorithms for an underactuated satellite"): three-axis control with reaction
+wheels on body X and Y only (the Z wheel failed). Pure numpy, no rclpy.
+
+Model (seed 000 eq. 3, 5): ``I dw/dt = -w x (I w + h) + u``, ``u = -dh/dt = [N1, N2, 0]`` (no Z
+torque), quaternion kinematics ``dq/dt = -1/2 w x q + 1/2 q4 w``, ``dq4/dt = -1/2 wᵀq`` (the same
+as :func:`adcs_sim.attitude.quat_kinematics`). Quaternions are scalar last ``[x, y, z, w]`` =
+the paper's ``[q1 q2 q3 q4]``; rates in rad/s; ``u`` is the BODY torque (the motor torque of a
+wheel along +x / +y is ``-u_x`` / ``-u_y``). Regulation is to ``q = [0 0 0 1]``, ``w = 0``; with
+``q_ref``/``w_ref`` the laws act on the error quaternion ``q_ref* ⊗ q`` and ``w - w_ref`` as the
+seed 004 laws do (:func:`adcs_controllers.laws.inverse_optimal.error_state`; our extension).
+
+Desired rates, singular quaternion law (eq. 7) and its saturated form (eq. 8)::
+
+    r1 = q2 q3 / (q1² + q2² + ε₀),   r2 = q1 q3 / (q1² + q2² + ε₀)
+    ωd1 = -k q1 + g sat(r1, a1),     ωd2 = -k q2 - g sat(r2, a2),     ωd3 = 0
+
+``ε₀`` (argument ``eps_den``) is the "small positive constant" that section IV.B.2 adds to the
+denominator ("necessary for in-orbit testing"); ``eps_den = 0`` and ``a = inf`` is eq. 7 exactly,
+where the singular ratio is defined as 0 at ``q1 = q2 = 0`` (its limit on the closed-loop
+trajectories, section III.C). ``sat(x, a) = clip(x, -a, a)``. With ``w3 = 0`` eq. 7 gives
+``dq3/dt = -g/2 q3`` (eq. 9) and ``dq4/dt = k/2 (q1² + q2²)`` (eq. 10).
+:func:`desired_rates` also returns ``dωd/dt`` along the actual motion (chain rule through the
+kinematics with the measured ``w``; zero where a ratio is saturated).
+
+Zero-momentum controller (eq. 12-13), attitude-only feedback: wheel SPEED commands (relative to the
+body, for the plant's wheel speed mode) ``Ω_i = -I_i / I_wh,i ωd_i``, i = x, y.
+
+Angular-velocity tracking controller "snlc" (eq. 14 / 24 / 31), body torque::
+
+    u_i = -K_i (ω_i - ωd_i) + I_i dωd_i/dt,   i = 1, 2;   u_3 = 0
+
+Reading (docs/seed000_readings.md): eq. 14/24 print ``I_i(-K_i(ω_i - ωd_i) + dωd_i/dt)``, eq. 31
+prints ``-K_i(...) + I_i dωd_i/dt``; the paper's gain K = 10 "Nm.s/rad" only has the units of the
+eq. 31 form, and ``I_i K_i = 400 /s`` with the paper's 1 s zero-order hold diverges. The eq. 31 form
+is the default; ``scale_by_inertia=True`` gives the printed eq. 14 (kept for comparison).
+
+Lyapunov function (eq. 15/16, and eq. 26 with ``ωγσ`` = eq. 27 = eq. 8 with gains ``γ, σ``)::
+
+    V = k (qᵀq + (1 - q4)²) + 1/2 eᵀe = 2 k (1 - q4) + 1/2 eᵀe,      e = ω - ωγσ,  ωγσ3 = 0
+    LgV = eᵀ I⁻¹ B,  B = [e1 e2] (only X and Y torques exist; z component of LgV set to 0)
+    LfV = -2 k dq4/dt - eᵀ I⁻¹ (ω x (I ω + h)) - eᵀ dωγσ/dt
+
+``h`` is the wheel momentum in body axes; ``h = None`` means the paper's zero total momentum
+(``I ω + h = 0``, the gyroscopic term vanishes). Exact ``dV/dt = LfV + LgV u`` (the paper's eq.
+17-19 and 28-29 drop the cross term ``k q_{12}ᵀ e_{12}``; see the readings).
+
+Min-norm law on the snlc benchmark (eq. 25)::
+
+    u = (LgV k(x)) LgVᵀ / (LgV LgVᵀ)   if LgV k(x) < 0,    else 0
+
+(printed with a leading minus, which makes ``LgV u = -LgV k > 0``: an extraction artefact, as in
+seed 004 eq. 14; eq. 30 has no minus). Gain-scheduled min-norm law, GSMN (eq. 30-32): low-gain law
+``u_lg`` = snlc with ``(k1, g1, K1)``, high-gain law ``u_hg`` = snlc with ``(k2, g2, K2)`` (eq. 32's
+``q2 q3`` in ``u_hg2`` read as ``q1 q3``, as eq. 8/31), and::
+
+    LgV u_hg >= 0                    -> u = 0                              MODE_ZERO_TORQUE (1)
+    LgV u_hg < 0, ‖u_hg‖∞ >= epsilon -> u = (LgV u_lg) LgVᵀ / (LgV LgVᵀ)    MODE_LOW_GAIN (0)
+    LgV u_hg < 0, ‖u_hg‖∞ <  epsilon -> u = (LgV u_hg) LgVᵀ / (LgV LgVᵀ)    MODE_HIGH_GAIN (2)
+
+Every function takes ``q`` (..., 4), ``w`` (..., 3), ``inertia`` (3, 3) or (..., 3, 3), gains as
+scalars or arrays broadcasting over the batch axes; all matrix-vector products use
+:func:`adcs_sim.attitude.matvec` and cross products :func:`adcs_sim.attitude.cross`, so a batch gives
+the same bits as a loop of single calls. Torque laws return ``(u (..., 3), status)`` with
+``u[..., 2] == 0`` exactly.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from adcs_controllers.laws.base import SectionLaw
+from adcs_controllers.laws.inverse_optimal import error_state, inertia_inverse
+from adcs_sim.attitude import cross, matvec, quat_kinematics
+
+__all__ = [
+    'MODE_LOW_GAIN', 'MODE_ZERO_TORQUE', 'MODE_HIGH_GAIN', 'MODE_MIN_NORM', 'MODE_SNLC',
+    'MODE_ZERO_MOMENTUM', 'desired_rates', 'zero_momentum_wheel_speeds', 'snlc_torque',
+    'lyapunov', 'lie_derivatives', 'min_norm_torque', 'gsmn_torque',
+    'ZeroMomentumLaw', 'SnlcLaw', 'SnlcMinNormLaw', 'SnlcGsmnLaw',
+]
+
+MODE_LOW_GAIN = 0       # GSMN: projection of the low-gain snlc torque
+MODE_ZERO_TORQUE = 1    # min-norm / GSMN: torque off
+MODE_HIGH_GAIN = 2      # GSMN: projection of the high-gain snlc torque
+MODE_MIN_NORM = 3       # standard min-norm: projection of the snlc torque
+MODE_SNLC = 5           # snlc benchmark (continuous)
+MODE_ZERO_MOMENTUM = 6  # zero-momentum wheel speed law
+
+_XY = np.array([1.0, 1.0, 0.0])
+
+
+def _dot(a, b):
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+def _g(k):
+    """A gain broadcasting over batch axes (scalar or (...,)), as a (..., 1) multiplier."""
+    k = np.asarray(k, dtype=float)
+    return k[..., None] if k.ndim else k
+
+
+def _sat_ratio(num, den, a):
+    """``sat(num/den, a)`` and the indicator that it is NOT saturated; 0 where ``den == 0``."""
+    ok = den > 0.0
+    r = np.where(ok, num / np.where(ok, den, 1.0), 0.0)
+    a = np.asarray(a, dtype=float)
+    free = ok & (np.abs(r) < a)
+    return np.clip(r, -a, a), free, r
+
+
+def desired_rates(q, w, k, g, a1=np.inf, a2=np.inf, eps_den=0.0):
+    """Desired body rates of eq. (7) (``a = inf``, ``eps_den = 0``) / eq. (8) with the IV.B.2
+    denominator ``q1² + q2² + eps_den``; also eq. (27) with ``(k, g) = (γ, σ)``.
+
+    ``q`` (..., 4) error quaternion, ``w`` (..., 3) measured rate (only used for the derivative).
+    Returns ``(wd, wd_dot)``, both (..., 3) with a zero z component: ``wd_dot`` is ``dωd/dt``
+    along ``dq/dt = quat_kinematics(q, w)`` (the ``ω̇d`` of eq. 14).
+    """
+    q = np.asarray(q, dtype=float)
+    w = np.asarray(w, dtype=float)
+    k = np.asarray(k, dtype=float)
+    g = np.asarray(g, dtype=float)
+    q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
+    dq = quat_kinematics(q, w)
+    d1, d2, d3 = dq[..., 0], dq[..., 1], dq[..., 2]
+    den = q1 * q1 + q2 * q2 + eps_den
+    s1, free1, r1 = _sat_ratio(q2 * q3, den, a1)
+    s2, free2, r2 = _sat_ratio(q1 * q3, den, a2)
+    ok = den > 0.0
+    safe = np.where(ok, den, 1.0)
+    dden = 2.0 * (q1 * d1 + q2 * d2)
+    dr1 = (d2 * q3 + q2 * d3 - r1 * dden) / safe
+    dr2 = (d1 * q3 + q1 * d3 - r2 * dden) / safe
+    zero = np.zeros(q1.shape)
+    wd = np.stack([-k * q1 + g * s1, -k * q2 - g * s2, zero + 0.0 * k], axis=-1)
+    wd_dot = np.stack([-k * d1 + g * np.where(free1, dr1, 0.0),
+                       -k * d2 - g * np.where(free2, dr2, 0.0), zero + 0.0 * k], axis=-1)
+    return wd, wd_dot
+
+
+def _diag(inertia):
+    inertia = np.asarray(inertia, dtype=float)
+    return np.stack([inertia[..., 0, 0], inertia[..., 1, 1], inertia[..., 2, 2]], axis=-1)
+
+
+def zero_momentum_wheel_speeds(q, inertia, wheel_inertia, k, g, a1=np.inf, a2=np.inf, eps_den=0.0,
+                               q_ref=None, shortest_path=False):
+    """Zero-momentum controller, eq. (12-13): wheel speed commands ``Ω_i = -I_i/I_wh,i ωd_i``.
+
+    Attitude-only feedback (``ωd`` of eq. 7/8 needs no rate). ``wheel_inertia`` (I_wh): scalar or
+    (..., 2) spin inertias of the X and Y wheels. The commands are speeds relative to the body,
+    for the plant's wheel speed mode: with ``I_i`` the total (wheels-locked) inertia,
+    ``I_i ω_i + I_wh,i Ω_i = 0`` is exactly the zero total momentum of eq. (12).
+    Returns ``(speed (..., 2), status)``; ``status``: ``mode`` (MODE_ZERO_MOMENTUM), ``wd``,
+    ``h_cmd`` (commanded wheel momentum ``-I_i ωd_i``, (..., 2)).
+    """
+    q = np.asarray(q, dtype=float)
+    qe, _ = error_state(q, np.zeros(q.shape[:-1] + (3,)), q_ref, None, shortest_path)
+    wd, _ = desired_rates(qe, np.zeros(qe.shape[:-1] + (3,)), k, g, a1, a2, eps_den)
+    Id = _diag(inertia)[..., :2]
+    h_cmd = -Id * wd[..., :2]
+    speed = h_cmd / np.asarray(wheel_inertia, dtype=float)
+    mode = np.full(speed.shape[:-1], MODE_ZERO_MOMENTUM)
+    return speed, {'mode': mode, 'wd': wd, 'h_cmd': h_cmd}
+
+
+def _snlc(qe, we, Id, k, g, K, a1, a2, eps_den, scale_by_inertia):
+    wd, wd_dot = desired_rates(qe, we, k, g, a1, a2, eps_den)
+    if scale_by_inertia:  # eq. 14 / 24 as printed: I_i (-K_i (ω_i - ωd_i) + ω̇d_i)
+        u = Id * (-_g(K) * (we - wd) + wd_dot)
+    else:                 # eq. 31 form (default): -K_i (ω_i - ωd_i) + I_i ω̇d_i
+        u = -_g(K) * (we - wd) + Id * wd_dot
+    return u * _XY, wd, wd_dot
+
+
+def snlc_torque(q, w, inertia, k, g, K, a1=np.inf, a2=np.inf, eps_den=0.0, q_ref=None, w_ref=None,
+                shortest_path=False, scale_by_inertia=False):
+    """Angular-velocity tracking controller "snlc", eq. (14) / (24) (form of eq. 31, see module doc).
+
+    ``u_i = -K_i (ω_i - ωd_i) + I_i dωd_i/dt`` (i = 1, 2), ``u_3 = 0``; ``ωd`` from eq. (7)/(8);
+    ``K`` (N m s/rad) scalar, or per batch element. ``I_i`` are the diagonal entries of
+    ``inertia`` (the paper's ``Ir = diag(I1, I2)``). Returns ``(u, status)``; ``status``:
+    ``mode`` (MODE_SNLC), ``wd``, ``wd_dot``.
+    """
+    qe, we = error_state(q, w, q_ref, w_ref, shortest_path)
+    u, wd, wd_dot = _snlc(qe, we, _diag(inertia), k, g, K, a1, a2, eps_den, scale_by_inertia)
+    mode = np.full(u.shape[:-1], MODE_SNLC)
+    return u, {'mode': mode, 'wd': wd, 'wd_dot': wd_dot}
+
+
+def _lie(qe, we, inertia, k, gamma, sigma, a1, a2, eps_den, h):
+    """(V, LfV, LgV (z = 0), w_gs) of eq. (26) on the error state."""
+    w_gs, w_gs_dot = desired_rates(qe, we, gamma, sigma, a1, a2, eps_den)
+    e = we - w_gs
+    Iinv = inertia_inverse(inertia)
+    LgV = matvec(np.swapaxes(Iinv, -1, -2), e) * _XY
+    dq4 = -0.5 * _dot(qe[..., :3], we)
+    k = np.asarray(k, dtype=float)
+    LfV = -2.0 * k * dq4 - _dot(e, w_gs_dot)
+    if h is not None:
+        L = matvec(inertia, we) + h
+        LfV = LfV - _dot(e, matvec(Iinv, cross(we, L)))
+    V = 2.0 * k * (1.0 - qe[..., 3]) + 0.5 * _dot(e, e)
+    return V, LfV, LgV, w_gs
+
+
+def lyapunov(q, w, k, gamma, sigma, a1=np.inf, a2=np.inf, eps_den=0.0, q_ref=None, w_ref=None,
+             shortest_path=False):
+    """V of eq. (26) (eq. 15/16 with ``γ = k, σ = g``): ``2 k (1 - q4) + 1/2 |ω - ωγσ|²``."""
+    qe, we = error_state(q, w, q_ref, w_ref, shortest_path)
+    wg, _ = desired_rates(qe, we, gamma, sigma, a1, a2, eps_den)
+    e = we - wg
+    return 2.0 * np.asarray(k, dtype=float) * (1.0 - qe[..., 3]) + 0.5 * _dot(e, e)
+
+
+def lie_derivatives(q, w, inertia, k, gamma, sigma, a1=np.inf, a2=np.inf, eps_den=0.0, h=None,
+                    q_ref=None, w_ref=None, shortest_path=False):
+    """``(LfV, LgV)`` of V (eq. 26) along eq. (3), (5); ``dV/dt = LfV + LgV u`` for ``u_z = 0``.
+
+    ``h`` wheel momentum (body axes); ``None`` = zero total momentum (``I ω + h = 0``).
+    """
+    qe, we = error_state(q, w, q_ref, w_ref, shortest_path)
+    _, LfV, LgV, _ = _lie(qe, we, np.asarray(inertia, dtype=float), k, gamma, sigma, a1, a2,
+                          eps_den, None if h is None else np.asarray(h, dtype=float))
+    return LfV, LgV
+
+
+def _project(LgV, b, on):
+    aa = _dot(LgV, LgV)
+    return np.where(on, b / np.where(on, aa, 1.0), 0.0)[..., None] * LgV
+
+
+def _status(mode, V, LfV, LgV, u, wd, w_gs):
+    LgV_u = _dot(LgV, u)
+    return {'mode': mode, 'V': V, 'Vdot': LfV + LgV_u, 'LgV_u': LgV_u, 'wd': wd, 'w_gs': w_gs}
+
+
+def min_norm_torque(q, w, inertia, k, g, K, gamma, sigma, a1=np.inf, a2=np.inf, eps_den=0.0, h=None,
+                    q_ref=None, w_ref=None, shortest_path=False, scale_by_inertia=False):
+    """Standard min-norm law on the snlc benchmark, eq. (25) (leading minus dropped), V of eq. (26).
+
+    ``u = (LgV u_snlc) LgVᵀ/(LgV LgVᵀ)`` if ``LgV u_snlc < 0`` (MODE_MIN_NORM) else 0
+    (MODE_ZERO_TORQUE). ``k, g, K``: benchmark gains (eq. 24/8); ``γ, σ`` (< k, g): the gains of
+    ``ωγσ`` (eq. 27) in V; ``k`` also weighs V's attitude term. ``h`` only enters ``Vdot``.
+    Returns ``(u, status)`` with ``mode``, ``V``, ``Vdot``, ``LgV_u``, ``wd`` (benchmark's ωd),
+    ``w_gs`` (ωγσ). By construction ``LgV u <= LgV u_snlc`` (``dV/dt`` no larger than under
+    the benchmark).
+    """
+    qe, we = error_state(q, w, q_ref, w_ref, shortest_path)
+    inertia = np.asarray(inertia, dtype=float)
+    V, LfV, LgV, w_gs = _lie(qe, we, inertia, k, gamma, sigma, a1, a2, eps_den,
+                             None if h is None else np.asarray(h, dtype=float))
+    ub, wd, _ = _snlc(qe, we, _diag(inertia), k, g, K, a1, a2, eps_den, scale_by_inertia)
+    b = _dot(LgV, ub)
+    on = b < 0.0
+    u = _project(LgV, b, on)
+    mode = np.where(on, MODE_MIN_NORM, MODE_ZERO_TORQUE)
+    return u, _status(mode, V, LfV, LgV, u, wd, w_gs)
+
+
+def gsmn_torque(q, w, inertia, k1, g1, K1, k2, g2, K2, gamma, sigma, epsilon, a1=np.inf, a2=np.inf,
+                eps_den=0.0, h=None, q_ref=None, w_ref=None, shortest_path=False,
+                scale_by_inertia=False):
+    """Gain-scheduled min-norm law, eq. (30) with ``u_lg`` of eq. (31) and ``u_hg`` of eq. (32).
+
+    ``u_lg`` = snlc with ``(k1, g1, K1)`` (the benchmark), ``u_hg`` = snlc with ``(k2, g2, K2)``;
+    ``epsilon`` (N m) the torque threshold on ``‖u_hg‖∞``; V of eq. (26) with ``k1, γ, σ``.
+    Modes: MODE_ZERO_TORQUE (``LgV u_hg >= 0``), MODE_LOW_GAIN, MODE_HIGH_GAIN (module doc).
+    Returns ``(u, status)`` as :func:`min_norm_torque` (``wd`` = low-gain ωd).
+    """
+    qe, we = error_state(q, w, q_ref, w_ref, shortest_path)
+    inertia = np.asarray(inertia, dtype=float)
+    V, LfV, LgV, w_gs = _lie(qe, we, inertia, k1, gamma, sigma, a1, a2, eps_den,
+                             None if h is None else np.asarray(h, dtype=float))
+    Id = _diag(inertia)
+    ulg, wd, _ = _snlc(qe, we, Id, k1, g1, K1, a1, a2, eps_den, scale_by_inertia)
+    uhg, _, _ = _snlc(qe, we, Id, k2, g2, K2, a1, a2, eps_den, scale_by_inertia)
+    bh = _dot(LgV, uhg)
+    on = bh < 0.0
+    high = np.max(np.abs(uhg), axis=-1) < np.asarray(epsilon, dtype=float)
+    b = np.where(high, bh, _dot(LgV, ulg))  # low-gain mode projects u_lg as printed
+    u = _project(LgV, b, on)
+    mode = np.where(on, np.where(high, MODE_HIGH_GAIN, MODE_LOW_GAIN), MODE_ZERO_TORQUE)
+    return u, _status(mode, V, LfV, LgV, u, wd, w_gs)
+
+
+# --- laws bound to validated controller sections -------------------------------------------------
+
+MODE_NAMES = {MODE_LOW_GAIN: 'low_gain', MODE_ZERO_TORQUE: 'zero_torque', MODE_HIGH_GAIN: 'high_gain',
+              MODE_MIN_NORM: 'min_norm', MODE_SNLC: 'snlc', MODE_ZERO_MOMENTUM: 'zero_momentum'}
+
+
+class _BoundLaw(SectionLaw):
+    """Common parameters (paper symbols): ``a1``, ``a2`` saturation limits of eq. (8) (default
+    inf = eq. 7), ``eps_den`` the denominator constant ε of section IV.B.2 (default 0)."""
+
+    mode_names = MODE_NAMES
+
+    def __init__(self, p: dict) -> None:
+        super().__init__(p)
+        self.a1 = p.get('a1', np.inf)
+        self.a2 = p.get('a2', np.inf)
+        self.eps_den = p.get('eps_den', 0.0)
+        self.scale_by_inertia = bool(p.get('scale_by_inertia', False))
+
+    def _ref(self):
+        return dict(q_ref=self.q_ref, w_ref=self.w_ref, shortest_path=self.shortest_path)
+
+
+class ZeroMomentumLaw(_BoundLaw):
+    """Eq. (12-13): gains ``k``, ``g`` (rad/s), wheel spin inertias ``wheel_inertia`` (I_wh, kg m²,
+    scalar or [x, y]). ``control`` returns WHEEL SPEED commands (..., 2) (rad/s, relative to the
+    body; use the wheels' speed mode), not a torque (``output = 'wheel_speed'``)."""
+
+    output = 'wheel_speed'
+
+    def __init__(self, p: dict) -> None:
+        super().__init__(p)
+        self.k, self.g = p['k'], p['g']
+        self.wheel_inertia = p['wheel_inertia']
+
+    def control(self, t, q, w):
+        return zero_momentum_wheel_speeds(q, self.inertia, self.wheel_inertia, self.k, self.g,
+                                          self.a1, self.a2, self.eps_den, self.q_ref,
+                                          self.shortest_path)
+
+
+class SnlcLaw(_BoundLaw):
+    """Eq. (14)/(24): gains ``k``, ``g`` (rad/s, eq. 7/8) and ``K`` (N m s/rad)."""
+
+    def __init__(self, p: dict) -> None:
+        super().__init__(p)
+        self.k, self.g, self.K = p['k'], p['g'], p['K']
+
+    def control(self, t, q, w):
+        return snlc_torque(q, w, self.inertia, self.k, self.g, self.K, self.a1, self.a2,
+                           self.eps_den, scale_by_inertia=self.scale_by_inertia, **self._ref())
+
+
+class SnlcMinNormLaw(_BoundLaw):
+    """Eq. (25-27): benchmark gains ``k``, ``g``, ``K`` and Lyapunov gains ``gamma``, ``sigma``."""
+
+    def __init__(self, p: dict) -> None:
+        super().__init__(p)
+        self.gains = tuple(p[n] for n in ('k', 'g', 'K', 'gamma', 'sigma'))
+
+    def control(self, t, q, w):
+        return min_norm_torque(q, w, self.inertia, *self.gains, a1=self.a1, a2=self.a2,
+                               eps_den=self.eps_den, scale_by_inertia=self.scale_by_inertia,
+                               **self._ref())
+
+
+class SnlcGsmnLaw(_BoundLaw):
+    """Eq. (30-32): low gains ``k1``, ``g1``, ``K1``; high gains ``k2``, ``g2``, ``K2``; Lyapunov
+    gains ``gamma``, ``sigma``; torque threshold ``epsilon`` (N m, the ε of eq. 30)."""
+
+    def __init__(self, p: dict) -> None:
+        super().__init__(p)
+        self.gains = tuple(p[n] for n in ('k1', 'g1', 'K1', 'k2', 'g2', 'K2', 'gamma', 'sigma'))
+        self.epsilon = p['epsilon']
+
+    def control(self, t, q, w):
+        return gsmn_torque(q, w, self.inertia, *self.gains, epsilon=self.epsilon, a1=self.a1,
+                           a2=self.a2, eps_den=self.eps_den, scale_by_inertia=self.scale_by_inertia,
+                           **self._ref())
+
