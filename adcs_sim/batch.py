@@ -82,6 +82,16 @@ class BatchSimulation:
     ``n_runs``: the batch size (values without a batch axis are shared by every run).
     """
 
+    @classmethod
+    def from_runs(cls, runs: list[dict[str, dict]]) -> 'BatchSimulation':
+        """A batch of N runs, each given as its validated sections (``{section: params}``, as
+        :func:`adcs_sim.runner.validate_scenario` returns them); the ``recorder`` section is left
+        out. Raises ParameterError for a parameter that differs but cannot (:meth:`Schema.stack`)."""
+        from adcs_sim.registry import NODES
+        sections = {name: NODES[name].schema.stack([r[name] for r in runs]) for name in runs[0]
+                    if NODES[name].role != 'recorder'}
+        return cls(sections, len(runs))
+
     def __init__(self, sections: dict[str, dict], n_runs: int) -> None:
         from adcs_controllers.laws.allocation import Actuation
         from adcs_sim.registry import NODES
@@ -115,11 +125,9 @@ class BatchSimulation:
             if self.actuation.kind not in self.plant.slices:
                 raise ParameterError('actuator', f'the controller commands {self.actuation.kind} '
                                      'but the dynamics section has none', self.controller)
-        # The regulation target the metrics measure errors from (as analysis.target_attitude).
-        self.q_ref = np.array([0.0, 0.0, 0.0, 1.0])
-        if self.controller is not None and 'target.attitude' in sections[self.controller]:
-            q_ref = np.asarray(sections[self.controller]['target.attitude'], dtype=float)
-            self.q_ref = q_ref / np.linalg.norm(q_ref, axis=-1, keepdims=True)
+        # The regulation target the metrics measure errors from (as analysis.target_attitude):
+        # the law's own (normalised) target, identity in free flight.
+        self.q_ref = self.law.q_ref if self.law is not None else np.array([0.0, 0.0, 0.0, 1.0])
         self.wheels = next((a for a in self.plant.actuators if isinstance(a, ReactionWheels)), None)
 
     def _commands(self, values: np.ndarray | None) -> dict:

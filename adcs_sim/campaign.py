@@ -291,25 +291,28 @@ class Campaign:
         return {d.target: d.draw(rng, self._nominal_value(d.section, d.key), index)
                 for d in self.dispersions}
 
-    def run_given(self, index: int) -> dict[str, dict[str, Any]]:
-        """The scenario of run ``index`` as written parameters: nominal + draws (+ links)."""
+    def run_given(self, index: int, inputs: dict[str, Any] | None = None) -> dict[str, dict[str, Any]]:
+        """The scenario of run ``index`` as written parameters: nominal + draws (+ links).
+        ``inputs``: the run's draws if already made (:meth:`draw`)."""
         given = {section: dict(values) for section, values in self.nominal.items()}
-        for d, value in zip(self.dispersions, self.draw(index).values()):
+        inputs = self.draw(index) if inputs is None else inputs
+        for d, value in zip(self.dispersions, inputs.values()):
             given[d.section][d.key] = value
             for section, key in d.links:
                 given[section][key] = list(value) if isinstance(value, list) else value
         return given
 
-    def run_sections(self, index: int) -> dict[str, dict[str, Any]]:
+    def run_sections(self, index: int, inputs: dict[str, Any] | None = None) -> dict[str, dict[str, Any]]:
         """Validated sections of run ``index``; CampaignError naming the run and the key if the
-        draw is impossible (e.g. a negative inertia)."""
+        draw is impossible (e.g. a negative inertia). ``inputs`` as for :meth:`run_given`."""
         from adcs_sim.registry import NODES
+        inputs = self.draw(index) if inputs is None else inputs
         out = {}
-        for section, given in self.run_given(index).items():
+        for section, given in self.run_given(index, inputs).items():
             try:
                 out[section] = NODES[section].schema.validate(given)
             except ParameterError as exc:
-                raise CampaignError(f'run {index}: drawn {exc} (inputs: {self.draw(index)})') from None
+                raise CampaignError(f'run {index}: drawn {exc} (inputs: {inputs})') from None
         return out
 
     def check_runs(self) -> None:
@@ -348,11 +351,8 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
     A pure function of its arguments (what a Dask worker executes).
     """
     from adcs_sim.batch import BatchSimulation
-    from adcs_sim.registry import NODES
-    runs = [campaign.run_sections(i) for i in indices]
-    sections = {name: NODES[name].schema.stack([r[name] for r in runs]) for name in runs[0]
-                if NODES[name].role != 'recorder'}
-    result = BatchSimulation(sections, len(indices)).run()
+    inputs = [campaign.draw(i) for i in indices]
+    result = BatchSimulation.from_runs([campaign.run_sections(i, d) for i, d in zip(indices, inputs)]).run()
     rows = []
     for j, index in enumerate(indices):
         with np.errstate(all='ignore'):  # a diverged run's metrics overflow to inf: that is the result
@@ -362,7 +362,7 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
             status, reason = 'failed', result.failure[j]
         elif violations := campaign.verdict(columns):
             status, reason = 'violated', '; '.join(violations)
-        rows.append({'run': index, 'status': status, 'reason': reason, 'inputs': campaign.draw(index),
+        rows.append({'run': index, 'status': status, 'reason': reason, 'inputs': inputs[j],
                      'metrics': {m: columns[m] for m in campaign.metrics}})
     return rows
 

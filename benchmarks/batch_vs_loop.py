@@ -32,21 +32,19 @@ sys.path.insert(0, str(ROOT))
 
 from adcs_sim.batch import BatchSimulation  # noqa: E402
 from adcs_sim.campaign import Campaign  # noqa: E402
-from adcs_sim.registry import NODES  # noqa: E402
 
 
-def sections_for(campaign: Campaign, indices: list[int]) -> dict:
+def runs_for(campaign: Campaign, indices: list[int]) -> list[dict]:
     runs = [campaign.run_sections(i) for i in indices]
     for r in runs:
         r['dynamics']['integrator.max_step'] = 0.1
         r['dynamics']['duration'] = 600.0
-    return {name: NODES[name].schema.stack([r[name] for r in runs]) for name in runs[0]
-            if NODES[name].role != 'recorder'}
+    return runs
 
 
-def run(sections: dict, n: int) -> tuple[float, list]:
+def run(runs: list[dict], n: int) -> tuple[float, list]:
     t0 = time.perf_counter()
-    result = BatchSimulation(sections, n).run()
+    result = BatchSimulation.from_runs(runs).run()
     metrics = [result.metrics(i) for i in range(n)]
     return time.perf_counter() - t0, [result.q, metrics]
 
@@ -58,8 +56,8 @@ def main() -> int:
     parser.add_argument('--repeat', type=int, default=3)
     args = parser.parse_args()
     campaign = Campaign.load(ROOT / 'config' / 'campaigns' / 'pd_slew_30deg.yaml', runs=args.runs)
-    everything = sections_for(campaign, list(range(args.runs)))
-    singles = [sections_for(campaign, [i]) for i in range(args.loop_runs)]
+    everything = runs_for(campaign, list(range(args.runs)))
+    singles = [runs_for(campaign, [i]) for i in range(args.loop_runs)]
     vec_times, loop_times = [], []
     for _ in range(args.repeat):
         dt, (q_all, _) = run(everything, args.runs)

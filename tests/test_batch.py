@@ -36,9 +36,7 @@ def batch_of(scenario_path, overrides_per_run: list[dict]) -> BatchSimulation:
             given = {**params, **o.get(name, {})}
             run[name] = NODES[name].schema.validate(given)
         runs.append(run)
-    sections = {name: NODES[name].schema.stack([r[name] for r in runs]) for name in nominal
-                if NODES[name].role != 'recorder'}
-    return BatchSimulation(sections, len(runs))
+    return BatchSimulation.from_runs(runs)
 
 
 def test_batch_run_matches_the_graph_run(ros_domain, tmp_path):

@@ -20,7 +20,6 @@ import yaml
 from adcs_sim.batch import BatchSimulation
 from adcs_sim.campaign import Campaign, CampaignError, run_chunk
 from adcs_sim.montecarlo import execute, main
-from adcs_sim.registry import NODES
 from adcs_sim.runner import validate_scenario
 from conftest import CONFIG, make_scenario
 
@@ -95,10 +94,7 @@ def test_an_exported_run_replays_through_the_ros_graph(tmp_path):
     run_scenario(replay, tmp_path / 'graph', progress=False)
     graph = RunData.from_bag(tmp_path / 'graph' / 'bag')
     campaign.chunk_size = 7
-    validated = [campaign.run_sections(5)]
-    sections = {n: NODES[n].schema.stack([v[n] for v in validated]) for n in validated[0]
-                if NODES[n].role != 'recorder'}
-    batch = BatchSimulation(sections, 1).run().run_data(0)
+    batch = BatchSimulation.from_runs([campaign.run_sections(5)]).run().run_data(0)
     np.testing.assert_allclose(graph.q, batch.q, rtol=0, atol=1e-12)
     np.testing.assert_allclose(graph.u, batch.u, rtol=0, atol=1e-15)
 
@@ -108,10 +104,7 @@ def test_a_run_replays_alone_from_its_exported_scenario(tmp_path):
     row = rows_of(campaign, 7)[4]
     replay = tmp_path / 'run_4.yaml'
     assert main([str(campaign.path), '--export-run', '4', '--out', str(replay)]) == 0
-    validated = validate_scenario(replay)  # what adcs-run checks before starting the graph
-    sections = {name: NODES[name].schema.stack([v]) for name, v in validated.items()
-                if NODES[name].role != 'recorder'}
-    alone = BatchSimulation(sections, 1).run()
+    alone = BatchSimulation.from_runs([validate_scenario(replay)]).run()  # what adcs-run validates
     from adcs_sim.campaign import metric_columns
     assert {m: v for m, v in metric_columns(alone.metrics(0)).items() if m in row['metrics']} == row['metrics']
 

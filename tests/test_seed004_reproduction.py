@@ -21,7 +21,6 @@ import pytest
 
 from adcs_sim.analysis import RunData, run_metrics, settling_times
 from adcs_sim.batch import BatchSimulation
-from adcs_sim.registry import NODES
 from adcs_sim.runner import validate_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -59,9 +58,7 @@ def rel(ours: float, paper: float) -> float:
 def test_recording_is_what_the_code_computes(name):
     """The graph's recording equals the batch engine's run of the same scenario (round-off):
     the bag is current, and the graph ran the law as the pure code defines it."""
-    validated = validate_scenario(BAGS / name / 'scenario.yaml')
-    sections = {k: NODES[k].schema.stack([v]) for k, v in validated.items() if NODES[k].role != 'recorder'}
-    batch = BatchSimulation(sections, 1).run().run_data(0)
+    batch = BatchSimulation.from_runs([validate_scenario(BAGS / name / 'scenario.yaml')]).run().run_data(0)
     graph = run(name)
     assert graph.missed_steps == 0
     np.testing.assert_allclose(batch.t, graph.t, rtol=0, atol=1e-12)  # bag stamps: sec + nanosec
@@ -152,8 +149,7 @@ def test_table1_control_period_is_converged():
         validated = validate_scenario(ROOT / 'config' / 'table1_gsmn.yaml')
         validated['dynamics'].update({'control_period': period, 'integrator.max_step': period,
                                       'duration': 12.0})
-        sections = {k: NODES[k].schema.stack([v]) for k, v in validated.items() if NODES[k].role != 'recorder'}
-        result = BatchSimulation(sections, 1).run().run_data(0)
+        result = BatchSimulation.from_runs([validated]).run().run_data(0)
         out[period] = (run_metrics(result)['integrated_torque_Nms'],
                        settling_times(result, (1.0, 0.5)))
     (i1, s1), (i2, s2) = out[0.001], out[0.0005]
