@@ -20,6 +20,8 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
+from adcs_msgs_py.names import FAULT_ERROR_MODES, FAULT_OK_MODES
+
 NS_PER_S = 1_000_000_000
 # A quaternion whose norm is further than this from 1 is rejected (not silently renormalised).
 UNIT_QUATERNION_TOLERANCE = 1e-6
@@ -220,8 +222,6 @@ def status_values(status: DiagnosticStatus) -> dict[str, object]:
 
 # --- faults (DiagnosticArray, one status per actuator) -----------------------------------------
 
-FAULT_ERROR_MODES = ('failed', 'degraded', 'bias', 'stuck')
-FAULT_OK_MODES = ('nominal', 'recovered')
 
 
 def faults_to_msg(t_ns: int, snapshot: Mapping[str, tuple], event: int, events: int) -> DiagnosticArray:

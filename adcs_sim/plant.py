@@ -42,6 +42,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from adcs_msgs_py.names import FAULT_ERROR_MODES, FAULT_OK_MODES
 from adcs_sim.attitude import cross, matvec, quat_kinematics
 
 MU_EARTH = 3.986004418e14  # m^3/s^2
@@ -184,7 +185,7 @@ class ReactionWheels(Actuator):
     def zero_command(self) -> WheelCommand:
         return WheelCommand(np.zeros(self.count), np.zeros(self.count, dtype=bool))
 
-    FAULT_MODES = ('nominal', 'recovered', 'failed', 'degraded', 'bias', 'stuck')
+    FAULT_MODES = FAULT_OK_MODES + FAULT_ERROR_MODES
 
     def apply_fault(self, index: int, mode: str, value: float = 0.0) -> None:
         """Put wheel ``index`` in fault ``mode`` (see the class doc); replaces its previous mode.

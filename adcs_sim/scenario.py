@@ -265,7 +265,7 @@ RECORDER_SCHEMA = Schema('recorder', [
 
 # --- faults -------------------------------------------------------------------------------------
 
-FAULT_MODES = ('failed', 'degraded', 'bias', 'stuck', 'recovered')
+FAULT_MODES = topics.FAULT_ERROR_MODES + ('recovered',)  # what a schedule may say
 MAX_FAULT_EVENTS = 64  # the latched `faults` topic keeps 100 messages: the whole schedule fits
 
 

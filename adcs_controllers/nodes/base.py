@@ -25,6 +25,7 @@ import numpy as np
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
+from adcs_msgs_py.names import FAULT_UNUSABLE_MODES
 from adcs_msgs_py.guard import RejectCounter
 from adcs_controllers.laws.allocation import Actuation
 from adcs_sim.faults import FaultTracker
@@ -91,7 +92,7 @@ class ControllerNode(AdcsNode):
             return
         available = np.ones(len(self.wheel_names), dtype=bool)
         for name, (mode, _) in snapshot.items():
-            available[self.wheel_index[name]] = mode not in ('failed', 'stuck')
+            available[self.wheel_index[name]] = mode not in FAULT_UNUSABLE_MODES
         if not np.array_equal(available, self.actuation.available):
             self.actuation.set_available(available)
             self.get_logger().info(f't = {t_ns / cv.NS_PER_S:g} s: allocating over '

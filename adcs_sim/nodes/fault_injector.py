@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
+from adcs_msgs_py.names import FAULT_OK_MODES
 from adcs_sim.nodes.base import AdcsNode, entry_point
 from adcs_sim.scenario import FAULT_SCHEMA, fault_schedule
 
@@ -40,7 +41,7 @@ class FaultInjectorNode(AdcsNode):
         while self._logged + 1 < len(self.schedule) and self.schedule[self._logged + 1][0] <= t_ns:
             self._logged += 1
             due_ns, snapshot = self.schedule[self._logged]
-            faulty = {w: m for w, (m, _, _) in snapshot.items() if m not in cv.FAULT_OK_MODES}
+            faulty = {w: m for w, (m, _, _) in snapshot.items() if m not in FAULT_OK_MODES}
             self.get_logger().info(f't = {due_ns / cv.NS_PER_S:g} s: faults now {faulty or "none"}')
 
     def run(self, executor) -> None:
