@@ -15,7 +15,7 @@ $(VENV)/.installed: requirements.txt requirements-dev.txt setup.py setup.cfg pyp
 install: $(VENV)/.installed
 
 run: $(VENV)/.installed
-	$(VENV)/bin/adcs-run $(SCENARIO)
+	$(VENV)/bin/adcs-run $(SCENARIO) --report
 
 test: $(VENV)/.installed
 	$(PY) -m pytest -q tests

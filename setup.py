@@ -14,6 +14,10 @@ NODES = {
     'minnorm_controller': 'adcs_controllers.nodes.minnorm_controller:main',
     'gsmn_controller': 'adcs_controllers.nodes.gsmn_controller:main',
     'kt_controller': 'adcs_controllers.nodes.kt_controller:main',
+    'zero_momentum_controller': 'adcs_controllers.nodes.zero_momentum_controller:main',
+    'snlc_controller': 'adcs_controllers.nodes.snlc_controller:main',
+    'snlc_minnorm_controller': 'adcs_controllers.nodes.snlc_minnorm_controller:main',
+    'snlc_gsmn_controller': 'adcs_controllers.nodes.snlc_gsmn_controller:main',
 }
 TOOLS = {
     'adcs-run': 'adcs_sim.runner:main',

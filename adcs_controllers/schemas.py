@@ -1,7 +1,7 @@
 """Parameter schemas of the controller nodes (pure; the runner validates files with them)."""
 from __future__ import annotations
 
-from adcs_msgs_py.params import Param, Schema, non_negative, positive
+from adcs_msgs_py.params import Param, Schema, all_positive, non_negative, positive
 from adcs_sim.scenario import (check_unit_quaternion, check_wheels, expect_faults_param, inertia_param,
                                startup_params, wheel_params)
 
@@ -90,3 +90,100 @@ KT_SCHEMA = Schema('kt_controller', [
     *_target_params(),
     *controller_params(),
 ], cross_check=_actuator_check, doc='Krstic-Tsiotras inverse-optimal law, seed 004 eq. (18)')
+
+
+# --- seed 000: two-wheel (underactuated) laws, optionally after a three-wheel PD phase ----------
+
+def _two_wheel_check(v: dict) -> None:
+    from adcs_msgs_py.params import ParameterError
+    _actuator_check(v)
+    if v['three_wheel.enabled']:
+        for key in ('three_wheel.kp', 'three_wheel.kd'):
+            if not v[key] > 0:
+                raise ParameterError(key, 'must be > 0 when three_wheel.enabled is true (the PD of '
+                                     'the three-wheel phase, seed 004 eq. 13)')
+
+
+def _zero_momentum_check(v: dict) -> None:
+    from adcs_msgs_py.params import ParameterError
+    _two_wheel_check(v)
+    if v['actuator'] != 'wheels':
+        raise ParameterError('actuator', "the zero-momentum law commands wheel speeds: it needs "
+                             "actuator 'wheels'")
+    if len(v['wheels.spin_inertia']) != len(v['wheels.names']):
+        raise ParameterError('wheels.spin_inertia', f'expected one value per wheel '
+                             f'({len(v["wheels.names"])}), got {len(v["wheels.spin_inertia"])} '
+                             '(speed = momentum / spin inertia, eq. 13)')
+    if v['wheels.bias_speed'] and len(v['wheels.bias_speed']) != len(v['wheels.names']):
+        raise ParameterError('wheels.bias_speed', f'expected one value per wheel '
+                             f'({len(v["wheels.names"])}) or none, got {len(v["wheels.bias_speed"])}')
+
+
+def _two_wheel_params(*gains: Param) -> list[Param]:
+    """The parameters every seed 000 node has, around its own gains."""
+    return [
+        inertia_param("the controller's inertia model I (kg m^2), total (wheels locked)"),
+        *gains,
+        Param('a1', 'double', default=float('inf'), check=positive, finite=False, batch=True,
+              doc='saturation of the singular term of eq. (8) on axis 1 (.inf: eq. 7)'),
+        Param('a2', 'double', default=float('inf'), check=positive, finite=False, batch=True,
+              doc='saturation of the singular term of eq. (8) on axis 2 (.inf: eq. 7)'),
+        Param('eps_den', 'double', default=0.0, check=non_negative, batch=True,
+              doc='the small constant added to q1^2 + q2^2 in eq. (7)/(8) (section IV.B.2; 0: none)'),
+        Param('scale_by_inertia', 'bool', default=False,
+              doc='eq. (14) as printed, I_i (-K_i (w_i - wd_i) + dwd_i/dt), instead of the eq. (31) '
+                  'form -K_i (w_i - wd_i) + I_i dwd_i/dt (docs/seed000_readings.md R3)'),
+        Param('unactuated_axis', 'string', default='z', choices=('x', 'y', 'z'),
+              doc="the body axis without a wheel, the law's axis 3 (UK-DMC: 'x'); follows the "
+                  'faults when two wheels are left'),
+        Param('three_wheel.enabled', 'bool', default=False,
+              doc='start with the three-wheel PD and switch to the two-wheel law when a wheel fails '
+                  '(seed 000 VI.A); false: the two-wheel law from the start'),
+        Param('three_wheel.kp', 'double', default=0.0, check=non_negative,
+              doc='PD gain of the three-wheel phase (1/s^2), multiplied by the inertia'),
+        Param('three_wheel.kd', 'double', default=0.0, check=non_negative,
+              doc='PD gain of the three-wheel phase (1/s), multiplied by the inertia'),
+        Param('three_wheel.target.attitude', 'double_array', default=[0.0, 0.0, 0.0, 1.0], length=4,
+              check=check_unit_quaternion,
+              doc='attitude [x, y, z, w] the three-wheel phase holds (the off-pointing of VI.A)'),
+        *_target_params(), _SHORTEST,
+        *controller_params(),
+    ]
+
+
+def _k_g():
+    return [_gain('k', 'gain k of the desired rates, eq. (7)/(8) (rad/s)'),
+            _gain('g', 'gain g of the singular term of eq. (7)/(8) (rad/s)')]
+
+
+ZERO_MOMENTUM_SCHEMA = Schema('zero_momentum_controller', [
+    *_two_wheel_params(*_k_g()),
+    Param('wheels.spin_inertia', 'double_array', default=[], check=all_positive,
+          doc='spin inertia per wheel (kg m^2): wheel speed = commanded momentum / spin inertia (eq. 13)'),
+    Param('wheels.bias_speed', 'double_array', default=[],
+          doc='speed added to each wheel\'s command (rad/s; default 0): the bias momentum kept on a '
+              'wheel in orbit (seed 000 VI.B: -60 rpm on UoSAT-12\'s Y wheel, 100 rpm on UK-DMC\'s Z)'),
+], cross_check=_zero_momentum_check,
+    doc='two-wheel zero-momentum law, seed 000 eq. (12-13): attitude-only feedback, wheel speed commands')
+
+SNLC_SCHEMA = Schema('snlc_controller', [
+    *_two_wheel_params(*_k_g(), _gain('K', 'rate-tracking gain K of eq. (14)/(31) (N m s/rad)')),
+], cross_check=_two_wheel_check, doc='two-wheel angular-velocity tracking law "snlc", seed 000 eq. (14)/(24)')
+
+SNLC_MINNORM_SCHEMA = Schema('snlc_minnorm_controller', [
+    *_two_wheel_params(*_k_g(), _gain('K', 'rate-tracking gain K of the benchmark (N m s/rad)'),
+                       _gain('gamma', 'gain gamma of the Lyapunov rates, eq. (27) (rad/s)'),
+                       _gain('sigma', 'gain sigma of the Lyapunov rates, eq. (27) (rad/s)')),
+], cross_check=_two_wheel_check, doc='two-wheel min-norm law on the snlc benchmark, seed 000 eq. (25-27)')
+
+SNLC_GSMN_SCHEMA = Schema('snlc_gsmn_controller', [
+    *_two_wheel_params(
+        _gain('k1', 'low gain k1 of eq. (31) (rad/s)'), _gain('g1', 'low gain g1 of eq. (31) (rad/s)'),
+        _gain('K1', 'low rate-tracking gain K1 (N m s/rad)'),
+        _gain('k2', 'high gain k2 of eq. (32) (rad/s)'), _gain('g2', 'high gain g2 of eq. (32) (rad/s)'),
+        _gain('K2', 'high rate-tracking gain K2 (N m s/rad)'),
+        _gain('gamma', 'gain gamma of the Lyapunov rates, eq. (27) (rad/s)'),
+        _gain('sigma', 'gain sigma of the Lyapunov rates, eq. (27) (rad/s)'),
+        Param('epsilon', 'double', check=positive, batch=True,
+              doc='torque threshold of eq. (30) on |u_hg|_inf (N m): high gains below it')),
+], cross_check=_two_wheel_check, doc='two-wheel gain-scheduled min-norm law, seed 000 eq. (30-32)')

@@ -20,6 +20,8 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
+from adcs_sim.attitude import quat_normalize
+
 from adcs_msgs_py.names import FAULT_ERROR_MODES, FAULT_OK_MODES
 
 NS_PER_S = 1_000_000_000
@@ -79,7 +81,7 @@ def checked_quaternion(name: str, xyzw, tol: float = UNIT_QUATERNION_TOLERANCE) 
     norm = math.sqrt(float(q @ q))
     if abs(norm - 1.0) > tol:
         raise InvalidMessage(f'{name}: quaternion norm {norm:.9g} is not 1 (tolerance {tol:g})')
-    return q / norm
+    return quat_normalize(q)  # the batch engine renormalises its controllers' input the same way
 
 
 # --- state (attitude + rate in one stamped message) ---------------------------------------

@@ -20,6 +20,11 @@ Definitions (every metric printed by ``adcs-run`` and ``adcs-analyze``):
   torque ``u`` (``actuators/torque``): the torque is held over each control period (zero-order
   hold), so the integrals are exact sums ``Σ ‖u_k‖ Δt_k`` with ``Δt_k`` the time to the next
   sample (the last one up to the end of the run). ``‖·‖`` is the Euclidean norm.
+* **After a fault** (runs with a level-ERROR status on ``faults``; seed 000 VI.A): from the first
+  fault's time ``t0``, the *q4 settling time* in a band ``δ`` (the time after ``t0`` from which the
+  error quaternion's scalar part stays within ``1 ± δ``, i.e. an eigenaxis error within
+  ``2 acos(1 - δ)``: 23.0° for 0.02, 16.2° for 0.01; last exit as above) and ``∫‖u‖ dt`` over
+  ``[t0, end]``.
 * **Peak torque** per body axis ``max |u_i|`` over the applied-torque samples; **peak wheel
   speed** ``max |Ω|`` over all wheels and samples (rad/s, relative to the body); **missed
   steps** from the last ``dynamics/status`` that reports them.
@@ -326,6 +331,36 @@ def settling_times(run: RunData, tols_deg=(0.5, 1.0)) -> dict[float, dict]:
             for tol in tols_deg}
 
 
+def first_fault_time(run: RunData) -> float:
+    """Stamp of the first fault (a ``faults`` status of level ERROR), NaN if the run had none."""
+    times = [t for t, level, _, _ in run.faults if level >= 2]
+    return float(min(times)) if times else math.nan
+
+
+def q4_settling_after(run: RunData, band: float, t0: float) -> float:
+    """Seed 000's settling time: the time after ``t0`` from which the scalar part of the error
+    quaternion stays within ``1 ± band`` (``1 - |q4| <= band``; last exit, interpolated); counted
+    from ``t0`` (0 if already inside at ``t0``)."""
+    qe = error_quaternion(run.q, run.q_ref)
+    after = run.t >= t0
+    return settling_time(run.t[after], 1.0 - np.abs(qe[after, 3]), band) - t0
+
+
+def fault_metrics(run: RunData, bands=(0.02, 0.01)) -> dict:
+    """Recovery after the first fault ``t0`` (seed 000 VI.A): q4 settling times in each band and
+    ``∫‖u‖dt`` over ``[t0, end]``; empty if the run had no fault."""
+    t0 = first_fault_time(run)
+    if not math.isfinite(t0):
+        return {}
+    out = {'first_fault_time_s': t0}
+    for band in bands:
+        out[f'settling_q4_{band:g}_after_fault_s'] = q4_settling_after(run, band, t0)
+    if run.u.size:
+        after = run.t_u >= t0
+        out['integrated_torque_after_fault_Nms'] = integrated_norm(run.t_u[after], run.u[after], run.t_end)
+    return out
+
+
 def run_metrics(run: RunData, tol_deg: float = 0.5, eigen_tol_deg: float | None = None) -> dict:
     """The run's metrics (see the module docstring for each definition)."""
     eigen_tol_deg = tol_deg if eigen_tol_deg is None else eigen_tol_deg
@@ -346,6 +381,7 @@ def run_metrics(run: RunData, tol_deg: float = 0.5, eigen_tol_deg: float | None 
         out['peak_torque_Nm'] = np.abs(run.u).max(axis=0).tolist()
     if run.wheel_speed.size:
         out['peak_wheel_speed_rad_s'] = float(np.abs(run.wheel_speed).max())
+    out.update(fault_metrics(run))
     return out
 
 

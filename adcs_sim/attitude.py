@@ -70,8 +70,12 @@ def quat_conjugate(q: np.ndarray) -> np.ndarray:
 
 
 def quat_normalize(q: np.ndarray) -> np.ndarray:
-    """Project onto the unit sphere."""
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+    """Project onto the unit sphere (the norm summed in a fixed order, so a row gives the same bits
+    alone or in a batch: the controllers renormalise every received attitude with it, and the
+    batch engine does the same to their input)."""
+    q = np.asarray(q, dtype=float)
+    norm = np.sqrt(q[..., 0] * q[..., 0] + q[..., 1] * q[..., 1] + q[..., 2] * q[..., 2] + q[..., 3] * q[..., 3])
+    return q / norm[..., None]
 
 
 def error_quaternion(q: np.ndarray, q_ref: np.ndarray) -> np.ndarray:

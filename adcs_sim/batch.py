@@ -9,11 +9,14 @@ thousands of runs. This engine runs the *same* code as the graph with a leading 
 * the same measurement model (:class:`adcs_sim.sensors.MeasurementModel`);
 * the controller section's law object (:data:`adcs_sim.registry.NODES` ``[section].law``, the
   one its node builds) and the same actuation (:class:`adcs_controllers.laws.allocation.Actuation`:
-  minimum-norm allocation and saturation).
+  minimum-norm allocation and saturation, or wheel speed commands for a law whose ``output`` is
+  the wheel momentum).
 
 Each step mirrors the lockstep graph: the state at ``t_k`` is measured, the law computes a torque,
 the actuation turns it into commands, the applied body torque is recorded (``actuators/torque``)
-and the plant integrates ``[t_k, t_k+1]`` holding the commands. The runs of a batch may differ in
+and the plant integrates ``[t_k, t_k+1]`` holding the commands. A ``fault_injector`` section's
+schedule is applied as the graph applies it (the latest snapshot stamped ``<= t_k``, at step
+``t_k``, to the plant, the allocation and the law; the same for every run). The runs of a batch may differ in
 any parameter declared ``batch=True`` in its schema (inertia, initial state, gains, limits,
 duration, noise seed...); :meth:`adcs_msgs_py.params.Schema.stack` checks that.
 
@@ -32,8 +35,10 @@ import numpy as np
 
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.analysis import RunData, run_metrics
+from adcs_sim.attitude import quat_normalize
 from adcs_sim.plant import ReactionWheels, WheelCommand
-from adcs_sim.scenario import build_plant, initial_state, step_timing
+from adcs_msgs_py.names import FAULT_ERROR_MODES, FAULT_UNUSABLE_MODES
+from adcs_sim.scenario import build_plant, fault_schedule, initial_state, step_timing
 from adcs_sim.sensors import MeasurementModel
 
 NS_PER_S = 1_000_000_000
@@ -52,6 +57,7 @@ class BatchResult:
     wheel_names: list = field(default_factory=list)
     wheel_speed: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))  # (N, K + 1, n)
     q_ref: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))  # (4,) or (N, 4)
+    faults: list = field(default_factory=list)  # (t, level, actuator, mode) as RunData.faults
 
     @property
     def n_runs(self) -> int:
@@ -63,7 +69,8 @@ class BatchResult:
         k = int(self.n_steps[i])
         q_ref = self.q_ref[i] if self.q_ref.ndim == 2 else self.q_ref
         run = RunData(t=self.t[:k + 1], q=self.q[i, :k + 1], w=self.w[i, :k + 1],
-                      t_u=self.t[:k], u=self.u[i, :k], q_ref=q_ref, missed_steps=0)
+                      t_u=self.t[:k], u=self.u[i, :k], q_ref=q_ref, missed_steps=0,
+                      faults=[f for f in self.faults if f[0] <= self.t[k]])
         if self.wheel_names:
             run.t_wheels, run.wheel_names = self.t[:k + 1], list(self.wheel_names)
             run.wheel_speed = self.wheel_speed[i, :k + 1]
@@ -102,11 +109,14 @@ class BatchSimulation:
         self.n_runs = n_runs
         self.dynamics = d = sections['dynamics']
         controllers = [s for s in sections if s in NODES and NODES[s].role == 'controller']
-        unsupported = [s for s in sections if s in NODES and NODES[s].role == 'other']
+        unsupported = [s for s in sections if s in NODES and NODES[s].role not in
+                       ('dynamics', 'controller', 'recorder', 'faults')]
         if unsupported:
             raise ParameterError(unsupported[0], f'section {unsupported[0]!r} is not supported by '
-                                 'the batch engine (it simulates the dynamics and controller sections '
-                                 'only; fault injection runs on the node graph: adcs-run)')
+                                 'the batch engine (it simulates the dynamics, controller and '
+                                 'fault_injector sections)')
+        faults = [s for s in sections if s in NODES and NODES[s].role == 'faults']
+        self.fault_schedule = fault_schedule(sections[faults[0]]) if faults else []
         if len(controllers) > 1:
             raise ParameterError(controllers[1], f'more than one controller section ({controllers})')
         self.controller = controllers[0] if controllers else None
@@ -122,6 +132,8 @@ class BatchSimulation:
             p = sections[self.controller]
             self.law = NODES[self.controller].law(p)
             self.actuation = Actuation(p)
+            if self.actuation.kind == 'wheels':
+                self.law.on_wheels(self.actuation.axes, self.actuation.available)
             if self.actuation.kind not in self.plant.slices:
                 raise ParameterError('actuator', f'the controller commands {self.actuation.kind} '
                                      'but the dynamics section has none', self.controller)
@@ -130,12 +142,32 @@ class BatchSimulation:
         self.q_ref = self.law.q_ref if self.law is not None else np.array([0.0, 0.0, 0.0, 1.0])
         self.wheels = next((a for a in self.plant.actuators if isinstance(a, ReactionWheels)), None)
 
-    def _commands(self, values: np.ndarray | None) -> dict:
+    def _apply_faults(self, t_ns: int, applied: int) -> int:
+        """Apply the latest fault snapshot stamped ``<= t_ns`` if newer than snapshot ``applied``
+        (the dynamics node's and the controller's rule, :mod:`adcs_sim.faults`): to the plant's
+        wheels, the allocation and the law. Returns the index of the snapshot in force."""
+        due = max((i for i, (ts, _) in enumerate(self.fault_schedule) if ts <= t_ns), default=-1)
+        if due <= applied:
+            return applied
+        snapshot = self.fault_schedule[due][1]
+        index = {n: i for i, n in enumerate(self.wheels.names)}
+        for name, (mode, value, _) in snapshot.items():
+            self.wheels.apply_fault(index[name], mode, value)
+        if self.actuation is not None and self.actuation.kind == 'wheels':
+            names = self.actuation.wheel_names
+            available = np.array([snapshot.get(n, ('nominal',))[0] not in FAULT_UNUSABLE_MODES
+                                  for n in names])
+            if not np.array_equal(available, self.actuation.available):
+                self.actuation.set_available(available)
+                self.law.on_wheels(self.actuation.axes, available)
+        return due
+
+    def _commands(self, values: np.ndarray | None, speed_mode: bool = False) -> dict:
         commands = {a.name: a.zero_command() for a in self.plant.actuators}
         if values is None:
             return commands
         if self.actuation.kind == 'wheels':
-            commands['wheels'] = WheelCommand(values, commands['wheels'].speed_mode)
+            commands['wheels'] = WheelCommand(values, np.full(values.shape, speed_mode))
         else:
             commands['torquers'] = values
         return commands
@@ -157,6 +189,7 @@ class BatchSimulation:
         if n_wheels:
             speed_hist[:, 0] = x[:, wheel_sl][:, :n_wheels]
         failure: list = [None] * N
+        fault_applied = -1
         active = self.n_steps > 0
         done_steps = np.zeros(N, dtype=np.int64)
         with np.errstate(all='ignore'):  # a diverging run's overflow is recorded, not warned
@@ -164,12 +197,18 @@ class BatchSimulation:
                 if not active.any():
                     break
                 t = (k * self.period_ns) / NS_PER_S
+                if self.fault_schedule:
+                    fault_applied = self._apply_faults(k * self.period_ns, fault_applied)
                 values = None
                 if self.law is not None:
                     q_m, w_m = self.measurement.measure(x[:, :4], x[:, 4:7])
-                    torque, _ = self.law.control(t, q_m, w_m)
-                    values, _ = self.actuation.command(np.broadcast_to(torque, (N, 3)))
-                commands = self._commands(values)
+                    q_m = quat_normalize(q_m)  # what a controller does to the attitude it receives
+                    out, _ = self.law.control(t, q_m, w_m)
+                    if self.law.output == 'wheel_momentum':
+                        values = self.actuation.command_momentum(np.broadcast_to(out, (N, 3)))
+                    else:
+                        values, _ = self.actuation.command(np.broadcast_to(out, (N, 3)))
+                commands = self._commands(values, self.law is not None and self.law.output == 'wheel_momentum')
                 u = plant.control_torque(t, x, commands)
                 x_new = plant.step(t, x, commands, period, self.max_step)
                 finite = np.isfinite(x_new).all(axis=-1) & np.isfinite(u).all(axis=-1)
@@ -189,5 +228,8 @@ class BatchSimulation:
         t_grid = np.arange(K + 1, dtype=np.int64) * self.period_ns / NS_PER_S
         return BatchResult(t=t_grid, q=q_hist, w=w_hist, u=u_hist, n_steps=done_steps,
                            failure=failure, wheel_names=list(self.wheels.names) if self.wheels else [],
-                           wheel_speed=speed_hist, q_ref=np.asarray(self.q_ref, dtype=float))
+                           wheel_speed=speed_hist, q_ref=np.asarray(self.q_ref, dtype=float),
+                           faults=[(t_ns / NS_PER_S, 2 if mode in FAULT_ERROR_MODES else 0, name, mode)
+                                   for t_ns, snap in self.fault_schedule
+                                   for name, (mode, _, _) in snap.items()])
 

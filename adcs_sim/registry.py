@@ -13,7 +13,10 @@ from typing import Any
 from adcs_msgs_py.params import Schema
 from adcs_controllers.laws.inverse_optimal import GsmnLaw, KtLaw, MinNormLaw
 from adcs_controllers.laws.pd import PdLaw
-from adcs_controllers.schemas import GSMN_SCHEMA, KT_SCHEMA, MINNORM_SCHEMA, PD_SCHEMA
+from adcs_controllers.laws.reconfiguration import TwoWheelReconfiguration
+from adcs_controllers.laws.underactuated import SnlcGsmnLaw, SnlcLaw, SnlcMinNormLaw, ZeroMomentumLaw
+from adcs_controllers.schemas import (GSMN_SCHEMA, KT_SCHEMA, MINNORM_SCHEMA, PD_SCHEMA, SNLC_GSMN_SCHEMA,
+                                      SNLC_MINNORM_SCHEMA, SNLC_SCHEMA, ZERO_MOMENTUM_SCHEMA)
 from adcs_sim.scenario import DYNAMICS_SCHEMA, FAULT_SCHEMA, RECORDER_SCHEMA
 
 
@@ -21,17 +24,26 @@ from adcs_sim.scenario import DYNAMICS_SCHEMA, FAULT_SCHEMA, RECORDER_SCHEMA
 class NodeInfo:
     module: str
     schema: Schema
-    role: str  # 'dynamics', 'controller' (subscribes to state, sends commands), 'recorder', 'other'
-    law: Any = None  # controllers: the pure law class, built from the validated section
+    role: str  # 'dynamics', 'controller' (subscribes to state, sends commands), 'recorder', 'faults'
+    law: Any = None  # controllers: the pure law class (or builder), called with the validated section
 
 
 NODES: dict[str, NodeInfo] = {
     'dynamics': NodeInfo('adcs_sim.nodes.dynamics', DYNAMICS_SCHEMA, 'dynamics'),
     'recorder': NodeInfo('adcs_sim.nodes.recorder', RECORDER_SCHEMA, 'recorder'),
-    'fault_injector': NodeInfo('adcs_sim.nodes.fault_injector', FAULT_SCHEMA, 'other'),
+    'fault_injector': NodeInfo('adcs_sim.nodes.fault_injector', FAULT_SCHEMA, 'faults'),
     'pd_controller': NodeInfo('adcs_controllers.nodes.pd_controller', PD_SCHEMA, 'controller', PdLaw),
     'minnorm_controller': NodeInfo('adcs_controllers.nodes.minnorm_controller', MINNORM_SCHEMA,
                                    'controller', MinNormLaw),
     'gsmn_controller': NodeInfo('adcs_controllers.nodes.gsmn_controller', GSMN_SCHEMA, 'controller', GsmnLaw),
     'kt_controller': NodeInfo('adcs_controllers.nodes.kt_controller', KT_SCHEMA, 'controller', KtLaw),
+    # seed 000: two wheels (optionally after a three-wheel PD phase, switching on a wheel fault)
+    'zero_momentum_controller': NodeInfo('adcs_controllers.nodes.zero_momentum_controller', ZERO_MOMENTUM_SCHEMA,
+                                         'controller', TwoWheelReconfiguration.factory(ZeroMomentumLaw)),
+    'snlc_controller': NodeInfo('adcs_controllers.nodes.snlc_controller', SNLC_SCHEMA, 'controller',
+                                TwoWheelReconfiguration.factory(SnlcLaw)),
+    'snlc_minnorm_controller': NodeInfo('adcs_controllers.nodes.snlc_minnorm_controller', SNLC_MINNORM_SCHEMA,
+                                        'controller', TwoWheelReconfiguration.factory(SnlcMinNormLaw)),
+    'snlc_gsmn_controller': NodeInfo('adcs_controllers.nodes.snlc_gsmn_controller', SNLC_GSMN_SCHEMA,
+                                     'controller', TwoWheelReconfiguration.factory(SnlcGsmnLaw)),
 }

@@ -36,7 +36,7 @@ from adcs_msgs_py.params import ParameterError, load_params_file
 from adcs_sim.domains import DomainLease
 from adcs_sim.nodes.base import network_hygiene_defaults
 
-DEFAULT_SCENARIO = 'microsat_pd_slew.yaml'
+DEFAULT_SCENARIO = 'uosat12_gsmn.yaml'  # seed 000: a wheel fails, two-wheel GSMN recovers (the showcase)
 READY_TIMEOUT_S = 60.0
 STOP_TIMEOUT_S = 20.0
 
@@ -302,6 +302,8 @@ def main(argv=None) -> int:
     parser.add_argument('--tolerance-deg', type=float, default=0.5,
                         help='settling band for the printed metrics (deg; default 0.5)')
     parser.add_argument('--no-progress', action='store_true', help='no progress bar')
+    parser.add_argument('--report', action='store_true',
+                        help='also write the report (adcs-analyze: report.md + figures) to <out>/report')
     args = parser.parse_args(argv)
     try:
         scenario = resolve_scenario(args.scenario)
@@ -316,6 +318,10 @@ def main(argv=None) -> int:
     print(f'bag: {out / "bag"}')
     print('metrics:')
     print(format_metrics(metrics))
+    if args.report:
+        from adcs_sim import report
+        run = report.load_run(out / 'bag')
+        print(f'report: {report.write_report(run, out / "report", args.tolerance_deg)}')
     return 0
 
 

@@ -11,7 +11,11 @@ from conftest import ROOT
 
 PURE_MODULES = [
     'adcs_sim.plant', 'adcs_sim.attitude', 'adcs_sim.scenario', 'adcs_sim.analysis',
+    'adcs_sim.batch', 'adcs_sim.faults', 'adcs_sim.sensors', 'adcs_sim.thrusters',
     'adcs_controllers.laws.pd', 'adcs_controllers.laws.allocation', 'adcs_controllers.schemas',
+    'adcs_controllers.laws.inverse_optimal', 'adcs_controllers.laws.underactuated',
+    'adcs_controllers.laws.reconfiguration', 'adcs_controllers.laws.inertia_free',
+    'adcs_controllers.laws.single_axis', 'adcs_controllers.laws.backstepping',
     'adcs_msgs_py.params', 'adcs_msgs_py.names',
 ]
 

@@ -4,6 +4,10 @@ Reaction wheel ``i`` with spin axis ``a_i`` and motor torque ``tau_i`` puts ``-a
 body (the papers' ``N = -dh/dt``). For a desired body torque ``u`` the minimum-norm motor torques
 over the available wheels are ``tau = -A_av^+ u`` with ``A_av`` the 3 x m matrix of available axes
 (Moore-Penrose pseudo-inverse, :func:`numpy.linalg.pinv`); failed wheels get zero.
+
+A law may instead command the wheels' angular momentum ``h`` in body axes (seed 000's zero-momentum
+controller, eq. 13): the minimum-norm wheel momenta are ``A_av^+ h`` and the speed commands
+(relative to the body, the plant's speed mode) ``Ω_i = (A_av^+ h)_i / Js_i``.
 """
 from __future__ import annotations
 
@@ -67,6 +71,10 @@ class Actuation:
             self.axes = np.asarray(p['wheels.axes'], dtype=float).reshape(len(names), 3)
             self.axes = self.axes / np.linalg.norm(self.axes, axis=1, keepdims=True)
             self.limit = np.asarray(p['wheels.max_torque'], dtype=float)
+            spin = p.get('wheels.spin_inertia', [])
+            self.spin_inertia = np.asarray(spin, dtype=float) if len(spin) else None
+            bias = p.get('wheels.bias_speed', [])
+            self.bias_speed = np.asarray(bias, dtype=float) if len(bias) else np.zeros(len(names))
             self.set_available(np.ones(len(names), dtype=bool))
         else:
             self.limit = np.asarray(p['torquers.max_torque'], dtype=float)[..., None] * np.ones(3)
@@ -87,3 +95,13 @@ class Actuation:
             return tau, body_torque_from_wheels(self.axes, tau)
         applied = saturate(torque, self.limit, self.saturation)
         return applied, applied
+
+    def command_momentum(self, h: np.ndarray) -> np.ndarray:
+        """Wheel speed commands (..., n) (rad/s, relative to the body) for the commanded wheel
+        momentum ``h`` (..., 3) in body axes: minimum-norm over the available wheels (zero for the
+        others), divided by the spin inertias (``wheels.spin_inertia``, required), plus each
+        available wheel's bias speed (``wheels.bias_speed``, default 0)."""
+        if self.kind != 'wheels' or self.spin_inertia is None:
+            raise ValueError('a wheel momentum command needs wheels with their spin inertia '
+                             '(wheels.spin_inertia in the controller section)')
+        return -matvec(self.allocation, h) / self.spin_inertia + np.where(self.available, self.bias_speed, 0.0)

@@ -10,9 +10,13 @@ class SectionLaw:
     ``control(t, q, w) -> (torque (..., 3), status)``; the node and the batch engine call it.
 
     ``mode_names`` maps the integer ``status['mode']`` codes to the names the node publishes.
+    ``output`` says what ``control`` returns: ``'torque'`` (body torque, N m) or
+    ``'wheel_momentum'`` (the wheels' commanded angular momentum in body axes, N m s, which the
+    actuation turns into wheel speed commands).
     """
 
     mode_names: dict[int, str] = {}
+    output: str = 'torque'
 
     def __init__(self, p: dict) -> None:
         from adcs_sim.scenario import inertia_matrix
@@ -25,14 +29,23 @@ class SectionLaw:
     def control(self, t: float, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, dict]:
         raise NotImplementedError
 
+    def on_wheels(self, axes: np.ndarray, available: np.ndarray) -> str | None:
+        """The usable wheels changed (a fault): ``axes`` (n, 3) unit spin axes, ``available`` (n,)
+        bool. A law that depends on which wheels remain adapts here and returns a note for the
+        log; most laws do not care (allocation alone follows the wheels)."""
+        return None
+
     def published_status(self, status: dict) -> dict:
-        """One run's status as the node publishes it: mode codes as names, arrays as floats."""
+        """One run's status as the node publishes it: mode codes as names, arrays as floats,
+        3-vectors as ``key_x``, ``key_y``, ``key_z``."""
         out = {}
         for key, value in status.items():
             if key == 'mode' and np.ndim(value) == 0 and not isinstance(value, str) and self.mode_names:
                 out[key] = self.mode_names.get(int(value), str(int(value)))
             elif isinstance(value, np.ndarray) and value.ndim == 0:
                 out[key] = float(value)
+            elif isinstance(value, np.ndarray) and value.shape == (3,):
+                out.update({f'{key}_{c}': float(v) for c, v in zip('xyz', value)})
             else:
                 out[key] = value
         return out

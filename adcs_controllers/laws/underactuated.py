@@ -74,7 +74,7 @@ from adcs_sim.attitude import cross, matvec, quat_kinematics
 
 __all__ = [
     'MODE_LOW_GAIN', 'MODE_ZERO_TORQUE', 'MODE_HIGH_GAIN', 'MODE_MIN_NORM', 'MODE_SNLC',
-    'MODE_ZERO_MOMENTUM', 'desired_rates', 'zero_momentum_wheel_speeds', 'snlc_torque',
+    'MODE_ZERO_MOMENTUM', 'desired_rates', 'zero_momentum_wheel_momentum', 'zero_momentum_wheel_speeds', 'snlc_torque',
     'lyapunov', 'lie_derivatives', 'min_norm_torque', 'gsmn_torque',
     'ZeroMomentumLaw', 'SnlcLaw', 'SnlcMinNormLaw', 'SnlcGsmnLaw',
 ]
@@ -143,25 +143,36 @@ def _diag(inertia):
     return np.stack([inertia[..., 0, 0], inertia[..., 1, 1], inertia[..., 2, 2]], axis=-1)
 
 
-def zero_momentum_wheel_speeds(q, inertia, wheel_inertia, k, g, a1=np.inf, a2=np.inf, eps_den=0.0,
-                               q_ref=None, shortest_path=False):
-    """Zero-momentum controller, eq. (12-13): wheel speed commands ``Ω_i = -I_i/I_wh,i ωd_i``.
+def zero_momentum_wheel_momentum(q, inertia, k, g, a1=np.inf, a2=np.inf, eps_den=0.0, q_ref=None,
+                                 shortest_path=False):
+    """Zero-momentum controller, eq. (12-13), as the commanded wheel momentum in body axes.
 
-    Attitude-only feedback (``ωd`` of eq. 7/8 needs no rate). ``wheel_inertia`` (I_wh): scalar or
-    (..., 2) spin inertias of the X and Y wheels. The commands are speeds relative to the body,
-    for the plant's wheel speed mode: with ``I_i`` the total (wheels-locked) inertia,
-    ``I_i ω_i + I_wh,i Ω_i = 0`` is exactly the zero total momentum of eq. (12).
-    Returns ``(speed (..., 2), status)``; ``status``: ``mode`` (MODE_ZERO_MOMENTUM), ``wd``,
-    ``h_cmd`` (commanded wheel momentum ``-I_i ωd_i``, (..., 2)).
+    Attitude-only feedback (``ωd`` of eq. 7/8 needs no rate): ``h_cmd = [-I_1 ωd_1, -I_2 ωd_2, 0]``
+    with ``I_i`` the total (wheels-locked) inertia, so that ``I ω + h = 0`` (eq. 12) holds when the
+    body turns at ``ωd``. Returns ``(h_cmd (..., 3), status)``; ``status``: ``mode``
+    (MODE_ZERO_MOMENTUM), ``wd``.
     """
     q = np.asarray(q, dtype=float)
     qe, _ = error_state(q, np.zeros(q.shape[:-1] + (3,)), q_ref, None, shortest_path)
     wd, _ = desired_rates(qe, np.zeros(qe.shape[:-1] + (3,)), k, g, a1, a2, eps_den)
-    Id = _diag(inertia)[..., :2]
-    h_cmd = -Id * wd[..., :2]
-    speed = h_cmd / np.asarray(wheel_inertia, dtype=float)
-    mode = np.full(speed.shape[:-1], MODE_ZERO_MOMENTUM)
-    return speed, {'mode': mode, 'wd': wd, 'h_cmd': h_cmd}
+    h_cmd = -_diag(inertia) * wd * _XY
+    mode = np.full(h_cmd.shape[:-1], MODE_ZERO_MOMENTUM)
+    return h_cmd, {'mode': mode, 'wd': wd}
+
+
+def zero_momentum_wheel_speeds(q, inertia, wheel_inertia, k, g, a1=np.inf, a2=np.inf, eps_den=0.0,
+                               q_ref=None, shortest_path=False):
+    """Eq. (13) as printed: wheel speed commands ``Ω_i = -I_i / I_wh,i ωd_i`` (i = x, y).
+
+    ``wheel_inertia`` (I_wh): scalar or (..., 2) spin inertias of the X and Y wheels. The speeds
+    are relative to the body, for the plant's wheel speed mode: with ``I_i`` the total
+    (wheels-locked) inertia, ``I_i ω_i + I_wh,i Ω_i = 0`` is exactly the zero total momentum of
+    eq. (12). Returns ``(speed (..., 2), status)``; ``status`` as
+    :func:`zero_momentum_wheel_momentum` plus ``h_cmd`` (..., 2).
+    """
+    h_cmd, status = zero_momentum_wheel_momentum(q, inertia, k, g, a1, a2, eps_den, q_ref, shortest_path)
+    status['h_cmd'] = h_cmd[..., :2]
+    return h_cmd[..., :2] / np.asarray(wheel_inertia, dtype=float), status
 
 
 def _snlc(qe, we, Id, k, g, K, a1, a2, eps_den, scale_by_inertia):
@@ -180,12 +191,14 @@ def snlc_torque(q, w, inertia, k, g, K, a1=np.inf, a2=np.inf, eps_den=0.0, q_ref
     ``u_i = -K_i (ω_i - ωd_i) + I_i dωd_i/dt`` (i = 1, 2), ``u_3 = 0``; ``ωd`` from eq. (7)/(8);
     ``K`` (N m s/rad) scalar, or per batch element. ``I_i`` are the diagonal entries of
     ``inertia`` (the paper's ``Ir = diag(I1, I2)``). Returns ``(u, status)``; ``status``:
-    ``mode`` (MODE_SNLC), ``wd``, ``wd_dot``.
+    ``mode`` (MODE_SNLC), ``V`` (eq. 15/16 with the law's own ``k``, ``ωd``), ``wd``, ``wd_dot``.
     """
     qe, we = error_state(q, w, q_ref, w_ref, shortest_path)
     u, wd, wd_dot = _snlc(qe, we, _diag(inertia), k, g, K, a1, a2, eps_den, scale_by_inertia)
     mode = np.full(u.shape[:-1], MODE_SNLC)
-    return u, {'mode': mode, 'wd': wd, 'wd_dot': wd_dot}
+    e = we - wd
+    V = 2.0 * np.asarray(k, dtype=float) * (1.0 - qe[..., 3]) + 0.5 * _dot(e, e)  # eq. 15/16
+    return u, {'mode': mode, 'V': V, 'wd': wd, 'wd_dot': wd_dot}
 
 
 def _lie(qe, we, inertia, k, gamma, sigma, a1, a2, eps_den, h):
@@ -289,10 +302,23 @@ def gsmn_torque(q, w, inertia, k1, g1, K1, k2, g2, K2, gamma, sigma, epsilon, a1
 MODE_NAMES = {MODE_LOW_GAIN: 'low_gain', MODE_ZERO_TORQUE: 'zero_torque', MODE_HIGH_GAIN: 'high_gain',
               MODE_MIN_NORM: 'min_norm', MODE_SNLC: 'snlc', MODE_ZERO_MOMENTUM: 'zero_momentum'}
 
+# The law's axes (1, 2, 3) as body axes, for each choice of unactuated body axis: a cyclic
+# permutation (a proper rotation, so the quaternion kinematics and eq. 3 keep their form). Seed 000
+# VI.B: UK-DMC has wheels on Y and Z, "subscripts 1, 2 and 3 ... represent the Y, Z and X axes".
+AXIS_ORDER = {'z': (0, 1, 2), 'x': (1, 2, 0), 'y': (2, 0, 1)}
+_VECTOR_STATUS = ('wd', 'wd_dot', 'w_gs')  # status 3-vectors (rotated back to body axes)
+
 
 class _BoundLaw(SectionLaw):
     """Common parameters (paper symbols): ``a1``, ``a2`` saturation limits of eq. (8) (default
-    inf = eq. 7), ``eps_den`` the denominator constant ε of section IV.B.2 (default 0)."""
+    inf = eq. 7), ``eps_den`` the denominator constant ε of section IV.B.2 (default 0),
+    ``scale_by_inertia`` (eq. 14 as printed; default False = eq. 31 form), ``unactuated_axis``
+    ('x', 'y' or 'z', default 'z'): the body axis without a wheel, the law's axis 3.
+
+    Inputs and outputs are in body axes; the law runs in its own axes ``(1, 2, 3)`` =
+    :data:`AXIS_ORDER` ``[unactuated_axis]`` and every 3-vector (torque, momentum, status vectors
+    ``wd`` ...) is rotated back. :meth:`on_wheels` moves axis 3 to the axis that lost its wheel.
+    """
 
     mode_names = MODE_NAMES
 
@@ -302,27 +328,85 @@ class _BoundLaw(SectionLaw):
         self.a2 = p.get('a2', np.inf)
         self.eps_den = p.get('eps_den', 0.0)
         self.scale_by_inertia = bool(p.get('scale_by_inertia', False))
+        self.body_inertia, self.body_q_ref, self.body_w_ref = self.inertia, self.q_ref, self.w_ref
+        self.set_unactuated_axis(p.get('unactuated_axis', 'z'))
+
+    def set_unactuated_axis(self, axis: str) -> None:
+        """Run the law with body axis ``axis`` ('x', 'y', 'z') as its unactuated axis 3."""
+        if axis not in AXIS_ORDER:
+            raise ValueError(f"unactuated_axis must be one of {sorted(AXIS_ORDER)}, got {axis!r}")
+        self.unactuated_axis = axis
+        self.perm = np.array(AXIS_ORDER[axis])
+        self.inv = np.argsort(self.perm)
+        P = self.perm
+        self.law_inertia = self.body_inertia[..., P, :][..., :, P]
+        self.law_q_ref = self._to_law(self.body_q_ref, quaternion=True)
+        self.law_w_ref = self._to_law(self.body_w_ref)
+
+    def _to_law(self, v, quaternion=False):
+        v = np.asarray(v, dtype=float)
+        if quaternion:
+            return np.concatenate([v[..., self.perm], v[..., 3:]], axis=-1)
+        return v[..., self.perm]
+
+    def _to_body(self, out: tuple) -> tuple:
+        value, status = out
+        status = {k: (x[..., self.inv] if k in _VECTOR_STATUS else x) for k, x in status.items()}
+        return value[..., self.inv], status
 
     def _ref(self):
-        return dict(q_ref=self.q_ref, w_ref=self.w_ref, shortest_path=self.shortest_path)
+        return dict(q_ref=self.law_q_ref, w_ref=self.law_w_ref, shortest_path=self.shortest_path)
+
+    def on_wheels(self, axes, available) -> str | None:
+        """Follow a change of the usable wheels: with exactly two left whose axes span the plane
+        normal to a body axis, make that axis the unactuated one. Returns a note, or None."""
+        axis = unactuated_body_axis(axes, available)
+        if axis is not None and axis != self.unactuated_axis:
+            self.set_unactuated_axis(axis)
+            return f'two-wheel law: unactuated axis is now {axis}'
+        return None
+
+    def control(self, t, q, w):
+        q_l = self._to_law(q, quaternion=True)
+        w_l = self._to_law(w)
+        return self._to_body(self._control(t, q_l, w_l))
+
+    def _control(self, t, q, w):
+        raise NotImplementedError
+
+
+def unactuated_body_axis(axes, available, tol: float = 1e-6) -> str | None:
+    """The body axis ('x', 'y', 'z') left without control torque when the ``available`` wheels'
+    spin ``axes`` (n, 3) span exactly the plane normal to it; None otherwise (three axes still
+    span space, fewer than two independent axes remain, or the plane is not a body plane)."""
+    A = np.asarray(axes, dtype=float)[np.asarray(available, dtype=bool)]
+    if A.shape[0] < 2 or np.linalg.matrix_rank(A, tol=tol) != 2:
+        return None
+    normal = np.linalg.svd(A)[2][-1]  # the direction no available wheel can torque
+    for name, e in zip('xyz', np.eye(3)):
+        if abs(abs(normal @ e) - 1.0) < tol:
+            return name
+    return None
 
 
 class ZeroMomentumLaw(_BoundLaw):
-    """Eq. (12-13): gains ``k``, ``g`` (rad/s), wheel spin inertias ``wheel_inertia`` (I_wh, kg m²,
-    scalar or [x, y]). ``control`` returns WHEEL SPEED commands (..., 2) (rad/s, relative to the
-    body; use the wheels' speed mode), not a torque (``output = 'wheel_speed'``)."""
+    """Eq. (12-13): gains ``k``, ``g`` (rad/s). ``control`` returns the commanded WHEEL MOMENTUM
+    in body axes (``output = 'wheel_momentum'``; N m s), which the actuation turns into wheel speed
+    commands ``Ω = A⁺ h / I_wh`` (eq. 13 for wheels on the law's axes 1, 2), not a torque."""
 
-    output = 'wheel_speed'
+    output = 'wheel_momentum'
 
     def __init__(self, p: dict) -> None:
         super().__init__(p)
         self.k, self.g = p['k'], p['g']
-        self.wheel_inertia = p['wheel_inertia']
 
-    def control(self, t, q, w):
-        return zero_momentum_wheel_speeds(q, self.inertia, self.wheel_inertia, self.k, self.g,
-                                          self.a1, self.a2, self.eps_den, self.q_ref,
-                                          self.shortest_path)
+    def _control(self, t, q, w):
+        h, status = zero_momentum_wheel_momentum(q, self.law_inertia, self.k, self.g, self.a1, self.a2,
+                                                 self.eps_den, self.law_q_ref, self.shortest_path)
+        qe, we = error_state(q, w, self.law_q_ref, self.law_w_ref, self.shortest_path)
+        e = we - status['wd']
+        status['V'] = 2.0 * np.asarray(self.k, dtype=float) * (1.0 - qe[..., 3]) + 0.5 * _dot(e, e)
+        return h, status
 
 
 class SnlcLaw(_BoundLaw):
@@ -332,8 +416,8 @@ class SnlcLaw(_BoundLaw):
         super().__init__(p)
         self.k, self.g, self.K = p['k'], p['g'], p['K']
 
-    def control(self, t, q, w):
-        return snlc_torque(q, w, self.inertia, self.k, self.g, self.K, self.a1, self.a2,
+    def _control(self, t, q, w):
+        return snlc_torque(q, w, self.law_inertia, self.k, self.g, self.K, self.a1, self.a2,
                            self.eps_den, scale_by_inertia=self.scale_by_inertia, **self._ref())
 
 
@@ -344,8 +428,8 @@ class SnlcMinNormLaw(_BoundLaw):
         super().__init__(p)
         self.gains = tuple(p[n] for n in ('k', 'g', 'K', 'gamma', 'sigma'))
 
-    def control(self, t, q, w):
-        return min_norm_torque(q, w, self.inertia, *self.gains, a1=self.a1, a2=self.a2,
+    def _control(self, t, q, w):
+        return min_norm_torque(q, w, self.law_inertia, *self.gains, a1=self.a1, a2=self.a2,
                                eps_den=self.eps_den, scale_by_inertia=self.scale_by_inertia,
                                **self._ref())
 
@@ -359,8 +443,7 @@ class SnlcGsmnLaw(_BoundLaw):
         self.gains = tuple(p[n] for n in ('k1', 'g1', 'K1', 'k2', 'g2', 'K2', 'gamma', 'sigma'))
         self.epsilon = p['epsilon']
 
-    def control(self, t, q, w):
-        return gsmn_torque(q, w, self.inertia, *self.gains, epsilon=self.epsilon, a1=self.a1,
+    def _control(self, t, q, w):
+        return gsmn_torque(q, w, self.law_inertia, *self.gains, epsilon=self.epsilon, a1=self.a1,
                            a2=self.a2, eps_den=self.eps_den, scale_by_inertia=self.scale_by_inertia,
                            **self._ref())
-

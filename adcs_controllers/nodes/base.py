@@ -7,6 +7,8 @@ A concrete controller is its schema and its law: a pure object with ``control(t,
 * validates parameters (schema), builds the law and the actuation (allocation over the
   available wheels, saturation: :class:`~adcs_controllers.laws.allocation.Actuation`);
 * publishes commands on ``wheels/cmd`` (minimum-norm allocation, saturation) or ``torque_cmd``;
+  a law whose ``output`` is ``'wheel_momentum'`` gets wheel SPEED commands instead
+  (:meth:`~adcs_controllers.laws.allocation.Actuation.command_momentum`);
 * before subscribing to ``state``, waits until its command publisher is matched by the dynamics
   node (and the recorder, when one is expected) — so by the time the dynamics node sees this
   controller subscribed, every command it sends will be delivered and recorded;
@@ -15,7 +17,8 @@ A concrete controller is its schema and its law: a pure object with ``control(t,
   applies the latest fault state stamped ``<= t_k`` (the dynamics node's rule), re-allocating
   over the wheels that can still produce a commanded torque (not ``failed``, not ``stuck``;
   :meth:`~adcs_controllers.laws.allocation.Actuation.set_available`) and restoring a wheel on
-  ``recovered``. With ``startup.expect_faults`` it waits for the complete schedule before it
+  ``recovered``, and telling the law (``law.on_wheels``: a reconfiguring law changes phase
+  there, :mod:`adcs_controllers.laws.reconfiguration`). With ``startup.expect_faults`` it waits for the complete schedule before it
   subscribes to the state. ``available_wheels`` and ``late_faults`` are in its status.
 """
 from __future__ import annotations
@@ -53,6 +56,12 @@ class ControllerNode(AdcsNode):
         self.wheel_index = ({n: i for i, n in enumerate(self.wheel_names)}
                             if self.actuator == 'wheels' else {})
         self.sub_faults = self.subscription(topics.FAULTS, self._on_faults)
+        if self.actuator == 'wheels':
+            self._note(self.law.on_wheels(self.actuation.axes, self.actuation.available))
+
+    def _note(self, note: str | None) -> None:
+        if note:
+            self.get_logger().info(note)
 
     def control(self, t: float, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, dict]:
         """Desired body torque (N m) and status values for state (q, w) at time t: the law's."""
@@ -97,6 +106,7 @@ class ControllerNode(AdcsNode):
             self.actuation.set_available(available)
             self.get_logger().info(f't = {t_ns / cv.NS_PER_S:g} s: allocating over '
                                    f'{self.available_wheels() or "no wheels"}')
+            self._note(self.law.on_wheels(self.actuation.axes, available))
 
     def available_wheels(self) -> str:
         if self.actuator != 'wheels':
@@ -111,17 +121,31 @@ class ControllerNode(AdcsNode):
             return
         t_ns, q, w = parsed
         self.apply_due_faults(t_ns)
-        torque, status = self.control(t_ns / cv.NS_PER_S, q, w)
-        applied = self.publish_torque(t_ns, torque)
+        output = self.law.output  # read before control(): what this step's value is
+        value, status = self.control(t_ns / cv.NS_PER_S, q, w)
+        if output == 'wheel_momentum':
+            self.publish_momentum(t_ns, value)
+        else:
+            applied = self.publish_torque(t_ns, value)
         if self.pub_status.get_subscription_count():  # after the command: off the critical path
             status = self.law.published_status(status)
-            # u_x.. what the actuators are commanded (saturated); demand_max: the law's own |u|_inf
-            status.update({'u_x': applied[0], 'u_y': applied[1], 'u_z': applied[2],
-                           'demand_max': float(np.max(np.abs(torque))),
-                           'rejected_messages': self.rejects.total,
+            if output == 'wheel_momentum':  # h_x..: the wheel momentum commanded (speed mode)
+                status.update({'h_x': value[0], 'h_y': value[1], 'h_z': value[2]})
+            else:  # u_x.. what the actuators are commanded (saturated); demand_max: the law's |u|_inf
+                status.update({'u_x': applied[0], 'u_y': applied[1], 'u_z': applied[2],
+                               'demand_max': float(np.max(np.abs(value)))})
+            status.update({'rejected_messages': self.rejects.total,
                            'available_wheels': self.available_wheels() or 'none',
                            'late_faults': self.faults.late})
             self.pub_status.publish(cv.status_to_msg(t_ns, self.get_name(), status))
+
+    def publish_momentum(self, t_ns: int, h: np.ndarray) -> None:
+        """Send the wheel momentum ``h`` (body axes) as speed commands to the available wheels
+        (the others are not named: they keep their last command, and produce no torque)."""
+        speed = self.actuation.command_momentum(h)
+        ok = self.actuation.available
+        self.pub_cmd.publish(cv.wheel_cmd_to_msg(
+            t_ns, [n for n, a in zip(self.wheel_names, ok) if a], velocity=speed[ok]))
 
     def publish_torque(self, t_ns: int, torque: np.ndarray) -> np.ndarray:
         """Send body torque ``torque`` through the configured actuators; return what it commands

@@ -1,0 +1,105 @@
+"""Reconfiguration on a wheel failure: a three-wheel law until a wheel is lost, then a two-wheel law.
+
+Seed 000, section VI.A: "the satellite is first controlled with all three wheels to an off-pointing
+attitude ... before being controlled by two wheels only (the 2 wheel mode is activated at time
+t0 = 500 sec)". :class:`TwoWheelReconfiguration` is that controller as one law object (pure; the
+node and the batch engine call it like any law):
+
+* phase ``three_wheel``: the quaternion PD of seed 004 eq. (13) (:class:`~adcs_controllers.laws.pd.PdLaw`)
+  with its own gains and target (the off-pointing attitude of the three-wheel manoeuvre);
+* phase ``two_wheel``: a seed 000 law (:mod:`adcs_controllers.laws.underactuated`), entered when the
+  usable wheels (:meth:`on_wheels`, called by the node when the fault topic changes them) are two
+  whose axes span the plane normal to a body axis; that axis becomes the law's unactuated axis;
+* back to ``three_wheel`` when the usable axes span space again (a wheel ``recovered``);
+* phase ``unsupported`` when what is left is neither (one wheel, or two not normal to a body
+  axis): the PD keeps running over what is left (minimum-norm allocation) and the node warns —
+  no law of seed 000 applies there.
+
+Without a three-wheel law (``three_wheel.enabled: false``) the two-wheel law runs from the start:
+the paper's "plain" case.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from adcs_controllers.laws.pd import PdLaw
+from adcs_controllers.laws.underactuated import unactuated_body_axis
+
+THREE_WHEEL, TWO_WHEEL, UNSUPPORTED = 'three_wheel', 'two_wheel', 'unsupported'
+
+
+def pd_section(p: dict) -> dict:
+    """The ``three_wheel.*`` parameters of a two-wheel controller section as a PD law's section."""
+    return {'inertia': p['inertia'], 'kp': p['three_wheel.kp'], 'kd': p['three_wheel.kd'],
+            'target.attitude': p['three_wheel.target.attitude'], 'target.rate': [0.0, 0.0, 0.0],
+            'shortest_path': True}
+
+
+class TwoWheelReconfiguration:
+    """``nominal`` (three-wheel law, or None) until two wheels are left, then ``two_wheel``.
+
+    Duck-types a :class:`~adcs_controllers.laws.base.SectionLaw`: ``control``, ``output``,
+    ``published_status``, ``on_wheels``, ``q_ref`` (the two-wheel law's target: where the run ends).
+    The status gains ``phase``.
+    """
+
+    def __init__(self, nominal, two_wheel) -> None:
+        self.nominal = nominal
+        self.two_wheel = two_wheel
+        self.phase = THREE_WHEEL if nominal is not None else TWO_WHEEL
+        self.inertia = two_wheel.inertia
+        self.q_ref = two_wheel.q_ref
+        self.w_ref = two_wheel.w_ref
+
+    @classmethod
+    def factory(cls, two_wheel_cls):
+        """A law builder for the registry: section dict -> this law around ``two_wheel_cls``."""
+        def build(p: dict) -> 'TwoWheelReconfiguration':
+            nominal = PdLaw(pd_section(p)) if p['three_wheel.enabled'] else None
+            return cls(nominal, two_wheel_cls(p))
+        build.__name__ = f'{two_wheel_cls.__name__}WithReconfiguration'
+        build.__doc__ = f'{two_wheel_cls.__name__}, after a three-wheel PD phase if configured.'
+        return build
+
+    @property
+    def active(self):
+        return self.two_wheel if self.phase == TWO_WHEEL else self.nominal
+
+    @property
+    def output(self) -> str:
+        return self.active.output
+
+    @property
+    def mode_names(self) -> dict:
+        return self.active.mode_names
+
+    def on_wheels(self, axes: np.ndarray, available: np.ndarray) -> str | None:
+        """Choose the phase for the usable wheels; returns a note when it changes, else None."""
+        axis = unactuated_body_axis(axes, available)
+        spans = np.linalg.matrix_rank(np.asarray(axes)[np.asarray(available, dtype=bool)]) == 3 \
+            if np.any(available) else False
+        if self.nominal is None:
+            phase = TWO_WHEEL
+        elif spans:
+            phase = THREE_WHEEL
+        else:
+            phase = TWO_WHEEL if axis is not None else UNSUPPORTED
+        notes = []
+        if axis is not None:
+            note = self.two_wheel.on_wheels(axes, available)
+            if note:
+                notes.append(note)
+        if phase != self.phase:
+            notes.insert(0, f'phase {self.phase} -> {phase}' + (
+                ' (no seed 000 law for these wheels: three-wheel PD over what is left)'
+                if phase == UNSUPPORTED else ''))
+            self.phase = phase
+        return '; '.join(notes) or None
+
+    def control(self, t, q, w):
+        value, status = self.active.control(t, q, w)
+        status['phase'] = self.phase
+        return value, status
+
+    def published_status(self, status: dict) -> dict:
+        return self.active.published_status(status)

@@ -1,0 +1,20 @@
+"""SnlcController: seed 000's two-wheel angular-velocity tracking law snlc (eq. 14/24) on the graph.
+
+Two wheels from the start, or (``three_wheel.enabled``) the three-wheel PD until the fault topic
+reports a wheel lost, then the two-wheel law. The laws: laws/underactuated.py; the switch:
+laws/reconfiguration.py."""
+from __future__ import annotations
+
+from adcs_controllers.nodes.base import ControllerNode
+from adcs_controllers.schemas import SNLC_SCHEMA
+from adcs_sim.nodes.base import entry_point
+
+
+class SnlcController(ControllerNode):
+    schema = SNLC_SCHEMA  # law: TwoWheelReconfiguration around underactuated.SnlcLaw (adcs_sim.registry)
+
+
+main = entry_point(SnlcController)
+
+if __name__ == '__main__':
+    main()

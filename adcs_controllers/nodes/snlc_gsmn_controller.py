@@ -1,0 +1,20 @@
+"""SnlcGsmnController: seed 000's two-wheel gain-scheduled min-norm law (eq. 30-32) on the graph.
+
+Two wheels from the start, or (``three_wheel.enabled``) the three-wheel PD until the fault topic
+reports a wheel lost, then the two-wheel law. The laws: laws/underactuated.py; the switch:
+laws/reconfiguration.py."""
+from __future__ import annotations
+
+from adcs_controllers.nodes.base import ControllerNode
+from adcs_controllers.schemas import SNLC_GSMN_SCHEMA
+from adcs_sim.nodes.base import entry_point
+
+
+class SnlcGsmnController(ControllerNode):
+    schema = SNLC_GSMN_SCHEMA  # law: TwoWheelReconfiguration around underactuated.SnlcGsmnLaw (adcs_sim.registry)
+
+
+main = entry_point(SnlcGsmnController)
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,133 @@
+"""Seed 000 (Horri & Palmer) reproduced through the ROS graph: the recorded bags in bags/.
+
+Each bag is an ``adcs-run`` of its config/ scenario (separate processes, lockstep; made by
+bags/regenerate.py). The tests read the bags and check what holds of the paper's claims under our
+readings (docs/seed000_readings.md), state the paper's figures beside ours (docs/seed000.md), and
+check that the showcase bag is what the current code computes (the batch engine, bit for bit).
+
+Paper, section VI.A (q4 settling from t0 = 500 s within 1 ± 0.02 / 1 ± 0.01; ∫‖u‖dt from t0):
+GSMN 521.5 / 1748.4 s, 9.84 N m s; zero momentum 2452.1 / 2956.5 s, 19.2; snlc 2918.8 / 7072.9 s,
+19.62. These numbers are NOT reproduced (the attitude at t0, the three-wheel phase, the wheels'
+spin inertia and speed loop are not given): ours are pinned below as regression values with a 1 %
+tolerance, next to the paper's, and the qualitative claims are tested.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_array_equal
+
+from adcs_sim.analysis import RunData, attitude_errors, fault_metrics
+from conftest import ROOT
+
+BAGS = ROOT / 'bags'
+LAWS = {'zero_momentum': 'uosat12_zero_momentum', 'snlc': 'uosat12_snlc', 'gsmn': 'uosat12_gsmn'}
+# (q4 within 1 ± 0.02, within 1 ± 0.01 (s after t0), ∫‖u‖dt after t0 (N m s))
+PAPER = {'zero_momentum': (2452.1, 2956.5, 19.2), 'snlc': (2918.8, 7072.9, 19.62),
+         'gsmn': (521.5, 1748.4, 9.84)}
+OURS = {'zero_momentum': (190.8, 1083.0, 29.78), 'snlc': (192.4, 1110.2, 24.02),
+        'gsmn': (308.5, 944.1, 22.87)}
+T0 = 500.0
+U_MAX = 0.02
+
+
+def load(name: str) -> RunData:
+    return RunData.from_bag(BAGS / name / 'bag')
+
+
+@pytest.fixture(scope='module')
+def runs() -> dict[str, RunData]:
+    return {law: load(name) for law, name in LAWS.items()}
+
+
+def figures(run: RunData) -> tuple[float, float, float]:
+    m = fault_metrics(run)
+    return (m['settling_q4_0.02_after_fault_s'], m['settling_q4_0.01_after_fault_s'],
+            m['integrated_torque_after_fault_Nms'])
+
+
+@pytest.mark.parametrize('law', list(LAWS))
+def test_three_axis_stabilisation_with_two_wheels(runs, law):
+    """VI.A: "the attitude is stabilized on all three axes with admissible torque": from t0 the
+    run enters and stays in both of the paper's q4 bands (all three axes: 1 - q4 bounds the whole
+    rotation), no z torque, no wheel above its limit, the unactuated q3 down to a tenth."""
+    run = runs[law]
+    m = fault_metrics(run)
+    assert m['first_fault_time_s'] == T0
+    assert math.isfinite(m['settling_q4_0.02_after_fault_s'])
+    assert math.isfinite(m['settling_q4_0.01_after_fault_s'])
+    after = run.t_u >= T0
+    assert np.all(run.u[after, 2] == 0.0)
+    assert np.abs(run.u).max() <= U_MAX + 1e-12
+    qe, _, _ = attitude_errors(run)
+    k0 = int(np.flatnonzero(run.t == T0)[0])
+    assert abs(qe[-1, 2]) < 0.15 * abs(qe[k0, 2])
+    assert 1.0 - abs(qe[-1, 3]) < 0.001  # 5.1° of rotation left at most, from 45.5° at t0
+
+
+@pytest.mark.parametrize('law', list(LAWS))
+def test_settling_and_torque_beside_the_paper(runs, law):
+    """Our figures (pinned, 1 %) beside the paper's; printed for the record."""
+    ours = figures(runs[law])
+    print(f'{law}: paper {PAPER[law]}, ours {tuple(round(v, 1) for v in ours)}')
+    np.testing.assert_allclose(ours, OURS[law], rtol=0.01)
+
+
+def test_gsmn_settles_first_in_the_fine_band(runs):
+    """VI.A: in the 1 ± 0.01 band the GSMN law settles first (paper: 1748.4 s against 2956.5 and
+    7072.9 s). Holds here (944 against 1083 and 1110 s), by a smaller margin; in the 1 ± 0.02 band
+    the paper's GSMN lead does NOT hold (docs/seed000.md)."""
+    fine = {law: figures(run)[1] for law, run in runs.items()}
+    assert fine['gsmn'] < fine['zero_momentum'] and fine['gsmn'] < fine['snlc']
+    coarse = {law: figures(run)[0] for law, run in runs.items()}
+    assert coarse['gsmn'] > coarse['zero_momentum']  # the paper's claim that does not hold here
+
+
+def test_gsmn_needs_less_integrated_torque(runs):
+    """VI.A: "a lower level of the integrated torque of 9.84 N m s, compared to 19.62 N m s" (snlc)
+    and 19.2 (zero momentum): GSMN uses the least torque here too."""
+    torque = {law: figures(run)[2] for law, run in runs.items()}
+    assert torque['gsmn'] < torque['snlc'] < torque['zero_momentum']
+
+
+def test_gsmn_has_zero_torque_phases(runs):
+    """VI.A: the min-norm law "remains stable despite several horizontal zero torque phases": the
+    status switches between the projected low-gain torque and zero torque many times, the torque
+    is exactly zero then, and V never increases over a zero-torque step by more than rounding."""
+    run = runs['gsmn']
+    status = [(t, v) for t, _, v in run.controller_status if t >= T0]
+    modes = [v['mode'] for _, v in status]
+    switches = sum(a != b for a, b in zip(modes, modes[1:]))
+    assert {'low_gain', 'zero_torque'} <= set(modes) and switches > 50
+    zero_t = {t for t, v in status if v['mode'] == 'zero_torque'}
+    k = np.isin(run.t_u, sorted(zero_t))
+    assert np.all(run.u[k] == 0.0)
+    assert {v['phase'] for _, v in status} == {'two_wheel'}
+
+
+def test_showcase_bag_is_what_the_code_computes():
+    """bags/uosat12_gsmn is the batch engine's run of its scenario, bit for bit (same plant, law,
+    allocation and fault schedule): the recording is current."""
+    from adcs_sim.batch import BatchSimulation
+    from adcs_sim.runner import validate_scenario
+    bag = load('uosat12_gsmn')
+    batch = BatchSimulation.from_runs([validate_scenario(BAGS / 'uosat12_gsmn' / 'scenario.yaml')]).run()
+    run = batch.run_data(0)
+    assert_array_equal(run.q, bag.q)
+    assert_array_equal(run.u, bag.u)
+
+
+@pytest.mark.parametrize('name, limit_deg', [('uosat12_sun_tracking', 15.0), ('ukdmc_two_wheels', 45.0)])
+def test_in_orbit_cases_have_bounded_errors(name, limit_deg):
+    """VI.B: "controlling the unactuated axis within bounded errors" with measurement noise, the
+    gravity-gradient torque and a bias momentum that breaks the zero-momentum assumption: over the
+    second orbit the eigenaxis error stays below ``limit_deg`` and no larger than over the first,
+    and the wheels stay far from their 5000 rpm."""
+    run = load(name)
+    _, eigen, _ = attitude_errors(run)
+    half = run.t >= run.t_end / 2
+    assert eigen[half].max() < limit_deg
+    assert eigen[half].max() <= eigen[~half].max()
+    assert np.abs(run.wheel_speed).max() < 0.2 * 523.6
