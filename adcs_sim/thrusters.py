@@ -1,0 +1,256 @@
+"""On/off attitude thrusters as a plant actuator, and the orbit frame of seed 002 (no ROS).
+
+Thrusters (seed 002 section 2.5)
+--------------------------------
+Thruster ``i`` sits at ``r_i`` (body axes, from the centre of mass, m) and pushes along the unit
+direction ``d_i`` (body axes) with force ``F_i`` (N) while it is on, 0 while off. Body force and
+torque::
+
+    F = sum_i F_i d_i,        tau = sum_i r_i x (F_i d_i) = T f,   T = [r_1 x d_1, ..., r_n x d_n]
+
+(``T`` is the thruster part of the paper's actuator matrix ``B_a``, eq. 21). The plant is
+attitude-only: the net force is reported (:meth:`Thrusters.force`) but moves nothing.
+
+Command for one control period (:class:`ThrusterCommand`, built by :meth:`Thrusters.command`):
+an on-time per thruster ``0 <= t_on,i <= period``; the thruster fires from the period's start
+``t0`` for ``t_on,i`` seconds at its maximum force (a single pulse, leading edge at the period's
+start). A valve cannot open for less than ``min_on_time``: on-times in ``(0, min_on_time)`` are
+dropped to 0 (``min_on_rule = 'drop'``, default: the controller's demand is below one minimum
+impulse bit) or raised to ``min_on_time`` (``'extend'``). An on-time of the whole period keeps the
+thruster on over the closed interval ``[t0, t0 + period]``.
+
+Actuator states: the cumulated impulse ``I_i = ∫ F_i dt`` (N s) per thruster, integrated with the
+body so it is part of the state vector and recorded; fuel use is ``sum_i I_i / (Isp g0)``.
+
+Pulse edges inside an RK4 step
+------------------------------
+The force is a step function of time, so a fixed RK4 step (:meth:`adcs_sim.plant.Plant.step`) that
+contains a pulse edge samples it at ``t_k``, ``t_k + h/2`` and ``t_k + h`` with weights 1/6, 4/6,
+1/6 (Simpson): the impulse of that step is off by up to ``F h / 3`` (edge just beside the
+midpoint). For an exact pulse use :func:`step_pulsed`: it splits the period at every pulse edge
+and holds each thruster on or off over each segment (:meth:`Thrusters.segment_command`), so RK4
+integrates a piecewise-constant force: the impulse is ``F x on-time`` to rounding and the
+attitude is integrated to RK4 accuracy on smooth segments. Bang-bang firing over whole periods
+(seed 002's) has no edge inside a period, so both give the same bits there. A time-averaged torque
+was rejected: RK4 sees the pulse at three instants, so an average only matches the impulse if the
+whole step is averaged, and the actuator does not know the steps.
+
+Orbit frame (seed 002 section 2.1)
+----------------------------------
+``z_o`` to nadir, ``x_o`` along the velocity (tangential for a circular orbit), ``y_o = z_o x x_o``
+(the negative orbit normal). The frame turns at ``ω_o = sqrt(μ / r_c³)`` (eq. 1) about ``-y_o``:
+``ω_io`` in orbit axes is ``[0, -ω_o, 0]``, which with eq. (17) gives ``ω_ob = ω_ib + ω_o c_2``
+(``c_2`` = ``y_o`` in body axes). :func:`orbit_frame_attitude` gives the quaternion of the orbit
+frame in the inertial frame (scalar last; ``R(q_io)`` maps orbit axes to inertial ones);
+:func:`directional_cosines` gives ``c_1, c_2, c_3`` of eq. (3) (the columns of ``R^b_o``).
+Gravity gradient, eq. (19): ``τ_g = 3 ω_o² c_3 x (J c_3)`` is exactly
+:meth:`adcs_sim.plant.CircularOrbit.gravity_gradient` (``c_3`` = nadir in body axes);
+:func:`gravity_gradient_principal` is its closed form for a principal-axes inertia.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from adcs_sim.attitude import cross, matvec, quat_multiply
+from adcs_sim.plant import Actuator, CircularOrbit, Plant, rotate_to_body
+
+__all__ = ['ThrusterCommand', 'Thrusters', 'step_pulsed', 'orbit_frame_matrix',
+           'orbit_frame_attitude', 'orbit_rate', 'directional_cosines',
+           'gravity_gradient_principal', 'body_in_orbit']
+
+
+class ThrusterCommand(NamedTuple):
+    """One control period's firing: thruster ``i`` on over ``[start, start + on_time[i])``
+    (closed at the end when ``on_time[i] >= period``)."""
+
+    start: float
+    on_time: np.ndarray    # (..., n) s
+    period: float = math.inf
+
+
+@dataclass
+class Thrusters(Actuator):
+    """On/off thrusters (module doc). ``positions`` and ``directions`` (n, 3) body axes (directions
+    normalised here); ``max_force`` (N) scalar, (n,) or a batch (..., n); ``min_on_time`` (s)."""
+
+    names: list[str]
+    positions: np.ndarray
+    directions: np.ndarray
+    max_force: np.ndarray
+    min_on_time: float = 0.0
+    min_on_rule: str = 'drop'
+    name: str = 'thrusters'
+    torque_matrix: np.ndarray = field(init=False)   # (3, n): columns r_i x d_i
+    force_matrix: np.ndarray = field(init=False)    # (3, n): columns d_i
+
+    def __post_init__(self) -> None:
+        n = len(self.names)
+        self.positions = np.asarray(self.positions, dtype=float).reshape(n, 3)
+        d = np.asarray(self.directions, dtype=float).reshape(n, 3)
+        norm = np.linalg.norm(d, axis=1, keepdims=True)
+        if not np.all(norm > 0):
+            raise ValueError('thruster directions must be non-zero vectors')
+        self.directions = d / norm
+        force = np.asarray(self.max_force, dtype=float)
+        if force.ndim == 0:
+            force = np.full(n, float(force))
+        if force.shape[-1] != n or not np.all(force >= 0) or not np.all(np.isfinite(force)):
+            raise ValueError(f'max_force must be finite, >= 0, one per thruster ({n}); got {force!r}')
+        self.max_force = force
+        if not (self.min_on_time >= 0 and math.isfinite(self.min_on_time)):
+            raise ValueError(f'min_on_time must be finite and >= 0, got {self.min_on_time!r}')
+        if self.min_on_rule not in ('drop', 'extend'):
+            raise ValueError(f"min_on_rule must be 'drop' or 'extend', got {self.min_on_rule!r}")
+        self.n_states = n
+        self.torque_matrix = np.ascontiguousarray(cross(self.positions, self.directions).T)
+        self.force_matrix = np.ascontiguousarray(self.directions.T)
+
+    @property
+    def count(self) -> int:
+        return len(self.names)
+
+    # --- commands ---------------------------------------------------------------------------
+
+    def zero_command(self) -> ThrusterCommand:
+        return ThrusterCommand(0.0, np.zeros(self.count), math.inf)
+
+    def command(self, start: float, on_time, period: float) -> ThrusterCommand:
+        """The firing a valve can do for requested on-times (..., n): clipped to ``[0, period]``,
+        then the minimum on-time rule (module doc)."""
+        on = np.clip(np.asarray(on_time, dtype=float), 0.0, period)
+        if not np.all(np.isfinite(on)):
+            raise ValueError('thruster on-times must be finite')
+        short = (on > 0.0) & (on < self.min_on_time)
+        if self.min_on_rule == 'drop':
+            on = np.where(short, 0.0, on)
+        else:
+            on = np.where(short, min(self.min_on_time, period), on)
+        return ThrusterCommand(float(start), on, float(period))
+
+    def is_on(self, t: float, cmd: ThrusterCommand) -> np.ndarray:
+        """(..., n) 1.0 where thruster i fires at time ``t`` under ``cmd``, else 0.0."""
+        rel = t - cmd.start
+        on = cmd.on_time
+        # RK4 stage times are t_k + i h (rounded): the period's start and closed end get a
+        # relative tolerance of 1e-9 so a full-period firing is never lost at its end point.
+        tol = 1e-9 * cmd.period if math.isfinite(cmd.period) else 0.0
+        lit = (rel >= -tol) & ((rel < on) | ((on >= cmd.period) & (rel <= cmd.period + tol)))
+        return lit.astype(float)
+
+    def forces(self, t: float, cmd: ThrusterCommand) -> np.ndarray:
+        """Thrust magnitudes (..., n) at time ``t`` (N)."""
+        return self.is_on(t, cmd) * self.max_force
+
+    def force(self, t: float, cmd: ThrusterCommand) -> np.ndarray:
+        """Net body force ``sum_i F_i d_i`` (..., 3) (N; reported, not integrated)."""
+        return matvec(self.force_matrix, self.forces(t, cmd))
+
+    # --- Actuator interface -----------------------------------------------------------------
+
+    def torque(self, t, xa, w, cmd):
+        f = self.forces(t, cmd)
+        return matvec(self.torque_matrix, f), f
+
+    def derivative(self, t, xa, w, wdot, cmd, aux):
+        return np.broadcast_to(aux, xa.shape)
+
+    # --- exact pulses ---------------------------------------------------------------------------
+
+    def edges(self, cmd: ThrusterCommand) -> np.ndarray:
+        """Sorted distinct pulse ends strictly inside ``(0, period)`` (relative to the start),
+        over all thrusters and batch runs."""
+        on = np.asarray(cmd.on_time, dtype=float).ravel()
+        inner = on[(on > 0.0) & (on < cmd.period)]
+        return np.unique(inner)
+
+    def segment_command(self, cmd: ThrusterCommand, a: float, b: float) -> ThrusterCommand:
+        """A command holding each thruster on (or off) over the whole segment ``[a, b]``
+        (relative times inside the period) as it is under ``cmd`` there."""
+        mid = 0.5 * (a + b)
+        lit = (mid < cmd.on_time) | (cmd.on_time >= cmd.period)
+        return ThrusterCommand(cmd.start + a, np.where(lit, math.inf, 0.0), math.inf)
+
+
+def step_pulsed(plant: Plant, t: float, x: np.ndarray, commands: dict, period: float,
+                max_step: float, thrusters: str = 'thrusters') -> np.ndarray:
+    """:meth:`Plant.step` over one control period, split at the pulse edges of the thruster
+    command ``commands[thrusters]`` so that no RK4 step straddles an edge (module doc).
+
+    Each segment ``[a, b]`` is stepped with at most ``max_step``; the thrusters are held on/off
+    over it. Without an edge inside the period this is exactly ``plant.step``.
+    """
+    act = plant.actuator(thrusters)
+    cmd = commands[thrusters]
+    if cmd.start != t or cmd.period != period:
+        raise ValueError(f'thruster command is for [{cmd.start}, +{cmd.period}], '
+                         f'not the step [{t}, +{period}]')
+    cuts = act.edges(cmd)
+    if cuts.size == 0:
+        return plant.step(t, x, commands, period, max_step)
+    bounds = np.concatenate([[0.0], cuts, [period]])
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        seg = dict(commands)
+        seg[thrusters] = act.segment_command(cmd, float(a), float(b))
+        x = plant.step(t + float(a), x, seg, float(b - a), max_step)
+    return x
+
+
+# --- orbit frame ---------------------------------------------------------------------------------
+
+def orbit_frame_matrix(orbit: CircularOrbit, t: float) -> np.ndarray:
+    """``R^i_o`` (3, 3): columns ``x_o`` (along track), ``y_o`` (negative orbit normal) and ``z_o``
+    (nadir) in inertial axes at time ``t`` (section 2.1)."""
+    u = orbit.arg_latitude0 + orbit.mean_motion * t
+    cO, sO = math.cos(orbit.raan), math.sin(orbit.raan)
+    ci, si = math.cos(orbit.inclination), math.sin(orbit.inclination)
+    cu, su = math.cos(u), math.sin(u)
+    r = np.array([cO * cu - sO * ci * su, sO * cu + cO * ci * su, si * su])
+    v = np.array([-cO * su - sO * ci * cu, -sO * su + cO * ci * cu, si * cu])  # dr/du
+    z = -r
+    x = v
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=-1)
+
+
+def orbit_frame_attitude(orbit: CircularOrbit, t: float) -> np.ndarray:
+    """Quaternion (scalar last) of the orbit frame in the inertial frame at time ``t``."""
+    q = Rotation.from_matrix(orbit_frame_matrix(orbit, t)).as_quat()
+    return q if q[3] >= 0 else -q
+
+
+def orbit_rate(orbit: CircularOrbit) -> tuple[float, np.ndarray]:
+    """``(ω_o, ω_io^o)``: the orbit rate of eq. (1) (rad/s) and the orbit frame's angular velocity
+    relative to the inertial frame in orbit axes, ``[0, -ω_o, 0]``."""
+    n = orbit.mean_motion
+    return n, np.array([0.0, -n, 0.0])
+
+
+def directional_cosines(orbit: CircularOrbit, t: float, q: np.ndarray) -> np.ndarray:
+    """``R^b_o = [c_1 c_2 c_3]`` of eq. (3) for body attitude ``q`` (..., 4) (body in inertial):
+    (..., 3, 3), column ``k`` the orbit axis ``k`` in body axes."""
+    R = orbit_frame_matrix(orbit, t)
+    cols = [rotate_to_body(np.asarray(q, dtype=float), R[:, k]) for k in range(3)]
+    return np.stack(cols, axis=-1)
+
+
+def gravity_gradient_principal(omega_o: float, c3: np.ndarray, moments: np.ndarray) -> np.ndarray:
+    """Eq. (19) written out for principal axes ``J = diag(Jx, Jy, Jz)``::
+
+        τ_g = 3 ω_o² [(Jz - Jy) c3y c3z, (Jx - Jz) c3z c3x, (Jy - Jx) c3x c3y]
+    """
+    c3 = np.asarray(c3, dtype=float)
+    Jx, Jy, Jz = np.asarray(moments, dtype=float)
+    x, y, z = c3[..., 0], c3[..., 1], c3[..., 2]
+    k = 3.0 * omega_o ** 2
+    return k * np.stack([(Jz - Jy) * y * z, (Jx - Jz) * z * x, (Jy - Jx) * x * y], axis=-1)
+
+
+def body_in_orbit(orbit: CircularOrbit, t: float, q: np.ndarray) -> np.ndarray:
+    """Quaternion of the body relative to the orbit frame (``q_io* ⊗ q``), scalar last."""
+    qo = orbit_frame_attitude(orbit, t)
+    return quat_multiply(np.concatenate([-qo[:3], qo[3:]]), np.asarray(q, dtype=float))
