@@ -16,8 +16,8 @@ Each step mirrors the lockstep graph: the state at ``t_k`` is measured, the law 
 the actuation turns it into commands, the applied body torque is recorded (``actuators/torque``)
 and the plant integrates ``[t_k, t_k+1]`` holding the commands. A ``fault_injector`` section's
 schedule is applied as the graph applies it (the latest snapshot stamped ``<= t_k``, at step
-``t_k``, to the plant, the allocation and the law; the same for every run). The runs of a batch may differ in
-any parameter declared ``batch=True`` in its schema (inertia, initial state, gains, limits,
+``t_k``, to the plant, the allocation and the law; the same for every run). The runs of a batch
+may differ in any parameter declared ``batch=True`` in its schema (inertia, initial state, gains, limits,
 duration, noise seed...); :meth:`adcs_msgs_py.params.Schema.stack` checks that.
 
 Runs that end early (a shorter ``duration``) or diverge (a non-finite state) are *masked*: they
@@ -33,11 +33,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from adcs_msgs_py.names import FAULT_ERROR_MODES, FAULT_UNUSABLE_MODES
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.analysis import RunData, run_metrics
 from adcs_sim.attitude import quat_normalize
 from adcs_sim.plant import ReactionWheels, WheelCommand
-from adcs_msgs_py.names import FAULT_ERROR_MODES, FAULT_UNUSABLE_MODES
 from adcs_sim.scenario import build_plant, fault_schedule, initial_state, step_timing
 from adcs_sim.sensors import MeasurementModel
 

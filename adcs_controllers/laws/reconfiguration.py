@@ -5,8 +5,8 @@ attitude ... before being controlled by two wheels only (the 2 wheel mode is act
 t0 = 500 sec)". :class:`TwoWheelReconfiguration` is that controller as one law object (pure; the
 node and the batch engine call it like any law):
 
-* phase ``three_wheel``: the quaternion PD of seed 004 eq. (13) (:class:`~adcs_controllers.laws.pd.PdLaw`)
-  with its own gains and target (the off-pointing attitude of the three-wheel manoeuvre);
+* phase ``three_wheel``: the quaternion PD of seed 004 eq. (13) (:class:`~adcs_controllers.laws.pd.PdLaw`,
+  shortest path) with its own gains and target (the off-pointing attitude of the manoeuvre);
 * phase ``two_wheel``: a seed 000 law (:mod:`adcs_controllers.laws.underactuated`), entered when the
   usable wheels (:meth:`on_wheels`, called by the node when the fault topic changes them) are two
   whose axes span the plane normal to a body axis; that axis becomes the law's unactuated axis;

@@ -18,8 +18,8 @@ A concrete controller is its schema and its law: a pure object with ``control(t,
   over the wheels that can still produce a commanded torque (not ``failed``, not ``stuck``;
   :meth:`~adcs_controllers.laws.allocation.Actuation.set_available`) and restoring a wheel on
   ``recovered``, and telling the law (``law.on_wheels``: a reconfiguring law changes phase
-  there, :mod:`adcs_controllers.laws.reconfiguration`). With ``startup.expect_faults`` it waits for the complete schedule before it
-  subscribes to the state. ``available_wheels`` and ``late_faults`` are in its status.
+  there, :mod:`adcs_controllers.laws.reconfiguration`). With ``startup.expect_faults`` it waits
+  for the complete schedule before it subscribes to the state. ``available_wheels`` and ``late_faults`` are in its status.
 """
 from __future__ import annotations
 
@@ -121,7 +121,7 @@ class ControllerNode(AdcsNode):
             return
         t_ns, q, w = parsed
         self.apply_due_faults(t_ns)
-        output = self.law.output  # read before control(): what this step's value is
+        output = self.law.output  # torque or wheel momentum (a reconfiguring law's current phase)
         value, status = self.control(t_ns / cv.NS_PER_S, q, w)
         if output == 'wheel_momentum':
             self.publish_momentum(t_ns, value)
