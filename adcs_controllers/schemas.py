@@ -2,8 +2,8 @@
 from __future__ import annotations
 
 from adcs_msgs_py.params import Param, Schema, all_positive, non_negative, positive
-from adcs_sim.scenario import (check_unit_quaternion, check_wheels, expect_faults_param, inertia_param,
-                               startup_params, wheel_params)
+from adcs_sim.scenario import (check_per_wheel, check_unit_quaternion, check_wheels, expect_faults_param,
+                               inertia_param, startup_params, wheel_params)
 
 
 def _actuator_check(v: dict) -> None:
@@ -110,13 +110,8 @@ def _zero_momentum_check(v: dict) -> None:
     if v['actuator'] != 'wheels':
         raise ParameterError('actuator', "the zero-momentum law commands wheel speeds: it needs "
                              "actuator 'wheels'")
-    if len(v['wheels.spin_inertia']) != len(v['wheels.names']):
-        raise ParameterError('wheels.spin_inertia', f'expected one value per wheel '
-                             f'({len(v["wheels.names"])}), got {len(v["wheels.spin_inertia"])} '
-                             '(speed = momentum / spin inertia, eq. 13)')
-    if v['wheels.bias_speed'] and len(v['wheels.bias_speed']) != len(v['wheels.names']):
-        raise ParameterError('wheels.bias_speed', f'expected one value per wheel '
-                             f'({len(v["wheels.names"])}) or none, got {len(v["wheels.bias_speed"])}')
+    check_per_wheel(v, required=['wheels.spin_inertia'], optional=['wheels.bias_speed'],
+                    why=' (wheel speed = commanded momentum / spin inertia + bias, eq. 13)')
 
 
 def _two_wheel_params(*gains: Param) -> list[Param]:

@@ -20,7 +20,7 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from adcs_sim.attitude import quat_normalize
+from adcs_sim.attitude import quat_norm
 
 from adcs_msgs_py.names import FAULT_ERROR_MODES, FAULT_OK_MODES
 
@@ -78,10 +78,10 @@ def _finite(name: str, values, length: int | None = None) -> np.ndarray:
 def checked_quaternion(name: str, xyzw, tol: float = UNIT_QUATERNION_TOLERANCE) -> np.ndarray:
     """Validate a unit quaternion (x, y, z, w); return it as an array (renormalised within tol)."""
     q = _finite(name, xyzw, 4)
-    norm = math.sqrt(float(q @ q))
+    norm = float(quat_norm(q))  # the norm quat_normalize divides by: the batch engine's input
     if abs(norm - 1.0) > tol:
         raise InvalidMessage(f'{name}: quaternion norm {norm:.9g} is not 1 (tolerance {tol:g})')
-    return quat_normalize(q)  # the batch engine renormalises its controllers' input the same way
+    return q / norm
 
 
 # --- state (attitude + rate in one stamped message) ---------------------------------------

@@ -69,13 +69,19 @@ def quat_conjugate(q: np.ndarray) -> np.ndarray:
     return np.concatenate([-q[..., :3], q[..., 3:4]], axis=-1)
 
 
-def quat_normalize(q: np.ndarray) -> np.ndarray:
-    """Project onto the unit sphere (the norm summed in a fixed order, so a row gives the same bits
-    alone or in a batch: the controllers renormalise every received attitude with it, and the
-    batch engine does the same to their input)."""
+def quat_norm(q: np.ndarray) -> np.ndarray:
+    """Norm of quaternions (..., 4), summed in a fixed order: a row gives the same bits alone or in
+    a batch."""
     q = np.asarray(q, dtype=float)
-    norm = np.sqrt(q[..., 0] * q[..., 0] + q[..., 1] * q[..., 1] + q[..., 2] * q[..., 2] + q[..., 3] * q[..., 3])
-    return q / norm[..., None]
+    return np.sqrt(q[..., 0] * q[..., 0] + q[..., 1] * q[..., 1] + q[..., 2] * q[..., 2] + q[..., 3] * q[..., 3])
+
+
+def quat_normalize(q: np.ndarray) -> np.ndarray:
+    """Project onto the unit sphere with :func:`quat_norm`: the controllers renormalise every
+    received attitude this way (:func:`adcs_msgs_py.conversions.checked_quaternion`), and the
+    batch engine does the same to their input."""
+    q = np.asarray(q, dtype=float)
+    return q / quat_norm(q)[..., None]
 
 
 def error_quaternion(q: np.ndarray, q_ref: np.ndarray) -> np.ndarray:

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from adcs_msgs_py.names import FAULT_ERROR_MODES, FAULT_UNUSABLE_MODES
+from adcs_msgs_py.names import FAULT_ERROR_MODES
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.analysis import RunData, run_metrics
 from adcs_sim.attitude import quat_normalize
@@ -150,16 +150,10 @@ class BatchSimulation:
         if due <= applied:
             return applied
         snapshot = self.fault_schedule[due][1]
-        index = {n: i for i, n in enumerate(self.wheels.names)}
-        for name, (mode, value, _) in snapshot.items():
-            self.wheels.apply_fault(index[name], mode, value)
-        if self.actuation is not None and self.actuation.kind == 'wheels':
-            names = self.actuation.wheel_names
-            available = np.array([snapshot.get(n, ('nominal',))[0] not in FAULT_UNUSABLE_MODES
-                                  for n in names])
-            if not np.array_equal(available, self.actuation.available):
-                self.actuation.set_available(available)
-                self.law.on_wheels(self.actuation.axes, available)
+        self.wheels.apply_faults(snapshot)
+        if self.actuation is not None and self.actuation.kind == 'wheels' \
+                and self.actuation.follow_faults(snapshot):
+            self.law.on_wheels(self.actuation.axes, self.actuation.available)
         return due
 
     def _commands(self, values: np.ndarray | None, speed_mode: bool = False) -> dict:
@@ -199,16 +193,17 @@ class BatchSimulation:
                 t = (k * self.period_ns) / NS_PER_S
                 if self.fault_schedule:
                     fault_applied = self._apply_faults(k * self.period_ns, fault_applied)
-                values = None
+                values, momentum = None, False
                 if self.law is not None:
                     q_m, w_m = self.measurement.measure(x[:, :4], x[:, 4:7])
                     q_m = quat_normalize(q_m)  # what a controller does to the attitude it receives
+                    momentum = self.law.output == 'wheel_momentum'
                     out, _ = self.law.control(t, q_m, w_m)
-                    if self.law.output == 'wheel_momentum':
+                    if momentum:
                         values = self.actuation.command_momentum(np.broadcast_to(out, (N, 3)))
                     else:
                         values, _ = self.actuation.command(np.broadcast_to(out, (N, 3)))
-                commands = self._commands(values, self.law is not None and self.law.output == 'wheel_momentum')
+                commands = self._commands(values, momentum)
                 u = plant.control_torque(t, x, commands)
                 x_new = plant.step(t, x, commands, period, self.max_step)
                 finite = np.isfinite(x_new).all(axis=-1) & np.isfinite(u).all(axis=-1)

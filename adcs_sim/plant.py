@@ -208,6 +208,12 @@ class ReactionWheels(Actuator):
         if was_stuck != bool(self.stuck[i]):
             self.constraint_version += 1
 
+    def apply_faults(self, snapshot) -> None:
+        """Apply a fault snapshot ``{wheel name: (mode, value, ...)}`` (a ``faults`` message's or a
+        schedule's, :func:`adcs_sim.scenario.fault_schedule`) with :meth:`apply_fault`."""
+        for name, (mode, value, *_) in snapshot.items():
+            self.apply_fault(self.names.index(name), mode, value)
+
     def locked_inertia_matrix(self) -> np.ndarray | None:
         if not self.stuck.any():
             return None

@@ -102,10 +102,17 @@ def check_wheels(v: dict, with_physics: bool) -> None:
     required = ['wheels.max_torque'] + (['wheels.spin_inertia', 'wheels.max_speed'] if with_physics else [])
     optional = ['wheels.viscous_friction', 'wheels.coulomb_friction', 'wheels.speed_loop_gain',
                 'wheels.initial_speed'] if with_physics else []
-    for key in required + optional:
+    check_per_wheel(v, required, optional)
+
+
+def check_per_wheel(v: dict, required=(), optional=(), why: str = '') -> None:
+    """Each ``required`` key has one value per wheel of ``wheels.names``; each ``optional`` key one
+    per wheel or none. ``why`` is appended to the message."""
+    n = len(v['wheels.names'])
+    for key in [*required, *optional]:
         got = len(v[key])
         if got != n and not (key in optional and got == 0):
-            raise ParameterError(key, f'expected one value per wheel ({n}), got {got}')
+            raise ParameterError(key, f'expected one value per wheel ({n}), got {got}{why}')
 
 
 def _dynamics_cross_check(v: dict) -> None:

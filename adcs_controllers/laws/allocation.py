@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from adcs_msgs_py.names import FAULT_UNUSABLE_MODES
 from adcs_sim.attitude import matvec
 
 
@@ -83,6 +84,17 @@ class Actuation:
         """Re-allocate over the wheels marked available (a wheel failure)."""
         self.available = np.asarray(available, dtype=bool)
         self.allocation = wheel_allocation_matrix(self.axes, self.available)
+
+    def follow_faults(self, snapshot) -> bool:
+        """Allocate over the wheels a fault snapshot ``{wheel name: (mode, ...)}`` leaves usable
+        (not ``failed`` or ``stuck``; a wheel it does not name stays usable). Returns whether the
+        usable wheels changed (the node and the batch engine then tell the law)."""
+        available = np.array([snapshot.get(n, ('nominal',))[0] not in FAULT_UNUSABLE_MODES
+                              for n in self.wheel_names])
+        if np.array_equal(available, self.available):
+            return False
+        self.set_available(available)
+        return True
 
     def command(self, torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(command values, body torque they produce) for desired body torque ``torque`` (..., 3).

@@ -75,20 +75,17 @@ class TwoWheelReconfiguration:
 
     def on_wheels(self, axes: np.ndarray, available: np.ndarray) -> str | None:
         """Choose the phase for the usable wheels; returns a note when it changes, else None."""
+        available = np.asarray(available, dtype=bool)
         axis = unactuated_body_axis(axes, available)
-        spans = np.linalg.matrix_rank(np.asarray(axes)[np.asarray(available, dtype=bool)]) == 3 \
-            if np.any(available) else False
+        spans = available.any() and np.linalg.matrix_rank(np.asarray(axes)[available]) == 3
         if self.nominal is None:
             phase = TWO_WHEEL
         elif spans:
             phase = THREE_WHEEL
         else:
             phase = TWO_WHEEL if axis is not None else UNSUPPORTED
-        notes = []
-        if axis is not None:
-            note = self.two_wheel.on_wheels(axes, available)
-            if note:
-                notes.append(note)
+        note = self.two_wheel.follow_axis(axis)
+        notes = [note] if note else []
         if phase != self.phase:
             notes.insert(0, f'phase {self.phase} -> {phase}' + (
                 ' (no seed 000 law for these wheels: three-wheel PD over what is left)'

@@ -360,7 +360,10 @@ class _BoundLaw(SectionLaw):
     def on_wheels(self, axes, available) -> str | None:
         """Follow a change of the usable wheels: with exactly two left whose axes span the plane
         normal to a body axis, make that axis the unactuated one. Returns a note, or None."""
-        axis = unactuated_body_axis(axes, available)
+        return self.follow_axis(unactuated_body_axis(axes, available))
+
+    def follow_axis(self, axis: str | None) -> str | None:
+        """Make ``axis`` (if not None) the unactuated one; a note if that changed, else None."""
         if axis is not None and axis != self.unactuated_axis:
             self.set_unactuated_axis(axis)
             return f'two-wheel law: unactuated axis is now {axis}'
@@ -401,9 +404,9 @@ class ZeroMomentumLaw(_BoundLaw):
         self.k, self.g = p['k'], p['g']
 
     def _control(self, t, q, w):
-        h, status = zero_momentum_wheel_momentum(q, self.law_inertia, self.k, self.g, self.a1, self.a2,
-                                                 self.eps_den, self.law_q_ref, self.shortest_path)
         qe, we = error_state(q, w, self.law_q_ref, self.law_w_ref, self.shortest_path)
+        h, status = zero_momentum_wheel_momentum(qe, self.law_inertia, self.k, self.g, self.a1, self.a2,
+                                                 self.eps_den)
         e = we - status['wd']
         status['V'] = 2.0 * np.asarray(self.k, dtype=float) * (1.0 - qe[..., 3]) + 0.5 * _dot(e, e)
         return h, status

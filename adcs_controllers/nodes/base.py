@@ -28,7 +28,6 @@ import numpy as np
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
-from adcs_msgs_py.names import FAULT_UNUSABLE_MODES
 from adcs_msgs_py.guard import RejectCounter
 from adcs_controllers.laws.allocation import Actuation
 from adcs_sim.faults import FaultTracker
@@ -99,14 +98,10 @@ class ControllerNode(AdcsNode):
         snapshot = self.faults.due(t_ns)
         if snapshot is None or self.actuator != 'wheels':
             return
-        available = np.ones(len(self.wheel_names), dtype=bool)
-        for name, (mode, _) in snapshot.items():
-            available[self.wheel_index[name]] = mode not in FAULT_UNUSABLE_MODES
-        if not np.array_equal(available, self.actuation.available):
-            self.actuation.set_available(available)
+        if self.actuation.follow_faults(snapshot):
             self.get_logger().info(f't = {t_ns / cv.NS_PER_S:g} s: allocating over '
                                    f'{self.available_wheels() or "no wheels"}')
-            self._note(self.law.on_wheels(self.actuation.axes, available))
+            self._note(self.law.on_wheels(self.actuation.axes, self.actuation.available))
 
     def available_wheels(self) -> str:
         if self.actuator != 'wheels':

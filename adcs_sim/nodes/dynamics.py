@@ -97,8 +97,7 @@ class DynamicsNode(AdcsNode):
         snapshot = self.faults.due(self.step_ns)
         if snapshot is None or self.wheels is None:
             return
-        for name, (mode, value) in snapshot.items():
-            self.wheels.apply_fault(self.wheel_index[name], mode, value)
+        self.wheels.apply_faults(snapshot)
         faulty = {n: m for n, m in zip(self.wheels.names, self.wheels.modes) if m != 'nominal'}
         self.get_logger().info(f't = {self.step_ns / cv.NS_PER_S:g} s: wheel faults {faulty or "none"}')
 

@@ -14,19 +14,18 @@ angle), the sampling time, eq. (7) vs (8), the wheels' spin inertia. Writes
 from __future__ import annotations
 
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
-import yaml
 from scipy.spatial.transform import Rotation
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
+from adcs_msgs_py.params import load_params_file  # noqa: E402
 from adcs_sim.analysis import fault_metrics  # noqa: E402
 from adcs_sim.batch import BatchSimulation  # noqa: E402
-from adcs_sim.runner import validate_scenario  # noqa: E402
+from adcs_sim.registry import NODES  # noqa: E402
 
 LAWS = {'zero momentum (eq. 13)': ('uosat12_zero_momentum', 'zero_momentum_controller'),
         'snlc (eq. 14/24)': ('uosat12_snlc', 'snlc_controller'),
@@ -43,27 +42,15 @@ DURATION = 9500.0  # t0 = 500 s to 10 000 s
 
 
 def sections(scenario: str, controller: str, q_t0, dynamics=None, control=None) -> dict:
-    """Validated sections of ``scenario`` started in the two-wheel phase at attitude ``q_t0``."""
-    tree = yaml.safe_load((ROOT / 'config' / f'{scenario}.yaml').read_text())
-    tree.pop('recorder', None)
-    dyn = tree['dynamics']['ros__parameters']
-    dyn['initial'] = {'attitude': [float(v) for v in q_t0]}
-    dyn['duration'] = DURATION
-    tree['fault_injector']['ros__parameters']['schedule']['time'] = [0.0]
-    ctrl = tree[controller]['ros__parameters']
-    ctrl['three_wheel']['enabled'] = False
-    for node, over in ((dyn, dynamics or {}), (ctrl, control or {})):
-        for dotted, value in over.items():
-            *path, key = dotted.split('.')
-            for p in path:
-                node = node.setdefault(p, {})
-            node[key] = value
-    with tempfile.NamedTemporaryFile('w', suffix='.yaml', delete=False) as f:
-        yaml.safe_dump(tree, f)
-    try:
-        return validate_scenario(f.name)
-    finally:
-        Path(f.name).unlink()
+    """Validated sections of ``scenario`` started in the two-wheel phase at attitude ``q_t0``
+    (``dynamics`` / ``control``: more ``{dotted.name: value}`` for those sections)."""
+    given = load_params_file(str(ROOT / 'config' / f'{scenario}.yaml'))
+    given.pop('recorder', None)
+    given['dynamics'].update({'initial.attitude': [float(v) for v in q_t0], 'duration': DURATION,
+                              **(dynamics or {})})
+    given['fault_injector']['schedule.time'] = [0.0]
+    given[controller].update({'three_wheel.enabled': False, **(control or {})})
+    return {name: NODES[name].schema.validate(values) for name, values in given.items()}
 
 
 def figures(runs: list[dict]) -> np.ndarray:
