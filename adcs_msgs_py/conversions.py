@@ -177,6 +177,68 @@ def wheel_cmd_from_msg(msg: JointState, known: Mapping[str, int]) -> tuple[int, 
     return ns_from_stamp(msg.header.stamp), index, values, mode
 
 
+# --- thrusters (seed 002) --------------------------------------------------------------------
+#
+# Command = an on-time per thruster, not a force: a thruster is an on/off valve, so the on-time is
+# what its driver is given; the plant applies the valve's rules (clip to the period, minimum
+# on-time) and integrates the pulse exactly (adcs_sim.thrusters.step_pulsed). A force command
+# would make the plant re-invent the pulse (PWM) that the controller's firing logic decides.
+
+def thruster_cmd_to_msg(t_ns: int, names: Sequence[str], on_time) -> JointState:
+    """Thruster command for the period starting at ``t_ns``: on-time (s) per named thruster in
+    ``effort`` (0: off; the period: on throughout)."""
+    msg = JointState()
+    msg.header.stamp = stamp_from_ns(t_ns)
+    msg.name = list(names)
+    msg.effort = [float(v) for v in on_time]
+    return msg
+
+
+def thruster_cmd_from_msg(msg: JointState, known: Mapping[str, int]) -> tuple[int, np.ndarray, np.ndarray]:
+    """Validate a thruster command: ``(t_ns, index, on_time)``. Known, unique names; one finite,
+    non-negative on-time (``effort``, s) per name; no ``position``/``velocity``. A command may name
+    a subset of the thrusters; the others are off for the period."""
+    names = list(msg.name)
+    if not names:
+        raise InvalidMessage('thrusters/cmd: no thruster names')
+    if len(set(names)) != len(names):
+        raise InvalidMessage(f'thrusters/cmd: duplicate thruster names {names}')
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise InvalidMessage(f'thrusters/cmd: unknown thruster name(s) {unknown}; known: {list(known)}')
+    if len(msg.position) or len(msg.velocity):
+        raise InvalidMessage('thrusters/cmd: the on-times go in effort (s); position and velocity '
+                             'must be empty')
+    on_time = _finite('thrusters/cmd.effort', msg.effort, len(names))
+    if any(v < 0.0 for v in on_time):
+        raise InvalidMessage(f'thrusters/cmd.effort: negative on-time in {on_time.tolist()}')
+    index = np.array([known[n] for n in names], dtype=int)
+    return ns_from_stamp(msg.header.stamp), index, on_time
+
+
+def thruster_state_to_msg(t_ns: int, names: Sequence[str], impulse, on_time, force,
+                          msg: JointState | None = None) -> JointState:
+    """Thruster state of the step starting at ``t_ns``: cumulated impulse at the step's end
+    (``position``, N s), on-time applied (``velocity``, s), thrust at ``t_ns`` (``effort``, N)."""
+    if msg is None:
+        msg = JointState()
+        msg.name = list(names)
+    msg.header.stamp = stamp_from_ns(t_ns)
+    msg.position = [float(v) for v in impulse]
+    msg.velocity = [float(v) for v in on_time]
+    msg.effort = [float(v) for v in force]
+    return msg
+
+
+def thruster_state_from_msg(msg: JointState) -> tuple[int, list[str], np.ndarray, np.ndarray, np.ndarray]:
+    """sensor_msgs/JointState of the thrusters -> (t_ns, names, impulse, on_time, force)."""
+    n = len(msg.name)
+    impulse = _finite('thrusters/state.position', msg.position, n)
+    on_time = _finite('thrusters/state.velocity', msg.velocity, n)
+    force = _finite('thrusters/state.effort', msg.effort, n)
+    return ns_from_stamp(msg.header.stamp), list(msg.name), impulse, on_time, force
+
+
 # --- body torques ---------------------------------------------------------------------------
 
 def vector_to_msg(t_ns: int, v, frame_id: str = BODY_FRAME) -> Vector3Stamped:

@@ -8,6 +8,8 @@ TRUTH_STATE = 'truth/state'
 WHEELS_STATE = 'wheels/state'
 WHEELS_CMD = 'wheels/cmd'
 TORQUE_CMD = 'torque_cmd'
+THRUSTERS_CMD = 'thrusters/cmd'
+THRUSTERS_STATE = 'thrusters/state'
 APPLIED_TORQUE = 'actuators/torque'
 REFERENCE = 'reference'
 FAULTS = 'faults'
@@ -15,7 +17,7 @@ CONTROLLER_STATUS = 'controller/status'
 DYNAMICS_STATUS = 'dynamics/status'
 
 # Command topics a controller may answer a state with (what the dynamics node can wait for).
-COMMAND_TOPICS = (WHEELS_CMD, TORQUE_CMD)
+COMMAND_TOPICS = (WHEELS_CMD, TORQUE_CMD, THRUSTERS_CMD)
 
 # Wheel states carried on FAULTS (one status per actuator): the faults (level ERROR) and the
 # nominal states (level OK). The plant, the fault schedule and the message conversions share them.

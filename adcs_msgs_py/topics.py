@@ -5,7 +5,7 @@ domain. Every node and the recorder take their topics from :data:`TOPICS`.
 
 QoS choices
 -----------
-* **Lockstep data** (state, wheel state/commands, torque commands, applied torque): RELIABLE,
+* **Lockstep data** (state, wheel and thruster states/commands, torque commands, applied torque): RELIABLE,
   VOLATILE, KEEP_LAST depth 10. Lockstep must not lose a state or a command (a lost one costs a
   wall-clock timeout and a missed step); depth 10 absorbs a burst while a subscriber is busy
   without unbounded memory. VOLATILE because a late joiner must not act on an old state.
@@ -25,8 +25,8 @@ from dataclasses import dataclass
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from adcs_msgs_py.names import (APPLIED_TORQUE, CLOCK, COMMAND_TOPICS, CONTROLLER_STATUS,  # noqa: F401
-                                DYNAMICS_STATUS, FAULTS, REFERENCE, STATE, TORQUE_CMD, TRUTH_STATE,
-                                WHEELS_CMD, WHEELS_STATE)
+                                DYNAMICS_STATUS, FAULTS, REFERENCE, STATE, THRUSTERS_CMD,
+                                THRUSTERS_STATE, TORQUE_CMD, TRUTH_STATE, WHEELS_CMD, WHEELS_STATE)
 
 from builtin_interfaces.msg import Time  # noqa: F401  (re-exported for type hints)
 from diagnostic_msgs.msg import DiagnosticArray
@@ -90,6 +90,13 @@ TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in (
               'per wheel: motor torque command (effort, N m) or speed command (velocity, rad/s)'),
     TopicSpec(TORQUE_CMD, Vector3Stamped, QOS_LOCKSTEP,
               'external body torque command for ideal torquers (N m, body axes)'),
+    TopicSpec(THRUSTERS_CMD, JointState, QOS_LOCKSTEP,
+              'per thruster: on-time (effort, s) from the start of the control period the stamp '
+              'names; 0: off, the period: on throughout (seed 002 section 2.5)'),
+    TopicSpec(THRUSTERS_STATE, JointState, QOS_LOCKSTEP,
+              'per thruster, for the step [t, t + period] of the stamp: thrust at t (effort, N), '
+              'on-time applied after the valve rules (velocity, s), cumulated impulse at the '
+              'end of the step (position, N s)'),
     TopicSpec(APPLIED_TORQUE, Vector3Stamped, QOS_LOCKSTEP,
               'control torque applied to the body at the start of the step (wheels + torquers, '
               'after saturation), held over the step'),
