@@ -10,7 +10,9 @@ thousands of runs. This engine runs the *same* code as the graph with a leading 
 * the controller section's law object (:data:`adcs_sim.registry.NODES` ``[section].law``, the
   one its node builds) and the same actuation (:class:`adcs_controllers.laws.allocation.Actuation`:
   minimum-norm allocation and saturation, or wheel speed commands for a law whose ``output`` is
-  the wheel momentum).
+  the wheel momentum; or the registry's own ``actuation`` of the section, e.g. seed 002's
+  thrusters + pitch wheel, :class:`adcs_controllers.laws.backstepping.ThrusterActuation`, with
+  the plant stepped by :func:`adcs_sim.thrusters.step_pulsed` as the dynamics node does).
 
 Each step mirrors the lockstep graph: the state at ``t_k`` is measured, the law computes a torque,
 the actuation turns it into commands, the applied body torque is recorded (``actuators/torque``)
@@ -40,6 +42,7 @@ from adcs_sim.attitude import quat_normalize
 from adcs_sim.plant import ReactionWheels, WheelCommand
 from adcs_sim.scenario import build_plant, fault_schedule, initial_state, step_timing
 from adcs_sim.sensors import MeasurementModel
+from adcs_sim.thrusters import Thrusters, step_pulsed
 
 NS_PER_S = 1_000_000_000
 
@@ -58,6 +61,9 @@ class BatchResult:
     wheel_speed: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))  # (N, K + 1, n)
     q_ref: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))  # (4,) or (N, 4)
     faults: list = field(default_factory=list)  # (t, level, actuator, mode) as RunData.faults
+    thruster_names: list = field(default_factory=list)
+    thruster_on_time: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))  # (N, K, n) s
+    thruster_impulse: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))  # (N, K + 1, n) N s
 
     @property
     def n_runs(self) -> int:
@@ -131,7 +137,7 @@ class BatchSimulation:
         if self.controller is not None:
             p = sections[self.controller]
             self.law = NODES[self.controller].law(p)
-            self.actuation = Actuation(p)
+            self.actuation = (NODES[self.controller].actuation or Actuation)(p)
             if self.actuation.kind == 'wheels':
                 self.law.on_wheels(self.actuation.axes, self.actuation.available)
             if self.actuation.kind not in self.plant.slices:
@@ -141,6 +147,7 @@ class BatchSimulation:
         # the law's own (normalised) target, identity in free flight.
         self.q_ref = self.law.q_ref if self.law is not None else np.array([0.0, 0.0, 0.0, 1.0])
         self.wheels = next((a for a in self.plant.actuators if isinstance(a, ReactionWheels)), None)
+        self.thrusters = next((a for a in self.plant.actuators if isinstance(a, Thrusters)), None)
 
     def _apply_faults(self, t_ns: int, applied: int) -> int:
         """Apply the latest fault snapshot stamped ``<= t_ns`` if newer than snapshot ``applied``
@@ -156,11 +163,17 @@ class BatchSimulation:
             self.law.on_wheels(self.actuation.axes, self.actuation.available)
         return due
 
-    def _commands(self, values: np.ndarray | None, speed_mode: bool = False) -> dict:
+    def _commands(self, values, speed_mode: bool = False, t: float = 0.0, period: float = 0.0) -> dict:
         commands = {a.name: a.zero_command() for a in self.plant.actuators}
+        if self.thrusters is not None:  # the dynamics node's valve command (none fired: off)
+            on_time = values[0] if values is not None and self.actuation.kind == 'thrusters' else 0.0
+            commands['thrusters'] = self.thrusters.command(
+                t, np.broadcast_to(on_time, (self.n_runs, self.thrusters.count)), period)
         if values is None:
             return commands
-        if self.actuation.kind == 'wheels':
+        if self.actuation.kind == 'thrusters':
+            commands['wheels'] = WheelCommand(values[1], np.zeros(values[1].shape, dtype=bool))
+        elif self.actuation.kind == 'wheels':
             commands['wheels'] = WheelCommand(values, np.full(values.shape, speed_mode))
         else:
             commands['torquers'] = values
@@ -179,6 +192,12 @@ class BatchSimulation:
         wheel_sl = plant.slices.get('wheels')
         n_wheels = self.wheels.count if self.wheels else 0
         speed_hist = np.full((N, K + 1, n_wheels), math.nan)
+        thr_sl = plant.slices.get('thrusters')
+        n_thr = self.thrusters.count if self.thrusters else 0
+        on_hist = np.full((N, K, n_thr), math.nan)
+        impulse_hist = np.full((N, K + 1, n_thr), math.nan)
+        if n_thr:
+            impulse_hist[:, 0] = x[:, thr_sl]
         q_hist[:, 0], w_hist[:, 0] = x[:, :4], x[:, 4:7]
         if n_wheels:
             speed_hist[:, 0] = x[:, wheel_sl][:, :n_wheels]
@@ -201,11 +220,19 @@ class BatchSimulation:
                     out, _ = self.law.control(t, q_m, w_m)
                     if momentum:
                         values = self.actuation.command_momentum(np.broadcast_to(out, (N, 3)))
+                    elif self.actuation.kind == 'thrusters':
+                        speed = x[:, wheel_sl][:, :n_wheels]
+                        on_time, tau_w, _ = self.actuation.command(np.broadcast_to(out, (N, 3)), w_m, speed)
+                        values = (on_time, tau_w)
                     else:
                         values, _ = self.actuation.command(np.broadcast_to(out, (N, 3)))
-                commands = self._commands(values, momentum)
+                commands = self._commands(values, momentum, t, period)
                 u = plant.control_torque(t, x, commands)
-                x_new = plant.step(t, x, commands, period, self.max_step)
+                if self.thrusters is not None:
+                    x_new = step_pulsed(plant, t, x, commands, period, self.max_step)
+                    on_hist[active, k] = commands['thrusters'].on_time[active]
+                else:
+                    x_new = plant.step(t, x, commands, period, self.max_step)
                 finite = np.isfinite(x_new).all(axis=-1) & np.isfinite(u).all(axis=-1)
                 for i in np.flatnonzero(active & ~finite):
                     failure[i] = f'non-finite state or torque at t = {t:g} s'
@@ -216,6 +243,8 @@ class BatchSimulation:
                 w_hist[active, k + 1] = x[active, 4:7]
                 if n_wheels:
                     speed_hist[active, k + 1] = x[active][:, wheel_sl][:, :n_wheels]
+                if n_thr:
+                    impulse_hist[active, k + 1] = x[active][:, thr_sl]
                 done_steps += active
                 active = active & finite & (done_steps < self.n_steps)
                 if progress is not None:
@@ -226,5 +255,7 @@ class BatchSimulation:
                            wheel_speed=speed_hist, q_ref=np.asarray(self.q_ref, dtype=float),
                            faults=[(t_ns / NS_PER_S, 2 if mode in FAULT_ERROR_MODES else 0, name, mode)
                                    for t_ns, snap in self.fault_schedule
-                                   for name, (mode, _, _) in snap.items()])
+                                   for name, (mode, _, _) in snap.items()],
+                           thruster_names=list(self.thrusters.names) if self.thrusters else [],
+                           thruster_on_time=on_hist, thruster_impulse=impulse_hist)
 

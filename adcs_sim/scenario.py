@@ -16,6 +16,7 @@ from adcs_msgs_py.params import (Param, ParameterError, Schema, all_non_negative
                                  non_negative, positive)
 from adcs_sim.plant import (CircularOrbit, Disturbance, Plant, ReactionWheels, Torquers,
                             check_inertia)
+from adcs_sim.thrusters import Thrusters
 
 UNIT_TOLERANCE = 1e-3  # an initial quaternion further than this from unit norm is refused
 
@@ -115,8 +116,54 @@ def check_per_wheel(v: dict, required=(), optional=(), why: str = '') -> None:
             raise ParameterError(key, f'expected one value per wheel ({n}), got {got}{why}')
 
 
+def thruster_params(with_physics: bool) -> list[Param]:
+    """The ``thrusters.*`` block (seed 002 section 2.5): geometry and force for the plant and the
+    controller's model; the valve's minimum on-time for the plant only."""
+    params = [
+        Param('thrusters.names', 'string_array', default=[],
+              doc='thruster names (the JointState names of thrusters/cmd and thrusters/state); empty: none'),
+        Param('thrusters.positions', 'double_array', default=[],
+              doc='positions from the centre of mass, body axes (m), 3 per thruster, flattened'),
+        Param('thrusters.directions', 'double_array', default=[],
+              doc='thrust directions (body axes; the force on the body), 3 per thruster, need not be unit'),
+        Param('thrusters.max_force', 'double_array', default=[], check=all_positive, batch=True,
+              doc='thrust while on, per thruster (N, > 0)'),
+    ]
+    if with_physics:
+        params += [
+            Param('thrusters.min_on_time', 'double', default=0.0, check=non_negative,
+                  doc='shortest valve opening (s); shorter commanded on-times follow min_on_rule'),
+            Param('thrusters.min_on_rule', 'string', default='drop', choices=('drop', 'extend'),
+                  doc='an on-time below min_on_time is dropped to 0 or extended to min_on_time'),
+        ]
+    return params
+
+
+def check_thrusters(v: dict) -> None:
+    """Cross-check the thrusters block: lengths agree with ``thrusters.names``, no zero direction."""
+    names = v['thrusters.names']
+    n = len(names)
+    if len(set(names)) != n or any(not name for name in names):
+        raise ParameterError('thrusters.names', f'thruster names must be unique non-empty strings, got {names}')
+    for key in ('thrusters.positions', 'thrusters.directions'):
+        if len(v[key]) != 3 * n:
+            raise ParameterError(key, f'expected 3 values per thruster ({3 * n} for {n} thrusters), '
+                                 f'got {len(v[key])}')
+    d = np.asarray(v['thrusters.directions'], dtype=float).reshape(n, 3)
+    for i, axis in enumerate(d):
+        if np.linalg.norm(axis) < 1e-9:
+            raise ParameterError('thrusters.directions', f'direction of thruster {names[i]!r} has zero length')
+    if np.shape(v['thrusters.max_force'])[-1:] != (n,) and not (n == 0 and np.size(v['thrusters.max_force']) == 0):
+        raise ParameterError('thrusters.max_force', f'expected one value per thruster ({n}), '
+                             f'got {np.shape(v["thrusters.max_force"])[-1:]}')
+
+
 def _dynamics_cross_check(v: dict) -> None:
     check_wheels(v, with_physics=True)
+    check_thrusters(v)
+    if v['thrusters.min_on_time'] > v['control_period']:
+        raise ParameterError('thrusters.min_on_time', f'must not exceed control_period '
+                             f'({v["control_period"]} s), got {v["thrusters.min_on_time"]}')
     n = len(v['wheels.names'])
     if n:
         J = inertia_matrix(v['inertia'])
@@ -142,6 +189,8 @@ def _dynamics_cross_check(v: dict) -> None:
         raise ParameterError('lockstep.commands', 'waits for wheels/cmd but no wheels are configured')
     if 'torque_cmd' in command_topics(v) and not v['torquers.enabled']:
         raise ParameterError('lockstep.commands', 'waits for torque_cmd but torquers.enabled is false')
+    if topics.THRUSTERS_CMD in command_topics(v) and not v['thrusters.names']:
+        raise ParameterError('lockstep.commands', 'waits for thrusters/cmd but no thrusters are configured')
 
 
 def command_topics(v: dict) -> list[str]:
@@ -155,6 +204,8 @@ def command_topics(v: dict) -> list[str]:
             auto.append(topics.WHEELS_CMD)
         if v['torquers.enabled']:
             auto.append(topics.TORQUE_CMD)
+        if v.get('thrusters.names'):
+            auto.append(topics.THRUSTERS_CMD)
         return auto
     return list(dict.fromkeys(commands))
 
@@ -185,6 +236,7 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
     Param('torquers.enabled', 'bool', default=False, doc='ideal external torquers (torque_cmd)'),
     Param('torquers.max_torque', 'double_array', default=[math.inf] * 3, length=3, check=all_positive,
           finite=False, doc='per-axis torquer limit (N m; .inf for none)', batch=True),
+    *thruster_params(with_physics=True),
     Param('disturbance.constant', 'double_array', default=[0.0] * 3, length=3, doc='N m, body axes', batch=True),
     Param('disturbance.amplitude', 'double_array', default=[0.0] * 3, length=3, doc='N m, body axes', batch=True),
     Param('disturbance.frequency', 'double_array', default=[0.0] * 3, length=3, doc='rad/s', batch=True),
@@ -238,6 +290,13 @@ def build_plant(v: dict) -> Plant:
             initial_speed=opt('wheels.initial_speed', 0.0)))
     if v['torquers.enabled']:
         actuators.append(Torquers(max_torque=v['torquers.max_torque']))
+    if v['thrusters.names']:
+        n = len(v['thrusters.names'])
+        actuators.append(Thrusters(
+            names=list(v['thrusters.names']), positions=np.asarray(v['thrusters.positions']).reshape(n, 3),
+            directions=np.asarray(v['thrusters.directions']).reshape(n, 3),
+            max_force=v['thrusters.max_force'], min_on_time=v['thrusters.min_on_time'],
+            min_on_rule=v['thrusters.min_on_rule']))
     orbit = None
     if v['orbit.altitude'] > 0:
         orbit = CircularOrbit(altitude=v['orbit.altitude'],

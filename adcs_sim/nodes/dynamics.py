@@ -8,6 +8,14 @@ commands do not arrive within ``lockstep.timeout`` wall seconds is a *missed ste
 policy (hold the last command, or zero) applies and the miss is counted on ``dynamics/status``.
 Commands stamped for another step are counted as stale and ignored.
 
+Thrusters (seed 002): a ``thrusters/cmd`` stamped ``t_k`` gives each thruster's on-time from
+``t_k``; the node builds the valve command for ``[t_k, t_k+1]`` from it
+(:meth:`adcs_sim.thrusters.Thrusters.command`: clipped to the period, minimum on-time rule) and
+integrates with :func:`adcs_sim.thrusters.step_pulsed` (RK4 split at the pulse edges; exactly
+:meth:`Plant.step` when no edge falls inside the period). After each step it publishes
+``thrusters/state`` stamped ``t_k``: thrust at ``t_k``, the on-time applied, and the cumulated
+impulse at ``t_k+1``. On a missed step the policy holds the last on-times or fires none.
+
 Realtime mode paces the same loop against the wall clock (``real_time_factor``) with no waiting:
 each step uses the latest commands received.
 
@@ -27,6 +35,7 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
 from rclpy.duration import Duration
 
 from adcs_msgs_py import conversions as cv
@@ -37,6 +46,7 @@ from adcs_sim.nodes.base import AdcsNode, main_for
 from adcs_sim.plant import ReactionWheels, WheelCommand
 from adcs_sim.scenario import DYNAMICS_SCHEMA, build_plant, command_topics, initial_state, step_timing
 from adcs_sim.sensors import MeasurementModel
+from adcs_sim.thrusters import Thrusters, step_pulsed
 
 
 class DynamicsNode(AdcsNode):
@@ -58,6 +68,11 @@ class DynamicsNode(AdcsNode):
         self.wheels: ReactionWheels | None = next(
             (a for a in self.plant.actuators if isinstance(a, ReactionWheels)), None)
         self.wheel_index = {name: i for i, name in enumerate(self.wheels.names)} if self.wheels else {}
+        self.thrusters: Thrusters | None = next(
+            (a for a in self.plant.actuators if isinstance(a, Thrusters)), None)
+        self.thruster_index = ({name: i for i, name in enumerate(self.thrusters.names)}
+                               if self.thrusters else {})
+        self.on_time = np.zeros(len(self.thruster_index))  # held thruster on-times (s)
 
         self.rejects = RejectCounter(self.get_logger())
         self.missed_steps = 0
@@ -70,6 +85,7 @@ class DynamicsNode(AdcsNode):
         self.pub_truth = self.publisher(topics.TRUTH_STATE) if self.measurement.active else None
         self.pub_wheels = self.publisher(topics.WHEELS_STATE) if self.wheels else None
         self.pub_applied = self.publisher(topics.APPLIED_TORQUE)
+        self.pub_thrusters = self.publisher(topics.THRUSTERS_STATE) if self.thrusters else None
         self.pub_status = self.publisher(topics.DYNAMICS_STATUS)
         self._step_publishers = [p for p in (self.pub_clock, self.pub_state, self.pub_truth,
                                              self.pub_wheels) if p is not None]
@@ -82,6 +98,8 @@ class DynamicsNode(AdcsNode):
             self.subs[topics.WHEELS_CMD] = self.subscription(topics.WHEELS_CMD, self._on_wheel_cmd)
         if 'torquers' in self.plant.slices:
             self.subs[topics.TORQUE_CMD] = self.subscription(topics.TORQUE_CMD, self._on_torque_cmd)
+        if self.thrusters:
+            self.subs[topics.THRUSTERS_CMD] = self.subscription(topics.THRUSTERS_CMD, self._on_thruster_cmd)
         self.faults = FaultTracker()
         self.sub_faults = self.subscription(topics.FAULTS, self._on_faults)
 
@@ -137,6 +155,39 @@ class DynamicsNode(AdcsNode):
         if self._accept_stamp(topics.TORQUE_CMD, t_ns):
             self.commands['torquers'] = torque
 
+    def _on_thruster_cmd(self, msg) -> None:
+        parsed = self.rejects.accept(topics.THRUSTERS_CMD,
+                                     lambda: cv.thruster_cmd_from_msg(msg, self.thruster_index))
+        if parsed is None:
+            return
+        t_ns, index, on_time = parsed
+        if not self._accept_stamp(topics.THRUSTERS_CMD, t_ns):
+            return
+        value = np.zeros(self.thrusters.count)  # thrusters the command does not name stay off
+        value[index] = on_time
+        self.on_time = value
+
+    def _integrate(self, t: float) -> np.ndarray:
+        """Advance the plant over ``[t, t + period]`` holding the commands; returns the applied
+        control torque at ``t``."""
+        if self.thrusters is not None:
+            self.commands['thrusters'] = self.thrusters.command(t, self.on_time, self.period)
+        torque = self.plant.control_torque(t, self.x, self.commands)
+        if self.thrusters is not None:
+            self.x = step_pulsed(self.plant, t, self.x, self.commands, self.period, self.max_step)
+        else:
+            self.x = self.plant.step(t, self.x, self.commands, self.period, self.max_step)
+        return torque
+
+    def publish_thrusters(self, t: float, t_ns: int) -> None:
+        """``thrusters/state`` of the step just integrated (stamp ``t_ns`` = its start)."""
+        if self.pub_thrusters is None or not self.pub_thrusters.get_subscription_count():
+            return
+        cmd = self.commands['thrusters']
+        self.pub_thrusters.publish(cv.thruster_state_to_msg(
+            t_ns, self.thrusters.names, self.x[self.plant.slices['thrusters']], cmd.on_time,
+            self.thrusters.forces(t, cmd)))
+
     # --- publishing -----------------------------------------------------------------------
 
     def publish_state(self) -> None:
@@ -185,7 +236,8 @@ class DynamicsNode(AdcsNode):
         if state_subs < 0:
             state_subs = (1 if self.awaited else 0) + recorder
         required = {self.pub_state: state_subs}
-        for pub in (self.pub_clock, self.pub_truth, self.pub_wheels, self.pub_applied, self.pub_status):
+        for pub in (self.pub_clock, self.pub_truth, self.pub_wheels, self.pub_applied, self.pub_status,
+                    self.pub_thrusters):
             if pub is not None:
                 required[pub] = max(required.get(pub, 0), recorder)
         self.wait_for_publishers(required, timeout)
@@ -211,8 +263,7 @@ class DynamicsNode(AdcsNode):
                 self._spin_until(executor, wall0 + k * pace)
             self.apply_due_faults()  # one that arrived while waiting (late unless stamped t_k)
             t = self.step_ns / cv.NS_PER_S
-            torque = self.plant.control_torque(t, self.x, self.commands)
-            self.x = self.plant.step(t, self.x, self.commands, self.period, self.max_step)
+            torque = self._integrate(t)
             self.step_ns = (k + 1) * self.period_ns
             self.received.clear()
             self.apply_due_faults()
@@ -220,6 +271,7 @@ class DynamicsNode(AdcsNode):
             self.publish_state()
             if self.pub_applied.get_subscription_count():
                 self.pub_applied.publish(cv.vector_to_msg(k * self.period_ns, torque))
+            self.publish_thrusters(t, k * self.period_ns)
         self.publish_status(final=True)
         self._drain_acks()
         self.get_logger().info(f'done at t = {self.step_ns / cv.NS_PER_S:g} s; '
@@ -252,6 +304,9 @@ class DynamicsNode(AdcsNode):
         if self.params['lockstep.timeout_policy'] == 'zero':
             zero = self.plant.zero_commands()
             for topic in missing:
+                if topic == topics.THRUSTERS_CMD:
+                    self.on_time = np.zeros_like(self.on_time)
+                    continue
                 key = 'wheels' if topic == topics.WHEELS_CMD else 'torquers'
                 self.commands[key] = zero[key]
         self.publish_status()
@@ -262,7 +317,8 @@ class DynamicsNode(AdcsNode):
             executor.spin_once(timeout_sec=remaining)
 
     def _drain_acks(self) -> None:
-        for pub in self._step_publishers + [self.pub_applied, self.pub_status]:
+        for pub in self._step_publishers + [p for p in (self.pub_applied, self.pub_status,
+                                                        self.pub_thrusters) if p is not None]:
             pub.wait_for_all_acked(Duration(seconds=5.0))
 
 
