@@ -18,6 +18,7 @@ NODES = {
     'snlc_controller': 'adcs_controllers.nodes.snlc_controller:main',
     'snlc_minnorm_controller': 'adcs_controllers.nodes.snlc_minnorm_controller:main',
     'snlc_gsmn_controller': 'adcs_controllers.nodes.snlc_gsmn_controller:main',
+    'backstepping_controller': 'adcs_controllers.nodes.backstepping_controller:main',
 }
 TOOLS = {
     'adcs-run': 'adcs_sim.runner:main',

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from adcs_msgs_py.params import Param, Schema, all_positive, non_negative, positive
 from adcs_sim.scenario import (check_per_wheel, check_unit_quaternion, check_wheels, expect_faults_param,
-                               inertia_param, startup_params, wheel_params)
+                               inertia_param, startup_params, thruster_params, wheel_params)
 
 
 def _actuator_check(v: dict) -> None:
@@ -182,3 +182,74 @@ SNLC_GSMN_SCHEMA = Schema('snlc_gsmn_controller', [
         Param('epsilon', 'double', check=positive, batch=True,
               doc='torque threshold of eq. (30) on |u_hg|_inf (N m): high gains below it')),
 ], cross_check=_two_wheel_check, doc='two-wheel gain-scheduled min-norm law, seed 000 eq. (30-32)')
+
+
+# --- seed 002: quaternion integrator backstepping, four thrusters and one pitch wheel -----------
+
+def _backstepping_check(v: dict) -> None:
+    from adcs_msgs_py.params import ParameterError
+    from adcs_sim.scenario import check_thrusters
+    check_wheels(v, with_physics=False)
+    if len(v['wheels.names']) != 1:
+        raise ParameterError('wheels.names', 'the backstepping allocation (eq. 20-21) has exactly one '
+                             f'wheel (ESEO\'s pitch wheel), got {len(v["wheels.names"])}')
+    check_per_wheel(v, required=['wheels.spin_inertia', 'wheels.max_speed'],
+                    why=' (the allocation clips the wheel torque to what it can deliver, R5)')
+    check_thrusters(v)
+    if not v['thrusters.names']:
+        raise ParameterError('thrusters.names', 'the backstepping controller needs its thrusters')
+    if v['firing.off_level'] > v['firing.on_level']:
+        raise ParameterError('firing.off_level', f'must not exceed firing.on_level '
+                             f'({v["firing.on_level"]} N), got {v["firing.off_level"]}')
+    import numpy as np
+    from adcs_controllers.laws.backstepping import actuator_matrix, positive_null_vector
+    n = len(v['thrusters.names'])
+    B = actuator_matrix(np.reshape(v['thrusters.positions'], (n, 3)),
+                        np.reshape(v['thrusters.directions'], (n, 3)), np.asarray(v['wheels.axes']))
+    if np.linalg.matrix_rank(B) < 3:
+        raise ParameterError('thrusters.positions', 'the thrusters and the wheel give no torque about '
+                             'some axis: B_a B_a^T of eq. (21) is singular (readings R3: r_x != r_y)')
+    if v['allocation.mapping'] == 'nullspace':
+        try:
+            positive_null_vector(B[:, :n])
+        except ValueError as exc:
+            raise ParameterError('allocation.mapping', f"'nullspace' needs a one-signed null vector "
+                                 f'of the thruster torques: {exc}') from None
+
+
+BACKSTEPPING_SCHEMA = Schema('backstepping_controller', [
+    inertia_param(_INERTIA_MODEL),
+    _gain('K1', 'backstepping gain K1 of eq. (29), alpha_1 = -K1 G z1 (rad/s)'),
+    _gain('K2', 'backstepping gain K2 of eq. (32) (N m s)'),
+    *_target_params(),
+    Param('orbit.altitude', 'double', check=positive, doc='circular orbit altitude (m), as the dynamics'),
+    Param('orbit.inclination_deg', 'double', default=0.0, doc='deg, as the dynamics'),
+    Param('orbit.raan_deg', 'double', default=0.0, doc='deg, as the dynamics'),
+    Param('orbit.arg_latitude_deg', 'double', default=0.0, doc='argument of latitude at t = 0 (deg)'),
+    Param('reference.hold_time', 'double', default=0.0, check=non_negative, finite=False,
+          doc='target.attitude is the desired frame relative to the orbit frame, tracked until this '
+              'time (s) and then held inertially (section 4.2: 0); .inf: tracked for ever'),
+    Param('gravity_gradient_compensation', 'bool', default=True,
+          doc='subtract the modelled gravity-gradient torque of eq. (19) in eq. (32)'),
+    Param('control_period', 'double', check=positive,
+          doc='control period (s), as the dynamics: a firing lasts one period'),
+    *thruster_params(with_physics=False),
+    *wheel_params(with_physics=False),
+    Param('wheels.spin_inertia', 'double_array', default=[], check=all_positive,
+          doc='spin inertia of the wheel (kg m^2): its momentum in D_a (eq. 20)'),
+    Param('wheels.max_speed', 'double_array', default=[], check=all_positive, finite=False,
+          doc='speed limit of the wheel (rad/s): the allocation gives it no more than it can take'),
+    Param('allocation.mapping', 'string', default='nullspace', choices=('nullspace', 'pairs'),
+          doc='signed allocated forces -> pushing thrusters: shift along the positive null vector '
+              '(torque kept) or move a negative force to the opposed thruster (readings R7)'),
+    Param('allocation.reallocate_saturated_wheel', 'bool', default=True,
+          doc='re-allocate the torque a saturated wheel cannot give over the thrusters (readings R5)'),
+    Param('firing.on_level', 'double', check=non_negative, batch=True,
+          doc='bang-bang deadzone (N): a thruster fires for the whole period when its demand exceeds it'),
+    Param('firing.off_level', 'double', check=non_negative, batch=True,
+          doc='Schmitt trigger (N): a firing thruster stays on while its demand exceeds it; '
+              'equal to on_level: no hysteresis'),
+    *startup_params(),
+    expect_faults_param(),
+], cross_check=_backstepping_check,
+    doc='quaternion integrator backstepping, seed 002 eq. (22-35), thrusters + pitch wheel (eq. 20-21)')

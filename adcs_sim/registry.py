@@ -11,11 +11,12 @@ from dataclasses import dataclass
 from typing import Any
 
 from adcs_msgs_py.params import Schema
+from adcs_controllers.laws.backstepping import BacksteppingLaw, ThrusterActuation
 from adcs_controllers.laws.inverse_optimal import GsmnLaw, KtLaw, MinNormLaw
 from adcs_controllers.laws.pd import PdLaw
 from adcs_controllers.laws.reconfiguration import TwoWheelReconfiguration
 from adcs_controllers.laws.underactuated import SnlcGsmnLaw, SnlcLaw, SnlcMinNormLaw, ZeroMomentumLaw
-from adcs_controllers.schemas import (GSMN_SCHEMA, KT_SCHEMA, MINNORM_SCHEMA, PD_SCHEMA, SNLC_GSMN_SCHEMA,
+from adcs_controllers.schemas import (BACKSTEPPING_SCHEMA, GSMN_SCHEMA, KT_SCHEMA, MINNORM_SCHEMA, PD_SCHEMA, SNLC_GSMN_SCHEMA,
                                       SNLC_MINNORM_SCHEMA, SNLC_SCHEMA, ZERO_MOMENTUM_SCHEMA)
 from adcs_sim.scenario import DYNAMICS_SCHEMA, FAULT_SCHEMA, RECORDER_SCHEMA
 
@@ -26,6 +27,7 @@ class NodeInfo:
     schema: Schema
     role: str  # 'dynamics', 'controller' (subscribes to state, sends commands), 'recorder', 'faults'
     law: Any = None  # controllers: the pure law class (or builder), called with the validated section
+    actuation: Any = None  # controllers with their own actuators (seed 002's thrusters): its builder
 
 
 NODES: dict[str, NodeInfo] = {
@@ -46,4 +48,7 @@ NODES: dict[str, NodeInfo] = {
                                         'controller', TwoWheelReconfiguration.factory(SnlcMinNormLaw)),
     'snlc_gsmn_controller': NodeInfo('adcs_controllers.nodes.snlc_gsmn_controller', SNLC_GSMN_SCHEMA,
                                      'controller', TwoWheelReconfiguration.factory(SnlcGsmnLaw)),
+    # seed 002: thrusters + pitch wheel, backstepping tracking
+    'backstepping_controller': NodeInfo('adcs_controllers.nodes.backstepping_controller', BACKSTEPPING_SCHEMA,
+                                        'controller', BacksteppingLaw, ThrusterActuation),
 }

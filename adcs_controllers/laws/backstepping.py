@@ -73,7 +73,7 @@ __all__ = [
     'MODE_TRACKING', 'eseo_thruster_layout', 'eseo_actuator_matrix', 'actuator_matrix',
     'pseudo_inverse', 'wheel_gyro_matrix', 'allocate', 'positive_null_vector', 'opposed_pairs',
     'thrust_demand', 'bang_bang', 'sgn', 'g_matrix', 'backstepping_torque', 'OrbitReference',
-    'ThrusterWheelAllocation', 'BacksteppingLaw',
+    'ThrusterWheelAllocation', 'BacksteppingLaw', 'ThrusterActuation',
 ]
 
 MODE_TRACKING = 0
@@ -404,12 +404,14 @@ class ThrusterWheelAllocation:
 # --- bound to a validated controller section ------------------------------------------------------
 
 class BacksteppingLaw(SectionLaw):
-    """Eq. (32) bound to a controller section (proposed keys, not yet in the schemas):
-    ``inertia``; ``target.attitude`` = ``q_rel`` (scalar last, desired frame relative to the orbit
-    frame); ``target.rate`` (unused); ``K1`` (rad/s), ``K2`` (N m s); ``orbit.altitude`` (m) and
-    optional ``orbit.inclination``, ``orbit.raan``, ``orbit.arg_latitude0`` (rad);
-    ``reference.hold_time`` (s, None = orbit-fixed for ever; default 0, the paper's);
-    ``gravity_gradient_compensation`` (default True)."""
+    """Eq. (32) bound to a validated ``backstepping_controller`` section
+    (:data:`adcs_controllers.schemas.BACKSTEPPING_SCHEMA`): ``inertia``; ``target.attitude`` =
+    ``q_rel`` (scalar last, the desired frame relative to the orbit frame, section 4.2);
+    ``K1`` (rad/s), ``K2`` (N m s); ``orbit.altitude`` (m) and optional ``orbit.inclination_deg``,
+    ``orbit.raan_deg``, ``orbit.arg_latitude_deg``; ``reference.hold_time`` (s; ``inf`` = track
+    the orbit-fixed target for ever; default 0, the paper's: the target is taken relative to the
+    orbit frame at t = 0, then held inertially); ``gravity_gradient_compensation`` (default True).
+    ``target.rate`` is not used (the reference gives ω_d)."""
 
     mode_names = {MODE_TRACKING: 'tracking'}
 
@@ -417,10 +419,12 @@ class BacksteppingLaw(SectionLaw):
         super().__init__(p)
         self.K1, self.K2 = p['K1'], p['K2']
         self.orbit = CircularOrbit(altitude=float(p['orbit.altitude']),
-                                   inclination=float(p.get('orbit.inclination', 0.0)),
-                                   raan=float(p.get('orbit.raan', 0.0)),
-                                   arg_latitude0=float(p.get('orbit.arg_latitude0', 0.0)))
-        self.reference = OrbitReference(self.orbit, self.q_ref, p.get('reference.hold_time', 0.0))
+                                   inclination=math.radians(p.get('orbit.inclination_deg', 0.0)),
+                                   raan=math.radians(p.get('orbit.raan_deg', 0.0)),
+                                   arg_latitude0=math.radians(p.get('orbit.arg_latitude_deg', 0.0)))
+        hold = p.get('reference.hold_time', 0.0)
+        hold = None if hold is None or math.isinf(hold) else float(hold)
+        self.reference = OrbitReference(self.orbit, self.q_ref, hold)
         self.compensate_gg = bool(p.get('gravity_gradient_compensation', True))
 
     def control(self, t, q, w):
@@ -431,3 +435,44 @@ class BacksteppingLaw(SectionLaw):
                                           tau_g)
         status['q_d'] = np.broadcast_to(q_d, np.shape(q))
         return tau, status
+
+
+class ThrusterActuation:
+    """The controller's side of seed 002's actuators, built from a validated controller section:
+    desired torque ``τ_a`` -> thruster on-times and the pitch wheel's motor torque
+    (:class:`ThrusterWheelAllocation`: eq. 20-21 pseudo-inverse allocation, thrust mapping,
+    bang-bang firing over the control period). The node and the batch engine build the same one.
+
+    Keys: ``thrusters.names/positions/directions/max_force``; one wheel ``wheels.names/axes/
+    max_torque/spin_inertia/max_speed``; ``allocation.mapping``; ``firing.on_level``,
+    ``firing.off_level`` (N; equal: no hysteresis); ``allocation.reallocate_saturated_wheel``;
+    ``control_period`` (s).
+    """
+
+    kind = 'thrusters'
+
+    def __init__(self, p: dict) -> None:
+        n = len(p['thrusters.names'])
+        self.thruster_names = list(p['thrusters.names'])
+        self.wheel_names = list(p['wheels.names'])
+        axis = np.asarray(p['wheels.axes'], dtype=float)
+        on = np.asarray(p['firing.on_level'], dtype=float)
+        off = np.asarray(p['firing.off_level'], dtype=float)
+        same = bool(np.array_equal(on, off))
+        on, off = (on[..., None], off[..., None]) if on.ndim else (float(on), float(off))  # per run
+        self.allocation = ThrusterWheelAllocation(
+            np.asarray(p['thrusters.positions'], dtype=float).reshape(n, 3),
+            np.asarray(p['thrusters.directions'], dtype=float).reshape(n, 3),
+            np.asarray(p['thrusters.max_force'], dtype=float),
+            wheel_axis=axis / np.linalg.norm(axis), wheel_inertia=p['wheels.spin_inertia'][0],
+            wheel_max_torque=p['wheels.max_torque'][0], wheel_max_speed=p['wheels.max_speed'][0],
+            mapping=p['allocation.mapping'], on_level=on, off_level=None if same else off,
+            period=p['control_period'],
+            reallocate_saturated_wheel=p['allocation.reallocate_saturated_wheel'])
+
+    def command(self, tau, w, wheel_speed):
+        """``(on_time (..., n), wheel motor torques (..., 1), info)`` (see
+        :meth:`ThrusterWheelAllocation.command`); ``wheel_speed`` (..., 1) rad/s."""
+        speed = np.asarray(wheel_speed, dtype=float)[..., 0]
+        on_time, tau_m, info = self.allocation.command(tau, w, speed)
+        return on_time, np.asarray(tau_m, dtype=float)[..., None], info

@@ -1,0 +1,138 @@
+"""BacksteppingController: seed 002's quaternion integrator backstepping on the graph.
+
+The law (:class:`adcs_controllers.laws.backstepping.BacksteppingLaw`, eq. 22-35, with the section
+4.2 reference: the target relative to the orbit frame at t = 0, then held inertially) and the
+actuation (:class:`~adcs_controllers.laws.backstepping.ThrusterActuation`: eq. 20-21 pseudo-inverse
+allocation over four thrusters and the pitch wheel, bang-bang firing with a deadzone) are the
+registry's, the objects the batch engine runs.
+
+Per step ``t_k`` the allocation needs the state (``state``) and the wheel speed
+(``wheels/state``): the node pairs the two messages by stamp, whichever arrives first, then
+publishes ``thrusters/cmd`` (on-times for ``[t_k, t_k+1]``) and ``wheels/cmd`` (motor torque),
+both stamped ``t_k``, and ``controller/status`` with V1, V2 (eq. 27, 31), W (eq. 33), η̃, the
+eigenaxis error, the torque the commands ask for (u_x, u_y, u_z), the number of thrusters firing
+and the firing count so far (thruster-periods).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from adcs_msgs_py import conversions as cv
+from adcs_msgs_py import topics
+from adcs_msgs_py.guard import RejectCounter
+from adcs_controllers.schemas import BACKSTEPPING_SCHEMA
+from adcs_sim.faults import FaultTracker
+from adcs_sim.nodes.base import AdcsNode, entry_point
+
+# Unpaired messages older than this many steps behind the newest are dropped (a lost partner).
+MAX_PENDING = 8
+
+
+class BacksteppingController(AdcsNode):
+    schema = BACKSTEPPING_SCHEMA  # law: BacksteppingLaw, actuation: ThrusterActuation (adcs_sim.registry)
+
+    def __init__(self, context) -> None:
+        super().__init__(context)
+        from adcs_sim.registry import NODES
+        info = NODES[self.schema.node]
+        p = self.params
+        self.law = info.law(p)
+        self.actuation = info.actuation(p)
+        self.rejects = RejectCounter(self.get_logger())
+        self.thruster_names = self.actuation.thruster_names
+        self.wheel_names = self.actuation.wheel_names
+        self.pub_thrusters = self.publisher(topics.THRUSTERS_CMD)
+        self.pub_wheels = self.publisher(topics.WHEELS_CMD)
+        self.pub_status = self.publisher(topics.CONTROLLER_STATUS)
+        self.sub_state = self.sub_wheel_state = None
+        self.pending_state: dict[int, tuple] = {}
+        self.pending_speed: dict[int, np.ndarray] = {}
+        self.firings = 0        # thruster-periods fired so far
+        # Faults name wheels only (the fault injector's actuators); followed for the late count.
+        self.faults = FaultTracker()
+        self.sub_faults = self.subscription(topics.FAULTS, self._on_faults)
+
+    def _on_faults(self, msg) -> None:
+        known = {n: i for i, n in enumerate(self.wheel_names)}
+        parsed = self.rejects.accept(topics.FAULTS, lambda: cv.faults_from_msg(msg, known))
+        if parsed is not None:
+            self.faults.add(*parsed)
+
+    def connect(self) -> None:
+        """Wait for both command publishers to be matched, then subscribe to the state and the
+        wheel state."""
+        recorder = 1 if self.params['startup.expect_recorder'] else 0
+        self.wait_for_publishers({self.pub_thrusters: 1 + recorder, self.pub_wheels: 1 + recorder,
+                                  self.pub_status: recorder}, self.params['startup.timeout'])
+        self.sub_wheel_state = self.subscription(topics.WHEELS_STATE, self._on_wheel_state)
+        self.sub_state = self.subscription(topics.STATE, self._on_state)
+
+    def run(self, executor) -> None:
+        if self.params['startup.expect_faults']:
+            self.spin_until(executor, f'the fault schedule on {self.sub_faults.topic_name}',
+                            lambda: self.faults.complete, self.params['startup.timeout'])
+        self.connect()
+        executor.spin()
+
+    # --- pairing ------------------------------------------------------------------------------
+
+    def _on_state(self, msg) -> None:
+        parsed = self.rejects.accept(topics.STATE, lambda: cv.state_from_msg(msg))
+        if parsed is not None:
+            self.pending_state[parsed[0]] = parsed[1:]
+            self._try(parsed[0])
+
+    def _on_wheel_state(self, msg) -> None:
+        parsed = self.rejects.accept(topics.WHEELS_STATE, lambda: cv.wheel_state_from_msg(msg))
+        if parsed is None:
+            return
+        t_ns, names, _, speed, _ = parsed
+        try:
+            index = [names.index(n) for n in self.wheel_names]
+        except ValueError:
+            self.rejects.reject(topics.WHEELS_STATE, f'no state for wheel(s) {self.wheel_names} in {names}')
+            return
+        self.pending_speed[t_ns] = speed[index]
+        self._try(t_ns)
+
+    def _try(self, t_ns: int) -> None:
+        if t_ns in self.pending_state and t_ns in self.pending_speed:
+            (q, w), speed = self.pending_state.pop(t_ns), self.pending_speed.pop(t_ns)
+            self.step(t_ns, q, w, speed)
+        for pending in (self.pending_state, self.pending_speed):
+            while len(pending) > MAX_PENDING:
+                pending.pop(min(pending))
+
+    # --- state -> commands ----------------------------------------------------------------
+
+    def step(self, t_ns: int, q: np.ndarray, w: np.ndarray, speed: np.ndarray) -> None:
+        tau, status = self.law.control(t_ns / cv.NS_PER_S, q, w)
+        on_time, wheel_torque, info = self.actuation.command(tau, w, speed)
+        self.pub_thrusters.publish(cv.thruster_cmd_to_msg(t_ns, self.thruster_names, on_time))
+        self.pub_wheels.publish(cv.wheel_cmd_to_msg(t_ns, self.wheel_names, effort=wheel_torque))
+        fired = int(np.count_nonzero(on_time > 0.0))
+        self.firings += fired
+        if self.pub_status.get_subscription_count():  # after the commands: off the critical path
+            qe = status['q_err']
+            alloc = self.actuation.allocation
+            # the torque the firing and the wheel command ask of the actuators (as if each fired
+            # thruster gave its full force over the period): u_x.. of the torque figure
+            u = alloc.B[:, :alloc.n] @ (on_time / alloc.period * alloc.max_force) \
+                - alloc.wheel_axis * wheel_torque[0]
+            values = {'mode': self.law.mode_names[int(status['mode'])],
+                      'V1': float(status['V1']), 'V2': float(status['V2']), 'W': float(status['W']),
+                      'eta_err': float(qe[3]), 'angle_deg': math.degrees(float(status['angle'])),
+                      'u_x': float(u[0]), 'u_y': float(u[1]), 'u_z': float(u[2]),
+                      'demand_max': float(np.max(np.abs(tau))),
+                      'wheel_torque': float(wheel_torque[0]), 'wheel_free': str(bool(info['wheel_free'])).lower(),
+                      'firing_now': fired, 'firing_count': self.firings,
+                      'rejected_messages': self.rejects.total, 'late_faults': self.faults.late}
+            self.pub_status.publish(cv.status_to_msg(t_ns, self.get_name(), values))
+
+
+main = entry_point(BacksteppingController)
+
+if __name__ == '__main__':
+    main()
