@@ -115,6 +115,7 @@ READ_TYPES = {
     topics.STATE: ODOMETRY, topics.TRUTH_STATE: ODOMETRY, topics.APPLIED_TORQUE: VECTOR3_STAMPED,
     topics.WHEELS_STATE: JOINT_STATE, topics.DYNAMICS_STATUS: DIAGNOSTIC_ARRAY,
     topics.CONTROLLER_STATUS: DIAGNOSTIC_ARRAY, topics.FAULTS: DIAGNOSTIC_ARRAY,
+    topics.THRUSTERS_STATE: JOINT_STATE,
 }
 # Topics whose absence RunData reports in ``missing_topics`` (only ``state`` is required).
 REPORTED_TOPICS = (topics.STATE, topics.APPLIED_TORQUE, topics.WHEELS_STATE, topics.DYNAMICS_STATUS,
@@ -138,6 +139,11 @@ class RunData:
     wheel_names: list = field(default_factory=list)
     wheel_speed: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     wheel_torque: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    t_thrusters: np.ndarray = field(default_factory=lambda: np.zeros(0))  # step starts
+    thruster_names: list = field(default_factory=list)
+    thruster_impulse: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # at step ends, N s
+    thruster_on_time: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # per step, s
+    thruster_force: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))    # at step starts, N
     missed_steps: int | None = None
     q_ref: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))
     scenario: dict | None = None
@@ -213,6 +219,7 @@ class RunData:
         if t_u.size:
             run.t_u, run.u = t_u, cols['vector']
         _set_wheels(run, columns.get(ns + topics.WHEELS_STATE, []))
+        _set_thrusters(run, columns.get(ns + topics.THRUSTERS_STATE, []))
         for stamp, statuses in _merged_statuses(diagnostics.get(ns + topics.DYNAMICS_STATUS, [])):
             for status in statuses:
                 if 'missed_steps' in status[4]:
@@ -287,6 +294,32 @@ def _set_wheels(run: RunData, parts: list) -> None:
     t, fields = _merged(keep, ('velocity', 'effort'))
     run.t_wheels, run.wheel_names = t, list(names)
     run.wheel_speed, run.wheel_torque = fields['velocity'], fields['effort']
+
+
+def _set_thrusters(run: RunData, parts: list) -> None:
+    """Thruster series from ``thrusters/state`` (JointState: impulse in ``position``, on-time in
+    ``velocity``, thrust in ``effort``), the thrusters named in the last message."""
+    parts = [(row0, c) for row0, c in parts if c.rows.size]
+    if not parts:
+        return
+    names = max(parts, key=lambda p: p[0] + p[1].rows[-1])[1].extra
+    n = len(names)
+    keep = [(row0, c) for row0, c in parts if c.extra == names
+            and all(c.fields[k].shape[1] == n for k in ('position', 'velocity', 'effort'))]
+    t, fields = _merged(keep, ('position', 'velocity', 'effort'))
+    run.t_thrusters, run.thruster_names = t, list(names)
+    run.thruster_impulse, run.thruster_on_time = fields['position'], fields['velocity']
+    run.thruster_force = fields['effort']
+
+
+def thruster_metrics(run: RunData) -> dict:
+    """Total thruster impulse at the end (N s), firings (thruster-periods with a non-zero
+    on-time) and total on-time (s); empty without ``thrusters/state``."""
+    if not run.thruster_on_time.size:
+        return {}
+    return {'thruster_impulse_Ns': float(run.thruster_impulse[-1].sum()),
+            'thruster_firings': int(np.count_nonzero(run.thruster_on_time > 0.0)),
+            'thruster_on_time_s': float(run.thruster_on_time.sum())}
 
 
 def _merged_statuses(parts: list) -> list[tuple[float, list]]:
@@ -382,6 +415,7 @@ def run_metrics(run: RunData, tol_deg: float = 0.5, eigen_tol_deg: float | None 
     if run.wheel_speed.size:
         out['peak_wheel_speed_rad_s'] = float(np.abs(run.wheel_speed).max())
     out.update(fault_metrics(run))
+    out.update(thruster_metrics(run))
     return out
 
 

@@ -371,10 +371,41 @@ def fig_wheels(c: Context):
 
 
 def fig_thrusters(c: Context):
-    found = thruster_topics(c.run)
-    if not found:
-        return 'no thruster topic recorded (no thrusters are modelled yet)'
-    return f'thruster topic(s) {", ".join(found)} recorded, but thruster figures are not implemented yet'
+    run = c.run
+    if not run.thruster_on_time.size:
+        found = thruster_topics(run)
+        if found:
+            return f'thruster topic(s) {", ".join(found)} recorded, but no {topics.THRUSTERS_STATE} messages'
+        return f'no thruster states ({topics.THRUSTERS_STATE})'
+    fig, (ax_f, ax_i, ax_n) = _figure(rows=3, height=2.4, ratios=[1.4, 1.0, 1.0])
+    n = len(run.thruster_names)
+    for j, name in enumerate(run.thruster_names):
+        # each firing as a bar over [t, t + on-time], one row per thruster
+        on = run.thruster_on_time[:, j] > 0.0
+        bars = list(zip(run.t_thrusters[on], run.thruster_on_time[on, j]))
+        ax_f.broken_barh(bars, (n - 1 - j - 0.4, 0.8), color=_line(j)['color'])
+        ax_i.plot(run.t_thrusters + _zoh_period(run), run.thruster_impulse[:, j], **_line(j), label=name)
+    ax_f.set_yticks(range(n), list(reversed(run.thruster_names)))
+    ax_f.set_ylim(-0.6, n - 0.4)
+    ax_f.set_ylabel('firing')
+    ax_f.set_title('Thrusters: firings (top), cumulated impulse (middle), firings so far (bottom)')
+    ax_i.set_ylabel('impulse (N·s)')
+    _legend(ax_i, loc='upper left')
+    count = np.cumsum(np.count_nonzero(run.thruster_on_time > 0.0, axis=1))
+    _step(ax_n, run.t_thrusters, count, color='C4')
+    ax_n.set_ylabel('firings (thruster-periods)')
+    ax_n.yaxis.set_major_locator(MaxNLocator(integer=True))
+    _mark_faults((ax_f, ax_i, ax_n), c.events)
+    m = c.metrics
+    return fig, (f'Thruster firings (bars: on-time from each period\'s start), cumulated impulse per thruster (N·s) '
+                 f'and the number of firings so far: {m.get("thruster_firings", 0)} firings, '
+                 f'{m.get("thruster_impulse_Ns", float("nan")):.4g} N·s in all ({topics.THRUSTERS_STATE}).')
+
+
+def _zoh_period(run) -> float:
+    """The step length of the thruster series (impulses are at the step ends)."""
+    t = run.t_thrusters
+    return float(np.median(np.diff(t))) if t.size > 1 else 0.0
 
 
 def fig_phase(c: Context):
@@ -477,6 +508,9 @@ METRIC_NOTES = {
     'peak_torque_Nm': 'max |u_i| per body axis x, y, z (N·m)',
     'peak_wheel_speed_rad_s': 'max |Ω| over all wheels (rad/s)',
     'missed_steps': 'lockstep steps without the awaited command',
+    'thruster_impulse_Ns': 'total thruster impulse Σ∫F dt at the end (N·s)',
+    'thruster_firings': 'thruster-periods with a non-zero on-time',
+    'thruster_on_time_s': 'total thruster on-time, all thrusters (s)',
 }
 
 
