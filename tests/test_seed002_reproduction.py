@@ -1,0 +1,131 @@
+"""Seed 002 (Kristiansen & Nicklasson, ESEO) reproduced through the ROS graph: bags/eseo_backstepping_slew.
+
+The bag is an ``adcs-run`` of config/eseo_backstepping_slew.yaml (separate processes, lockstep;
+bags/regenerate.py): the first 300 s of the two-orbit mission config/eseo_backstepping.yaml.
+The tests read it and state the paper's figures beside ours (docs/seed002.md):
+
+* paper: the 135.68° slew "settles within approximately 38 seconds" (Fig. 1); ours 38.2 s
+  (1° eigenaxis band), asserted < 60 s and within 3 s of ours;
+* paper: the attitude is then held "constant over the entire orbit" (Fig. 2, two orbits); ours:
+  below 1° after settling over the recorded 300 s (graph) and over half an orbit (batch engine,
+  the same code: the gravity-gradient torque on an inertially held body repeats every half
+  orbit, since eq. 19 is even in the nadir vector c_3); the two-orbit graph run is in the docs;
+* thruster impulse and firings: not given by the paper; ours pinned (1 %).
+
+Also: the bag is what the current code computes (the batch engine, bit for bit), and a start
+5° from q̃ = [-1, 0, 0, 0] goes there directly (no unwinding).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+
+from adcs_sim.analysis import RunData, attitude_errors_deg, settling_time, thruster_metrics
+from conftest import ROOT
+
+BAG = ROOT / 'bags' / 'eseo_backstepping_slew'
+PAPER_SETTLING = 38.0          # s, section 4.2 / Fig. 1 ("approximately 38 seconds")
+OURS_SETTLING = 38.2           # s, 1° band
+OURS_IMPULSE = 8.151           # N s over the recorded 300 s
+OURS_FIRINGS = 627             # thruster-periods over the recorded 300 s
+HALF_ORBIT = math.pi / 1.1699887158899546e-3   # s
+
+
+@pytest.fixture(scope='module')
+def run() -> RunData:
+    return RunData.from_bag(BAG / 'bag')
+
+
+def test_slew_settles_like_the_paper(run):
+    eigen, _ = attitude_errors_deg(run)
+    assert eigen[0] == pytest.approx(135.68, abs=0.01)   # the short way to q̃ = -1 (readings R1)
+    ts = settling_time(run.t, eigen, 1.0)
+    assert ts < 60.0
+    assert ts == pytest.approx(OURS_SETTLING, abs=3.0)
+    assert abs(ts - PAPER_SETTLING) < 5.0
+
+
+def test_attitude_held_after_settling(run):
+    """Below 1° from the settling time to the end of the recording (the law's own error on
+    controller/status agrees with the analysis of the state to 1e-9 deg); V2 fell by 1e3."""
+    eigen, _ = attitude_errors_deg(run)
+    ts = settling_time(run.t, eigen, 1.0)
+    assert eigen[run.t >= ts].max() <= 1.0
+    assert run.t_end == pytest.approx(300.0)
+    status = run.controller_status
+    angle = np.array([v['angle_deg'] for _, _, v in status])
+    assert_allclose(angle, eigen[:len(angle)], atol=1e-9)
+    V2 = np.array([v['V2'] for _, _, v in status])
+    assert V2[-1] < 1e-3 * V2[0]
+    assert run.missed_steps == 0
+
+
+def test_thruster_impulse_and_firings(run):
+    m = thruster_metrics(run)
+    assert m['thruster_impulse_Ns'] == pytest.approx(OURS_IMPULSE, rel=0.01)
+    assert m['thruster_firings'] == pytest.approx(OURS_FIRINGS, rel=0.01)
+    # each thruster's impulse = 0.13 N x its total on-time; every firing lasts a whole period
+    assert_allclose(run.thruster_impulse[-1], 0.13 * run.thruster_on_time.sum(axis=0), rtol=1e-12)
+    assert set(np.unique(run.thruster_on_time).tolist()) <= {0.0, 0.1}
+    # the controller's firing count is the recorded one
+    count = np.array([v['firing_count'] for _, _, v in run.controller_status])
+    assert count[len(run.t_thrusters) - 1] == m['thruster_firings']
+
+
+def test_bag_is_the_batch_run(run):
+    from adcs_sim.batch import BatchSimulation
+    from adcs_sim.runner import validate_scenario
+    sections = validate_scenario(BAG / 'scenario.yaml')
+    batch = BatchSimulation.from_runs([sections]).run()
+    b = batch.run_data(0)
+    assert_array_equal(b.q, run.q)
+    assert_array_equal(b.u, run.u)
+    assert_array_equal(batch.thruster_impulse[0, 1:], run.thruster_impulse)
+
+
+def _batch(duration: float, initial_attitude=None, initial_rate=None):
+    from adcs_sim.batch import BatchSimulation
+    from adcs_sim.runner import validate_scenario
+    sections = validate_scenario(ROOT / 'config' / 'eseo_backstepping.yaml')
+    sections.pop('recorder', None)
+    d = sections['dynamics']
+    d['duration'] = duration
+    if initial_attitude is not None:
+        d['initial.attitude'], d['initial.rate'] = list(initial_attitude), list(initial_rate)
+    return BatchSimulation.from_runs([sections]).run()
+
+
+def test_attitude_held_over_half_an_orbit_batch():
+    """The hold of Fig. 2 by the batch engine (the graph's code; the whole two orbits through
+    the graph: docs/seed002.md): after settling, the error stays below 1° for half an orbit
+    (2685 s), every gravity-gradient configuration the two-orbit hold meets."""
+    result = _batch(HALF_ORBIT + 60.0)
+    run = result.run_data(0)
+    eigen, _ = attitude_errors_deg(run)
+    ts = settling_time(run.t, eigen, 1.0)
+    assert ts < 60.0
+    assert eigen[run.t >= 60.0].max() < 1.0
+    assert run.t_end >= HALF_ORBIT + 60.0 - 0.1
+
+
+def test_start_near_minus_one_does_not_unwind():
+    """q̃(0) = 5° from [-1, 0, 0, 0] (η̃ < 0), at rest in the orbit frame: the law goes to
+    q̃ = -1 directly; the error never exceeds 5.5° and is below 1° at 60 s, with < 1 N s, where
+    a law driving η̃ to +1 would turn 355°."""
+    from adcs_sim.attitude import quat_multiply
+    from adcs_sim.plant import rotate_to_body
+    q_d = np.array([-0.43289710176360546, 0.6644955512171767, 0.47829679781365786, -0.3771974746713605])
+    e = np.array([0.3, -0.8, 0.5]) / np.linalg.norm([0.3, -0.8, 0.5])
+    half = math.radians(2.5)
+    qe0 = -np.r_[math.sin(half) * e, math.cos(half)]      # η̃ < 0
+    q0 = quat_multiply(q_d, qe0)                            # q̄_d ⊗ q0 = q̃(0) (eq. 12)
+    w0 = rotate_to_body(q0, np.array([0.0, -1.1699887158899546e-3, 0.0]))
+    result = _batch(60.0, q0, w0)
+    eigen, _ = attitude_errors_deg(result.run_data(0))
+    assert eigen[0] == pytest.approx(5.0, abs=1e-6)
+    assert eigen.max() < 5.5
+    assert eigen[-1] < 1.0
+    assert np.nansum(result.thruster_impulse[0, -1]) < 1.0
