@@ -376,7 +376,7 @@ def fig_thrusters(c: Context):
         found = thruster_topics(run)
         if found:
             return f'thruster topic(s) {", ".join(found)} recorded, but no {topics.THRUSTERS_STATE} messages'
-        return f'no thruster states ({topics.THRUSTERS_STATE})'
+        return f'no thruster topic recorded ({topics.THRUSTERS_STATE})'
     fig, (ax_f, ax_i, ax_n) = _figure(rows=3, height=2.4, ratios=[1.4, 1.0, 1.0])
     n = len(run.thruster_names)
     for j, name in enumerate(run.thruster_names):
@@ -630,7 +630,7 @@ def comparison_rows(run: RunData, bands=(1.0, 0.5), eigen_tol_deg: float = 0.5) 
     for a, v in zip(AXES, m['peak_torque_Nm']):
         rows[f'peak_torque_{a}_Nm'] = v
     rows['peak_wheel_speed_rad_s'] = m['peak_wheel_speed_rad_s']
-    rows['thruster_impulse_Ns'] = None  # n/a until thrusters exist
+    rows['thruster_impulse_Ns'] = m.get('thruster_impulse_Ns')  # n/a without thrusters/state
     rows['missed_steps'] = m['missed_steps']
     rows['duration_s'] = m['duration_s']
     return rows
