@@ -240,6 +240,10 @@ class DynamicsNode(AdcsNode):
                     self.pub_thrusters):
             if pub is not None:
                 required[pub] = max(required.get(pub, 0), recorder)
+        if topics.THRUSTERS_CMD in self.awaited and self.pub_wheels is not None:
+            # A thruster + wheel controller (seed 002) allocates with the wheel speed: it answers
+            # a step only with that step's wheels/state, so that must reach it from t = 0.
+            required[self.pub_wheels] = max(required.get(self.pub_wheels, 0), 1 + recorder)
         self.wait_for_publishers(required, timeout)
 
     def run(self, executor) -> None:
