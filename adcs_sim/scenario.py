@@ -122,9 +122,9 @@ def thruster_params(with_physics: bool) -> list[Param]:
     params = [
         Param('thrusters.names', 'string_array', default=[],
               doc='thruster names (the JointState names of thrusters/cmd and thrusters/state); empty: none'),
-        Param('thrusters.positions', 'double_array', default=[],
+        Param('thrusters.positions', 'double_array', default=[], batch=True,
               doc='positions from the centre of mass, body axes (m), 3 per thruster, flattened'),
-        Param('thrusters.directions', 'double_array', default=[],
+        Param('thrusters.directions', 'double_array', default=[], batch=True,
               doc='thrust directions (body axes; the force on the body), 3 per thruster, need not be unit'),
         Param('thrusters.max_force', 'double_array', default=[], check=all_positive, batch=True,
               doc='thrust while on, per thruster (N, > 0)'),
@@ -293,8 +293,8 @@ def build_plant(v: dict) -> Plant:
     if v['thrusters.names']:
         n = len(v['thrusters.names'])
         actuators.append(Thrusters(
-            names=list(v['thrusters.names']), positions=np.asarray(v['thrusters.positions']).reshape(n, 3),
-            directions=np.asarray(v['thrusters.directions']).reshape(n, 3),
+            names=list(v['thrusters.names']), positions=v['thrusters.positions'],
+            directions=v['thrusters.directions'],  # (3 n,) or a batch (N, 3 n) of geometries
             max_force=v['thrusters.max_force'], min_on_time=v['thrusters.min_on_time'],
             min_on_rule=v['thrusters.min_on_rule']))
     orbit = None

@@ -75,8 +75,8 @@ class ThrusterCommand(NamedTuple):
 
 @dataclass
 class Thrusters(Actuator):
-    """On/off thrusters (module doc). ``positions`` and ``directions`` (n, 3) body axes (directions
-    normalised here); ``max_force`` (N) scalar, (n,) or a batch (..., n); ``min_on_time`` (s)."""
+    """On/off thrusters (module doc). ``positions`` and ``directions`` (n, 3) body axes, or a batch
+    (..., n, 3) of geometries (directions normalised here); ``max_force`` (N) scalar, (n,) or a batch (..., n); ``min_on_time`` (s)."""
 
     names: list[str]
     positions: np.ndarray
@@ -90,9 +90,9 @@ class Thrusters(Actuator):
 
     def __post_init__(self) -> None:
         n = len(self.names)
-        self.positions = np.asarray(self.positions, dtype=float).reshape(n, 3)
-        d = np.asarray(self.directions, dtype=float).reshape(n, 3)
-        norm = np.linalg.norm(d, axis=1, keepdims=True)
+        self.positions = _per_thruster(self.positions, n, 'positions')
+        d = _per_thruster(self.directions, n, 'directions')
+        norm = np.linalg.norm(d, axis=-1, keepdims=True)
         if not np.all(norm > 0):
             raise ValueError('thruster directions must be non-zero vectors')
         self.directions = d / norm
@@ -107,8 +107,9 @@ class Thrusters(Actuator):
         if self.min_on_rule not in ('drop', 'extend'):
             raise ValueError(f"min_on_rule must be 'drop' or 'extend', got {self.min_on_rule!r}")
         self.n_states = n
-        self.torque_matrix = np.ascontiguousarray(cross(self.positions, self.directions).T)
-        self.force_matrix = np.ascontiguousarray(self.directions.T)
+        # (..., 3, n): a batch of geometries (the sensitivity grid) gives one matrix per run
+        self.torque_matrix = np.ascontiguousarray(np.swapaxes(cross(self.positions, self.directions), -1, -2))
+        self.force_matrix = np.ascontiguousarray(np.swapaxes(self.directions, -1, -2))
 
     @property
     def count(self) -> int:
@@ -174,6 +175,17 @@ class Thrusters(Actuator):
         mid = 0.5 * (a + b)
         lit = (mid < cmd.on_time) | (cmd.on_time >= cmd.period)
         return ThrusterCommand(cmd.start + a, np.where(lit, math.inf, 0.0), math.inf)
+
+
+def _per_thruster(values, n: int, what: str) -> np.ndarray:
+    """(n, 3) or a batch (..., n, 3) of per-thruster vectors; 3 n flattened values (..., 3 n)
+    are reshaped."""
+    arr = np.asarray(values, dtype=float)
+    if arr.shape[-2:] != (n, 3):
+        if arr.shape[-1:] != (3 * n,):
+            raise ValueError(f'thruster {what}: expected 3 values per thruster ({n}), got shape {arr.shape}')
+        arr = arr.reshape(arr.shape[:-1] + (n, 3))
+    return arr
 
 
 def step_pulsed(plant: Plant, t: float, x: np.ndarray, commands: dict, period: float,

@@ -344,19 +344,36 @@ class ThrusterWheelAllocation:
                  reallocate_saturated_wheel=True) -> None:
         self.positions = np.asarray(positions, dtype=float)
         self.directions = np.asarray(directions, dtype=float)
-        self.directions = self.directions / np.linalg.norm(self.directions, axis=1, keepdims=True)
-        self.n = len(self.positions)
+        self.directions = self.directions / np.linalg.norm(self.directions, axis=-1, keepdims=True)
+        self.n = self.positions.shape[-2]
         self.max_force = np.asarray(max_force, dtype=float)
         self.wheel_axis = np.asarray(wheel_axis, dtype=float)
-        self.B = actuator_matrix(self.positions, self.directions, self.wheel_axis)
-        self.B_pinv = pseudo_inverse(self.B)
-        self.T_pinv = np.vstack([pseudo_inverse(self.B[:, :self.n]), np.zeros((1, 3))])
+        # One geometry (n, 3), or a batch of them (N, n, 3) (the sensitivity grid): the matrices
+        # are built per run (the same calls, so the same bits) and stacked.
+        batched = self.positions.ndim == 3 or self.directions.ndim == 3
+        if batched:   # either may be shared by every run
+            shape = np.broadcast_shapes(self.positions.shape, self.directions.shape)
+            self.positions = np.broadcast_to(self.positions, shape)
+            self.directions = np.broadcast_to(self.directions, shape)
+        geometries = (list(zip(self.positions, self.directions)) if batched
+                      else [(self.positions, self.directions)])
+        parts = []
+        for r, d in geometries:
+            B = actuator_matrix(r, d, self.wheel_axis)
+            parts.append((B, pseudo_inverse(B), np.vstack([pseudo_inverse(B[:, :self.n]), np.zeros((1, 3))]),
+                          positive_null_vector(B[:, :self.n]) if mapping == 'nullspace' else None,
+                          opposed_pairs(d) if mapping == 'pairs' else None))
+        stack = (lambda i: np.stack([p[i] for p in parts])) if batched \
+            else (lambda i: parts[0][i])
+        self.B, self.B_pinv, self.T_pinv = stack(0), stack(1), stack(2)
+        self.null = stack(3) if mapping == 'nullspace' else None
+        self.pairs = parts[0][4]
+        if mapping == 'pairs' and any(not np.array_equal(p[4], self.pairs) for p in parts):
+            raise ValueError("'pairs' mapping: the opposed thrusters differ between the runs of the batch")
         self.wheel_inertia = wheel_inertia
         self.wheel_max_torque = wheel_max_torque
         self.wheel_max_speed = wheel_max_speed
         self.mapping = mapping
-        self.pairs = opposed_pairs(self.directions) if mapping == 'pairs' else None
-        self.null = positive_null_vector(self.B[:, :self.n]) if mapping == 'nullspace' else None
         if mapping not in ('pairs', 'nullspace'):
             raise ValueError(f"mapping must be 'pairs' or 'nullspace', got {mapping!r}")
         self.on_level = on_level
@@ -437,6 +454,12 @@ class BacksteppingLaw(SectionLaw):
         return tau, status
 
 
+def _geometry(values, n: int) -> np.ndarray:
+    """Flattened per-thruster vectors (3 n,) or a batch (N, 3 n) -> (n, 3) or (N, n, 3)."""
+    arr = np.asarray(values, dtype=float)
+    return arr.reshape(arr.shape[:-1] + (n, 3))
+
+
 class ThrusterActuation:
     """The controller's side of seed 002's actuators, built from a validated controller section:
     desired torque ``τ_a`` -> thruster on-times and the pitch wheel's motor torque
@@ -461,8 +484,7 @@ class ThrusterActuation:
         same = bool(np.array_equal(on, off))
         on, off = (on[..., None], off[..., None]) if on.ndim else (float(on), float(off))  # per run
         self.allocation = ThrusterWheelAllocation(
-            np.asarray(p['thrusters.positions'], dtype=float).reshape(n, 3),
-            np.asarray(p['thrusters.directions'], dtype=float).reshape(n, 3),
+            _geometry(p['thrusters.positions'], n), _geometry(p['thrusters.directions'], n),
             np.asarray(p['thrusters.max_force'], dtype=float),
             wheel_axis=axis / np.linalg.norm(axis), wheel_inertia=p['wheels.spin_inertia'][0],
             wheel_max_torque=p['wheels.max_torque'][0], wheel_max_speed=p['wheels.max_speed'][0],
