@@ -6,8 +6,8 @@ docs/seed002/sensitivity.md.
 
     .venv/bin/python docs/seed002/sensitivity.py [--duration 120]
 
-Each geometry or mapping is one batch (they are not batch parameters); gains and deadzone levels
-vary along the batch axis. Metrics per run: settling time (the eigenaxis error stays below 1 deg
+Gains, lever arms and deadzone levels vary along the batch axis (one batch of 48 runs for the
+gain x geometry grid); each thrust mapping is its own batch (not a batch parameter). Metrics per run: settling time (the eigenaxis error stays below 1 deg
 from then on; adcs_sim.analysis.settling_time), total thruster impulse (N s), firings
 (thruster-periods), and the largest error over the last 60 s.
 """
@@ -96,10 +96,13 @@ def main(argv=None) -> int:
              f'{args.duration:g} s runs; settling: eigenaxis error below 1° from then on; impulse: all '
              'four thrusters; "tail max": largest error over the last 60 s). Kept values in bold.', '']
 
-    # 1. gains x geometry
-    for g in GEOMETRIES:
-        grid = runs(with_geometry(base, *g), **{f'{CTRL}:K1': K1S, f'{CTRL}:K2': K2S})
-        res = metrics(grid)
+    # 1. gains x geometry: one batch (lever arms, K1, K2 are all batch parameters)
+    grid = [r for g in GEOMETRIES
+            for r in runs(with_geometry(base, *g), **{f'{CTRL}:K1': K1S, f'{CTRL}:K2': K2S})]
+    res_all = metrics(grid)
+    per = len(K1S) * len(K2S)
+    for gi, g in enumerate(GEOMETRIES):
+        res = res_all[gi * per:(gi + 1) * per]
         lines += [f'## Gains, lever arms (r_x, r_y, r_z) = {g} m (r_x − r_y = {g[0] - g[1]:.2g} m)', '',
                   '| K1 (rad/s) \\ K2 (N m s) | ' + ' | '.join(f'{k:g}' for k in K2S) + ' |',
                   '| --- |' + ' --- |' * len(K2S)]
@@ -112,7 +115,7 @@ def main(argv=None) -> int:
                 cells.append(f'**{cell}**' if kept else cell)
             lines.append(f'| {k1:g} | ' + ' | '.join(cells) + ' |')
         lines.append('')
-        print(f'geometry {g}: done ({time.monotonic() - t0:.0f} s)', flush=True)
+    print(f'gains x geometries ({len(grid)} runs, one batch): done ({time.monotonic() - t0:.0f} s)', flush=True)
 
     # 2. thrust mapping: null-space shift vs opposed pairs, over the K1 grid (K2 = 4)
     lines += ['## Thrust mapping: null-space shift vs opposed pairs (K2 = 4 N m s)', '',
