@@ -166,9 +166,10 @@ class BatchSimulation:
             commands['torquers'] = values
         return commands
 
-    def run(self, progress=None) -> BatchResult:
+    def run(self, progress=None, observe=None) -> BatchResult:
         """Simulate every run to its end (or divergence). ``progress(steps_done)`` is called
-        after each control step if given."""
+        after each control step if given; ``observe(k, t, status)`` with the law's status of
+        step ``k`` (what the controller node publishes, with the batch axis), if given."""
         N, K = self.n_runs, int(self.n_steps.max())
         plant = self.plant
         period = self.period_ns / NS_PER_S
@@ -198,7 +199,9 @@ class BatchSimulation:
                     q_m, w_m = self.measurement.measure(x[:, :4], x[:, 4:7])
                     q_m = quat_normalize(q_m)  # what a controller does to the attitude it receives
                     momentum = self.law.output == 'wheel_momentum'
-                    out, _ = self.law.control(t, q_m, w_m)
+                    out, status = self.law.control(t, q_m, w_m)
+                    if observe is not None:
+                        observe(k, t, status)
                     if momentum:
                         values = self.actuation.command_momentum(np.broadcast_to(out, (N, 3)))
                     else:

@@ -11,12 +11,13 @@ from dataclasses import dataclass
 from typing import Any
 
 from adcs_msgs_py.params import Schema
+from adcs_controllers.laws.inertia_free import M2rLaw, M2sLaw
 from adcs_controllers.laws.inverse_optimal import GsmnLaw, KtLaw, MinNormLaw
 from adcs_controllers.laws.pd import PdLaw
 from adcs_controllers.laws.reconfiguration import TwoWheelReconfiguration
 from adcs_controllers.laws.underactuated import SnlcGsmnLaw, SnlcLaw, SnlcMinNormLaw, ZeroMomentumLaw
-from adcs_controllers.schemas import (GSMN_SCHEMA, KT_SCHEMA, MINNORM_SCHEMA, PD_SCHEMA, SNLC_GSMN_SCHEMA,
-                                      SNLC_MINNORM_SCHEMA, SNLC_SCHEMA, ZERO_MOMENTUM_SCHEMA)
+from adcs_controllers.schemas import (GSMN_SCHEMA, KT_SCHEMA, M2R_SCHEMA, M2S_SCHEMA, MINNORM_SCHEMA, PD_SCHEMA,
+                                      SNLC_GSMN_SCHEMA, SNLC_MINNORM_SCHEMA, SNLC_SCHEMA, ZERO_MOMENTUM_SCHEMA)
 from adcs_sim.scenario import DYNAMICS_SCHEMA, FAULT_SCHEMA, RECORDER_SCHEMA
 
 
@@ -46,4 +47,7 @@ NODES: dict[str, NodeInfo] = {
                                         'controller', TwoWheelReconfiguration.factory(SnlcMinNormLaw)),
     'snlc_gsmn_controller': NodeInfo('adcs_controllers.nodes.snlc_gsmn_controller', SNLC_GSMN_SCHEMA,
                                      'controller', TwoWheelReconfiguration.factory(SnlcGsmnLaw)),
+    # seed 001: inertia-free laws on ideal external torquers
+    'm2r_controller': NodeInfo('adcs_controllers.nodes.m2r_controller', M2R_SCHEMA, 'controller', M2rLaw),
+    'm2s_controller': NodeInfo('adcs_controllers.nodes.m2s_controller', M2S_SCHEMA, 'controller', M2sLaw),
 }

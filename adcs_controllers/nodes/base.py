@@ -25,6 +25,7 @@ from __future__ import annotations
 
 
 import numpy as np
+from rclpy.duration import Duration
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
@@ -51,6 +52,7 @@ class ControllerNode(AdcsNode):
         self.pub_cmd = self.publisher(topics.WHEELS_CMD if self.actuator == 'wheels' else topics.TORQUE_CMD)
         self.pub_status = self.publisher(topics.CONTROLLER_STATUS)
         self.sub_state = None
+        self.states = 0  # states received (the acknowledgement pacing counts them)
         self.faults = FaultTracker()
         self.wheel_index = ({n: i for i, n in enumerate(self.wheel_names)}
                             if self.actuator == 'wheels' else {})
@@ -115,6 +117,13 @@ class ControllerNode(AdcsNode):
         if parsed is None:
             return
         t_ns, q, w = parsed
+        self.states += 1
+        if self.states % topics.ACK_INTERVAL == 0:
+            # every ACK_INTERVAL states, wait until every reader (the recorder) has acknowledged
+            # the commands and status sent so far: none falls DEPTH steps behind and loses them
+            # (adcs_msgs_py.topics)
+            for pub in (self.pub_cmd, self.pub_status):
+                pub.wait_for_all_acked(Duration(seconds=self.params['startup.timeout']))
         self.apply_due_faults(t_ns)
         output = self.law.output  # torque or wheel momentum (a reconfiguring law's current phase)
         value, status = self.control(t_ns / cv.NS_PER_S, q, w)
