@@ -118,10 +118,10 @@ class ControllerNode(AdcsNode):
             return
         t_ns, q, w = parsed
         self.states += 1
-        if self.states % topics.ACK_INTERVAL == 0:
+        if self.params['startup.expect_recorder'] and self.states % topics.ACK_INTERVAL == 0:
             # every ACK_INTERVAL states, wait until every reader (the recorder) has acknowledged
-            # the commands and status sent so far: none falls DEPTH steps behind and loses them
-            # (adcs_msgs_py.topics)
+            # the commands and status sent so far: it never falls DEPTH steps behind and loses
+            # them (adcs_msgs_py.topics)
             for pub in (self.pub_cmd, self.pub_status):
                 pub.wait_for_all_acked(Duration(seconds=self.params['startup.timeout']))
         self.apply_due_faults(t_ns)

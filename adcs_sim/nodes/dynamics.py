@@ -235,11 +235,12 @@ class DynamicsNode(AdcsNode):
                     self._missed()
                     break
                 executor.spin_once(timeout_sec=remaining)
-        # The controllers answering is not enough: every ACK_INTERVAL steps (every step in free
-        # flight, where nothing else paces the loop) wait until every reader, the recorder
-        # included, has acknowledged what was published, so none falls DEPTH steps behind and
-        # loses messages (adcs_msgs_py.topics).
-        if not awaited or self.step_ns // self.period_ns % topics.ACK_INTERVAL == 0:
+        # The controllers answering is not enough when a recorder listens: every ACK_INTERVAL
+        # steps (every step in free flight, where nothing else paces the loop) wait until every
+        # reader has acknowledged what was published, so the recorder never falls DEPTH steps
+        # behind and loses messages (adcs_msgs_py.topics).
+        if not awaited or (self.params['startup.expect_recorder']
+                           and self.step_ns // self.period_ns % topics.ACK_INTERVAL == 0):
             for pub in self._step_publishers + [self.pub_applied]:
                 pub.wait_for_all_acked(Duration(seconds=timeout))
         if not awaited:
