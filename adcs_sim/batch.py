@@ -141,6 +141,18 @@ class BatchSimulation:
         # the law's own (normalised) target, identity in free flight.
         self.q_ref = self.law.q_ref if self.law is not None else np.array([0.0, 0.0, 0.0, 1.0])
         self.wheels = next((a for a in self.plant.actuators if isinstance(a, ReactionWheels)), None)
+        # A law that needs the wheels' momentum (seed 003) gets it as its node does: from the true
+        # speeds of the controller's wheels (by name; wheels/state carries no noise), through
+        # Actuation.wheel_momentum.
+        self.needs_wheel_momentum = bool(getattr(self.law, 'needs_wheel_momentum', False))
+        self.momentum_index = None
+        if self.needs_wheel_momentum:
+            names = list(self.wheels.names) if self.wheels else []
+            missing = [n for n in self.actuation.wheel_names if n not in names]
+            if missing:
+                raise ParameterError('wheels.names', f'wheel(s) {missing} of the controller are not '
+                                     f'in the dynamics section ({names})', self.controller)
+            self.momentum_index = np.array([names.index(n) for n in self.actuation.wheel_names])
 
     def _apply_faults(self, t_ns: int, applied: int) -> int:
         """Apply the latest fault snapshot stamped ``<= t_ns`` if newer than snapshot ``applied``
@@ -198,7 +210,11 @@ class BatchSimulation:
                     q_m, w_m = self.measurement.measure(x[:, :4], x[:, 4:7])
                     q_m = quat_normalize(q_m)  # what a controller does to the attitude it receives
                     momentum = self.law.output == 'wheel_momentum'
-                    out, _ = self.law.control(t, q_m, w_m)
+                    if self.needs_wheel_momentum:
+                        speed = x[:, wheel_sl][:, self.momentum_index]
+                        out, _ = self.law.control(t, q_m, w_m, self.actuation.wheel_momentum(speed))
+                    else:
+                        out, _ = self.law.control(t, q_m, w_m)
                     if momentum:
                         values = self.actuation.command_momentum(np.broadcast_to(out, (N, 3)))
                     else:
