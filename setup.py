@@ -18,6 +18,8 @@ NODES = {
     'snlc_controller': 'adcs_controllers.nodes.snlc_controller:main',
     'snlc_minnorm_controller': 'adcs_controllers.nodes.snlc_minnorm_controller:main',
     'snlc_gsmn_controller': 'adcs_controllers.nodes.snlc_gsmn_controller:main',
+    'pointing_a_controller': 'adcs_controllers.nodes.pointing_a_controller:main',
+    'pointing_b_controller': 'adcs_controllers.nodes.pointing_b_controller:main',
 }
 TOOLS = {
     'adcs-run': 'adcs_sim.runner:main',
