@@ -58,6 +58,7 @@ class BatchResult:
     wheel_speed: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))  # (N, K + 1, n)
     q_ref: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))  # (4,) or (N, 4)
     faults: list = field(default_factory=list)  # (t, level, actuator, mode) as RunData.faults
+    pointing: tuple | None = None  # (σ̂, τ̂) of a pointing law (seed 003), as RunData.pointing
 
     @property
     def n_runs(self) -> int:
@@ -70,7 +71,7 @@ class BatchResult:
         q_ref = self.q_ref[i] if self.q_ref.ndim == 2 else self.q_ref
         run = RunData(t=self.t[:k + 1], q=self.q[i, :k + 1], w=self.w[i, :k + 1],
                       t_u=self.t[:k], u=self.u[i, :k], q_ref=q_ref, missed_steps=0,
-                      faults=[f for f in self.faults if f[0] <= self.t[k]])
+                      faults=[f for f in self.faults if f[0] <= self.t[k]], pointing=self.pointing)
         if self.wheel_names:
             run.t_wheels, run.wheel_names = self.t[:k + 1], list(self.wheel_names)
             run.wheel_speed = self.wheel_speed[i, :k + 1]
@@ -144,6 +145,8 @@ class BatchSimulation:
         # A law that needs the wheels' momentum (seed 003) gets it as its node does: from the true
         # speeds of the controller's wheels (by name; wheels/state carries no noise), through
         # Actuation.wheel_momentum.
+        sigma, tau = getattr(self.law, 'sigma', None), getattr(self.law, 'tau', None)
+        self.pointing = None if sigma is None or tau is None else (np.asarray(sigma), np.asarray(tau))
         self.needs_wheel_momentum = bool(getattr(self.law, 'needs_wheel_momentum', False))
         self.momentum_index = None
         if self.needs_wheel_momentum:
@@ -242,5 +245,6 @@ class BatchSimulation:
                            wheel_speed=speed_hist, q_ref=np.asarray(self.q_ref, dtype=float),
                            faults=[(t_ns / NS_PER_S, 2 if mode in FAULT_ERROR_MODES else 0, name, mode)
                                    for t_ns, snap in self.fault_schedule
-                                   for name, (mode, _, _) in snap.items()])
+                                   for name, (mode, _, _) in snap.items()],
+                           pointing=self.pointing)
 
