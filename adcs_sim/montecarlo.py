@@ -17,7 +17,7 @@ Output folder (``--out``, default ``runs/<campaign>_<timestamp>``):
   the ROS graph with ``adcs-run replay/run_<i>.yaml`` (``--export-run I`` writes any run's);
 * ``figures/hist_<metric>.png|svg`` — histograms; ``campaign.yaml`` — a copy of the campaign;
 * with the campaign's ``series_every``: ``series.npz`` (``t``, ``error_deg`` (runs, samples),
-  ``runs``) and ``figures/error_all_runs.png|svg``, every run's error on a log scale (seed 003's
+  ``runs``) and ``figures/error_all_runs.png``, every run's error on a log scale (seed 003's
   Figure 3 for a pointing campaign);
 * with ``--paired-with DIR`` (another campaign's output over the same draws, e.g. another law):
   ``paired.md`` / ``paired.json``, the run-by-run relative change of every metric.
@@ -235,7 +235,7 @@ def write_series(rows: list[dict], out: Path, figure: bool = True) -> list[Path]
     if not figure:
         return []
     from matplotlib.figure import Figure
-    from adcs_sim.report import save_figure
+    from adcs_sim.report import DPI
     kind = longest['kind']
     fig = Figure(figsize=(6.4, 4.0), layout='constrained')
     ax = fig.subplots()
@@ -250,7 +250,11 @@ def write_series(rows: list[dict], out: Path, figure: bool = True) -> list[Path]
     ax.set_xlim(t[0], t[-1])
     ax.set_ylim(max(floor, np.nanmin(err[:, -1]) / 3) if np.isfinite(np.nanmin(err[:, -1])) else floor, 200)
     ax.grid(True, which='both', alpha=0.3)
-    return save_figure(fig, out / 'figures', 'error_all_runs')
+    # PNG only: an SVG of a thousand curves is megabytes
+    path = out / 'figures' / 'error_all_runs.png'
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=DPI)
+    return [path]
 
 
 def paired_comparison(rows: list[dict], other_csv: Path, metrics: list[str]) -> dict:
