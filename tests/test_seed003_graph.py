@@ -105,3 +105,31 @@ def test_registry_builds_the_pointing_laws_from_the_sections():
     secs = validate_scenario(make_scenario.__globals__['CONFIG'] / 'pointing_controller_a.yaml')
     law = NODES['pointing_a_controller'].law(secs['pointing_a_controller'])
     assert law.needs_wheel_momentum and np.allclose(law.H, [0.0, 0.0, 0.85])
+
+
+def test_initial_momentum_sets_the_body_rate(tmp_path):
+    """initial.momentum: H in inertial axes, wheels at their initial speed, the body carries the
+    rest (J w0 = R(q0)^T H - sum a_i Js_i Omega0_i): the plant's inertial momentum is H."""
+    from adcs_sim.scenario import build_plant, initial_state
+    secs = validate_scenario(make_scenario(tmp_path, {'dynamics': {'wheels.initial_speed': [10.0, -5.0, 0.0]}},
+                                           base='pointing_controller_b.yaml'))
+    d = secs['dynamics']
+    plant = build_plant(d)
+    x0 = initial_state(plant, d)
+    np.testing.assert_allclose(plant.inertial_momentum(x0), [0.0, 0.0, 0.85], rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(x0[7:10], [10.0, -5.0, 0.0])
+    # the scenario as written: wheels at rest, all of H0 in the body
+    d0 = validate_scenario(make_scenario(tmp_path, {}, base='pointing_controller_b.yaml'))['dynamics']
+    x = initial_state(build_plant(d0), d0)
+    assert np.all(x[7:10] == 0.0)
+    assert np.linalg.norm(np.diag([10.0, 8.0, 9.0]) @ x[4:7]) == pytest.approx(0.85, rel=1e-14)
+
+
+@pytest.mark.parametrize('overrides, key', [
+    ({'initial.momentum': [0.0, 0.85]}, 'initial.momentum'),
+    ({'initial.rate': [0.01, 0.0, 0.0]}, 'initial.rate'),
+])
+def test_bad_initial_momentum_is_named(tmp_path, overrides, key):
+    scenario = make_scenario(tmp_path, {'dynamics': overrides}, base='pointing_controller_b.yaml')
+    with pytest.raises(ParameterError, match=key.replace('.', r'\.')):
+        validate_scenario(scenario)

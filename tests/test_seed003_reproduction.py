@@ -115,3 +115,23 @@ def test_committed_table1_results_are_not_stale(name, campaign):
         assert old['status'] == row['status']
         for m, v in row['metrics'].items():
             assert float(old[m]) == pytest.approx(v, rel=1e-9, abs=1e-12), (row['run'], m)
+
+
+def test_small_campaign_through_the_cli_equals_the_committed_rows(tmp_path):
+    """adcs-montecarlo on the first 20 runs of the B campaign (one process): the pointing metrics,
+    the series and the all-runs figure are written, and each row equals the committed 1000-run
+    campaign's (a run does not depend on the campaign's size or split)."""
+    from adcs_sim.montecarlo import main
+    out = tmp_path / 'mc'
+    assert main([str(ROOT / 'config' / 'campaigns' / 'pointing_table1.yaml'), '--runs', '20',
+                 '--out', str(out), '--scheduler', 'none', '--quiet', '--no-figures']) == 0
+    with open(out / 'results.csv', newline='', encoding='utf-8') as f:
+        small = list(csv.DictReader(f))
+    committed = results('pointing_table1')
+    assert len(small) == 20
+    for row in small:
+        old = committed[int(row['run'])]
+        assert row == old
+    series = np.load(out / 'series.npz')
+    assert series['error_deg'].shape == (20, 151) and series['t'][-1] == 1500.0
+    assert np.all(series['error_deg'][:, -1] < 0.01)
