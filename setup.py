@@ -20,6 +20,8 @@ NODES = {
     'snlc_gsmn_controller': 'adcs_controllers.nodes.snlc_gsmn_controller:main',
     'm2r_controller': 'adcs_controllers.nodes.m2r_controller:main',
     'm2s_controller': 'adcs_controllers.nodes.m2s_controller:main',
+    'pointing_a_controller': 'adcs_controllers.nodes.pointing_a_controller:main',
+    'pointing_b_controller': 'adcs_controllers.nodes.pointing_b_controller:main',
 }
 TOOLS = {
     'adcs-run': 'adcs_sim.runner:main',

@@ -287,3 +287,73 @@ M2S_SCHEMA = Schema('m2s_controller', [
     doc='adaptive motion-to-spin law, seed 001 Theorem 2 (eq. 31-46), saturation by cutoff/scaling '
         '(eq. 47-51; the `saturation` clip/scale), VAG-C/S (eq. 55-58), extremum tracking (eq. 60-67); '
         'external torquers')
+
+
+# --- seed 003: single-axis pointing with two wheels and non-zero angular momentum -------------
+
+def _nonzero_vector(v) -> str | None:
+    return None if sum(x * x for x in v) > 1e-24 else f'must not be the zero vector, got {v!r}'
+
+
+def _pointing_check(v: dict) -> None:
+    """Wheels with their spin inertia (the node forms h = sum a_i Js_i Omega_i from wheels/state),
+    and the pointing request feasible: eq. (14), |alpha| <= pi/2 - |lambda|."""
+    import numpy as np
+    from adcs_msgs_py.params import ParameterError
+    from adcs_controllers.laws.single_axis import body_axis_angles, elevation
+    _actuator_check(v)
+    if v['actuator'] != 'wheels':
+        raise ParameterError('actuator', "the pointing laws need the wheels' momentum: actuator 'wheels'")
+    check_per_wheel(v, required=['wheels.spin_inertia'],
+                    why=' (h = sum_i a_i Js_i Omega_i from wheels/state)')
+    lam, _ = body_axis_angles(np.asarray(v['sigma'], dtype=float))
+    alpha = elevation(np.asarray(v['tau'], dtype=float), np.asarray(v['momentum'], dtype=float))
+    if abs(alpha) > np.pi / 2 - abs(lam) + 1e-12:
+        raise ParameterError('tau', 'pointing infeasible, eq. (14) needs |alpha| <= 90 deg - |lambda|: '
+                             f'tau is {np.degrees(abs(alpha)):.6g} deg from the plane normal to '
+                             f'`momentum` but sigma is only {90 - np.degrees(abs(lam)):.6g} deg from the '
+                             f'failed wheel axis e3 (lambda = {np.degrees(lam):.6g} deg, sigma = '
+                             f'{list(v["sigma"])}, tau = {list(v["tau"])}, momentum = {list(v["momentum"])})')
+
+
+def _pointing_params(*gains: Param) -> list[Param]:
+    """Parameters of both seed 003 laws (adcs_controllers/laws/single_axis.py; paper symbols)."""
+    return [
+        inertia_param("J, the controller's model of the total inertia (wheels locked), kg m^2"),
+        Param('sigma', 'double_array', length=3, check=_nonzero_vector,
+              doc='body axis to point, sigma (eq. 9; normalised), body axes'),
+        Param('tau', 'double_array', length=3, check=_nonzero_vector,
+              doc='target direction tau (normalised), inertial axes (the frame of the attitude)'),
+        Param('momentum', 'double_array', length=3, check=_nonzero_vector,
+              doc='total angular momentum H of the system in inertial axes (N m s): defines F_I (eq. 6)'),
+        Param('solution', 'int', default=0, check=lambda s: None if s in (0, 1, 2) else
+              f'must be 0 (the final attitude of eq. 16 nearer to the initial one), 1 or 2, got {s!r}',
+              doc='which final attitude of eq. (16): 1 (Psi*), 2 (pi - Psi*), 0 the nearer to q(0)'),
+        _gain('K_p', 'gain K_p of eq. (22)/(33) (N m s/rad)'),
+        _gain('K_h', 'gain K_h of eq. (20)/(32) (rad/(N m s))'),
+        *gains,
+        Param('wheels.spin_inertia', 'double_array', default=[], check=all_positive,
+              doc='spin inertia per wheel (kg m^2): h = sum_i a_i Js_i Omega_i from wheels/state'),
+        *controller_params(),
+    ]
+
+
+POINTING_A_SCHEMA = Schema('pointing_a_controller', [
+    *_pointing_params(
+        Param('Q', 'double_array', default=[0.1, 100.0, 100.0, 100.0, 1.0], length=5, check=all_positive,
+              doc='LQR state weights on (e_Psi, w1, w2, w3, e_h) (section 5.3)'),
+        Param('R', 'double_array', default=[100.0, 100.0], length=2, check=all_positive,
+              doc='LQR control weights (section 5.3)'),
+        Param('eps_omega', 'double', default=0.01, check=positive,
+              doc='stage switch threshold on |w| (rad/s, section 3.3)'),
+        Param('eps_Phi', 'double', default=0.017453292519943295, check=positive,
+              doc='stage switch threshold on |e_Phi| (rad; 1 deg, section 3.3)'),
+        Param('momentum_state', 'string', default='auto', choices=('auto', 'h1', 'h2'),
+              doc="fifth LQR state e_h1 or e_h2 (dual state of section 3.1); auto: e_h1 iff "
+                  "|cos Phi_f| >= |sin Phi_f|")),
+], cross_check=_pointing_check,
+    doc='seed 003 controller A: momentum stabilisation (eq. 20-22), then LQR on eq. (18)')
+
+POINTING_B_SCHEMA = Schema('pointing_b_controller', [
+    *_pointing_params(_gain('K_Psi', 'precession gain K_Psi of eq. (24) (1/s)')),
+], cross_check=_pointing_check, doc='seed 003 controller B: desired-rate tracking, eq. (24-33)')
