@@ -23,3 +23,4 @@ test: $(VENV)/.installed
 bench: $(VENV)/.installed
 	$(PY) benchmarks/lockstep_vs_pingpong.py
 	$(PY) benchmarks/batch_vs_loop.py
+	$(PY) benchmarks/pointing_montecarlo.py

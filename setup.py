@@ -18,6 +18,10 @@ NODES = {
     'snlc_controller': 'adcs_controllers.nodes.snlc_controller:main',
     'snlc_minnorm_controller': 'adcs_controllers.nodes.snlc_minnorm_controller:main',
     'snlc_gsmn_controller': 'adcs_controllers.nodes.snlc_gsmn_controller:main',
+    'm2r_controller': 'adcs_controllers.nodes.m2r_controller:main',
+    'm2s_controller': 'adcs_controllers.nodes.m2s_controller:main',
+    'pointing_a_controller': 'adcs_controllers.nodes.pointing_a_controller:main',
+    'pointing_b_controller': 'adcs_controllers.nodes.pointing_b_controller:main',
     'backstepping_controller': 'adcs_controllers.nodes.backstepping_controller:main',
 }
 TOOLS = {

@@ -184,6 +184,181 @@ SNLC_GSMN_SCHEMA = Schema('snlc_gsmn_controller', [
 ], cross_check=_two_wheel_check, doc='two-wheel gain-scheduled min-norm law, seed 000 eq. (30-32)')
 
 
+# --- seed 001: inertia-free motion to rest (M2R) and adaptive motion to spin (M2S), torquers ----
+
+def _distinct_positive(vs) -> str | None:
+    if not all(v > 0 for v in vs) or len(set(vs)) != len(vs):
+        return f'A = diag(a1, a2, a3) needs three distinct positive entries (eq. 13), got {vs!r}'
+    return None
+
+
+def _inertia_free_check(v: dict) -> None:
+    """Both seed 001 laws act through ideal torquers (the paper's "continuously variable torques
+    without momentum storage"); the torquer limit is the paper's u_max."""
+    from adcs_msgs_py.params import ParameterError
+    if v['actuator'] != 'torquers':
+        raise ParameterError('actuator', "the seed 001 laws command external torques: set actuator "
+                             "'torquers' (and torquers.enabled in the dynamics section)")
+    B = v['B']
+    if B:
+        import numpy as np
+        m = np.diag(B) if len(B) == 3 else np.asarray(B, dtype=float).reshape(3, 3)
+        if not np.linalg.matrix_rank(m) == 3:
+            raise ParameterError('B', f'the actuation matrix must be invertible (u = -B^-1(...)), got {B!r}')
+
+
+def _m2r_check(v: dict) -> None:
+    from adcs_msgs_py.params import ParameterError
+    from adcs_controllers.laws.inertia_free import check_m2r_gains
+    _inertia_free_check(v)
+    if any(v['target.rate']):
+        raise ParameterError('target.rate', f'M2R brings the body to rest: must be [0, 0, 0], got {v["target.rate"]!r}')
+    u_max = v['torquers.max_torque']
+    if u_max != float('inf'):
+        import numpy as np
+        B = None if not v['B'] else (np.diag(v['B']) if len(v['B']) == 3 else np.reshape(v['B'], (3, 3)))
+        try:
+            check_m2r_gains(v['alpha'], v['beta'], u_max, B, v['proposition'])
+        except ValueError as exc:
+            raise ParameterError('alpha', str(exc)) from None
+
+
+def _inertia_free_params() -> list[Param]:
+    return [
+        inertia_param('the true inertia J (kg m^2): the law does not use it (inertia free); only the '
+                      'Lyapunov value V on the status topic does'),
+        _gain('alpha', 'alpha (N m): Kp = alpha / tr A (eq. 15)'),
+        _gain('beta', 'beta (N m): Kv = beta diag f(w) (M2R, eq. 16) or beta I (M2S, eq. 44)'),
+        Param('A', 'double_array', default=[1.0, 2.0, 3.0], length=3, check=_distinct_positive, batch=True,
+              doc='diag(A) of the attitude error S, eq. (13)'),
+        Param('B', 'double_array', default=[], length=(0, 3, 9), batch=True,
+              doc='actuation matrix B of eq. (1): 3 diagonal or 9 row-major values (empty: I)'),
+        *_target_params(),
+        *controller_params(),
+    ]
+
+
+M2R_SCHEMA = Schema('m2r_controller', [
+    *_inertia_free_params(),
+    Param('f', 'string', default='eq25', choices=('eq25', 'eq24'),
+          doc='the rate shaping f of Kv(w): eq. (25) with omega_bar, or eq. (24) 1/(1 + |x|)'),
+    Param('omega_bar', 'double', default=0.2, check=positive, batch=True, doc='w_bar of eq. (25) (rad/s)'),
+    Param('proposition', 'int', default=1, choices=None, check=lambda v: None if v in (1, 2) else
+          f'must be 1 or 2, got {v!r}',
+          doc='which torque bound the gains are checked against: Proposition 1 (eq. 18, 20; '
+              'diagonal B) or 2 (eq. 22-23)'),
+], cross_check=_m2r_check, doc='inertia-free motion-to-rest law, seed 001 eq. (11-25), with the '
+                               'torque bounds of Propositions 1-2; external torquers')
+
+M2S_SCHEMA = Schema('m2s_controller', [
+    *_inertia_free_params(),
+    Param('K1', 'double_array', default=[], length=(0, 1, 3, 9), doc='K1 of z = w_err + K1 S, eq. (38) (empty: I)'),
+    Param('Q', 'double_array', default=[], length=(0, 6, 36),
+          doc='Q0 of the adaptation gain Q = q Q0, eq. (37), (55): 6 diagonal or 36 values (empty: I6)'),
+    Param('J_hat0', 'double_array', default=[1.0, 1.0, 1.0], length=(3, 9), batch=True,
+          doc='initial inertia estimate J_hat(0) (kg m^2), eq. (37): 3 diagonal or 9 values'),
+    Param('C_d', 'double_array', default=[],
+          doc='disturbance output matrix C_d (3 x nd, row-major), eq. (35); empty or zeros: the '
+              'disturbance is not estimated (the paper\'s C_d = 0)'),
+    Param('A_d', 'double_array', default=[], doc='disturbance model A_d (nd x nd), eq. (34) (empty: 0, constant)'),
+    Param('D', 'double_array', default=[], doc='D of the disturbance update, eq. (39) (nd or nd^2 values; empty: I)'),
+    Param('d_hat0', 'double_array', default=[], doc='initial disturbance-state estimate (empty: 0)'),
+    Param('d_true', 'double_array', default=[],
+          doc='the true disturbance state, only for V on the status (empty: V without the d term)'),
+    Param('vag', 'bool', default=False, batch=True,
+          doc='varying adaptation gain, eq. (56): VAG-C with saturation clip, VAG-S with scale'),
+    Param('q_max', 'double', default=10000.0, check=positive, doc='q_max of eq. (56)'),
+    Param('K_Q', 'double', default=0.001, check=positive, doc='K_Q of eq. (56)'),
+    Param('vag_excess', 'string', default='printed', choices=('printed', 'positive'),
+          doc="eq. (56)'s || |u| - u_max ||: over all axes as printed, or the positive excess only"),
+    Param('vag_disturbance', 'bool', default=False,
+          doc='also slow the disturbance estimate by q (the remedy the paper suggests after fig. 18)'),
+    Param('extremum', 'bool', default=False, doc='extremum tracking of the spin rate, eq. (60-64)'),
+    Param('t_max', 'double', default=250.0, check=positive, doc='t_max of eq. (62) (s)'),
+    Param('phi_max', 'double', default=0.17453292519943295, check=positive,
+          doc='phi_max of eq. (62): largest spin-axis error (rad; 10 deg)'),
+    Param('K_omega', 'double', default=0.5, check=lambda v: None if 0 < v < 1 else f'must be in (0, 1), got {v!r}',
+          doc='K_w of eq. (63)'),
+    Param('delta0', 'double', default=0.0, check=non_negative,
+          doc='first rate change delta_0 of eq. (63) (rad/s; 0: ||w_d||, a bisection)'),
+    Param('max_step', 'double', default=0.02, check=positive,
+          doc='largest RK4 step (s) of the continuous-time estimator between two control calls'),
+], cross_check=_inertia_free_check,
+    doc='adaptive motion-to-spin law, seed 001 Theorem 2 (eq. 31-46), saturation by cutoff/scaling '
+        '(eq. 47-51; the `saturation` clip/scale), VAG-C/S (eq. 55-58), extremum tracking (eq. 60-67); '
+        'external torquers')
+
+
+# --- seed 003: single-axis pointing with two wheels and non-zero angular momentum -------------
+
+def _nonzero_vector(v) -> str | None:
+    return None if sum(x * x for x in v) > 1e-24 else f'must not be the zero vector, got {v!r}'
+
+
+def _pointing_check(v: dict) -> None:
+    """Wheels with their spin inertia (the node forms h = sum a_i Js_i Omega_i from wheels/state),
+    and the pointing request feasible: eq. (14), |alpha| <= pi/2 - |lambda|."""
+    import numpy as np
+    from adcs_msgs_py.params import ParameterError
+    from adcs_controllers.laws.single_axis import body_axis_angles, elevation
+    _actuator_check(v)
+    if v['actuator'] != 'wheels':
+        raise ParameterError('actuator', "the pointing laws need the wheels' momentum: actuator 'wheels'")
+    check_per_wheel(v, required=['wheels.spin_inertia'],
+                    why=' (h = sum_i a_i Js_i Omega_i from wheels/state)')
+    lam, _ = body_axis_angles(np.asarray(v['sigma'], dtype=float))
+    alpha = elevation(np.asarray(v['tau'], dtype=float), np.asarray(v['momentum'], dtype=float))
+    if abs(alpha) > np.pi / 2 - abs(lam) + 1e-12:
+        raise ParameterError('tau', 'pointing infeasible, eq. (14) needs |alpha| <= 90 deg - |lambda|: '
+                             f'tau is {np.degrees(abs(alpha)):.6g} deg from the plane normal to '
+                             f'`momentum` but sigma is only {90 - np.degrees(abs(lam)):.6g} deg from the '
+                             f'failed wheel axis e3 (lambda = {np.degrees(lam):.6g} deg, sigma = '
+                             f'{list(v["sigma"])}, tau = {list(v["tau"])}, momentum = {list(v["momentum"])})')
+
+
+def _pointing_params(*gains: Param) -> list[Param]:
+    """Parameters of both seed 003 laws (adcs_controllers/laws/single_axis.py; paper symbols)."""
+    return [
+        inertia_param("J, the controller's model of the total inertia (wheels locked), kg m^2"),
+        Param('sigma', 'double_array', length=3, check=_nonzero_vector,
+              doc='body axis to point, sigma (eq. 9; normalised), body axes'),
+        Param('tau', 'double_array', length=3, check=_nonzero_vector,
+              doc='target direction tau (normalised), inertial axes (the frame of the attitude)'),
+        Param('momentum', 'double_array', length=3, check=_nonzero_vector,
+              doc='total angular momentum H of the system in inertial axes (N m s): defines F_I (eq. 6)'),
+        Param('solution', 'int', default=0, check=lambda s: None if s in (0, 1, 2) else
+              f'must be 0 (the final attitude of eq. 16 nearer to the initial one), 1 or 2, got {s!r}',
+              doc='which final attitude of eq. (16): 1 (Psi*), 2 (pi - Psi*), 0 the nearer to q(0)'),
+        _gain('K_p', 'gain K_p of eq. (22)/(33) (N m s/rad)'),
+        _gain('K_h', 'gain K_h of eq. (20)/(32) (rad/(N m s))'),
+        *gains,
+        Param('wheels.spin_inertia', 'double_array', default=[], check=all_positive,
+              doc='spin inertia per wheel (kg m^2): h = sum_i a_i Js_i Omega_i from wheels/state'),
+        *controller_params(),
+    ]
+
+
+POINTING_A_SCHEMA = Schema('pointing_a_controller', [
+    *_pointing_params(
+        Param('Q', 'double_array', default=[0.1, 100.0, 100.0, 100.0, 1.0], length=5, check=all_positive,
+              doc='LQR state weights on (e_Psi, w1, w2, w3, e_h) (section 5.3)'),
+        Param('R', 'double_array', default=[100.0, 100.0], length=2, check=all_positive,
+              doc='LQR control weights (section 5.3)'),
+        Param('eps_omega', 'double', default=0.01, check=positive,
+              doc='stage switch threshold on |w| (rad/s, section 3.3)'),
+        Param('eps_Phi', 'double', default=0.017453292519943295, check=positive,
+              doc='stage switch threshold on |e_Phi| (rad; 1 deg, section 3.3)'),
+        Param('momentum_state', 'string', default='auto', choices=('auto', 'h1', 'h2'),
+              doc="fifth LQR state e_h1 or e_h2 (dual state of section 3.1); auto: e_h1 iff "
+                  "|cos Phi_f| >= |sin Phi_f|")),
+], cross_check=_pointing_check,
+    doc='seed 003 controller A: momentum stabilisation (eq. 20-22), then LQR on eq. (18)')
+
+POINTING_B_SCHEMA = Schema('pointing_b_controller', [
+    *_pointing_params(_gain('K_Psi', 'precession gain K_Psi of eq. (24) (1/s)')),
+], cross_check=_pointing_check, doc='seed 003 controller B: desired-rate tracking, eq. (24-33)')
+
+
 # --- seed 002: quaternion integrator backstepping, four thrusters and one pitch wheel -----------
 
 def _backstepping_check(v: dict) -> None:

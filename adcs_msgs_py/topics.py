@@ -5,13 +5,25 @@ domain. Every node and the recorder take their topics from :data:`TOPICS`.
 
 QoS choices
 -----------
-* **Lockstep data** (state, wheel and thruster states/commands, torque commands, applied torque): RELIABLE,
-  VOLATILE, KEEP_LAST depth 10. Lockstep must not lose a state or a command (a lost one costs a
-  wall-clock timeout and a missed step); depth 10 absorbs a burst while a subscriber is busy
-  without unbounded memory. VOLATILE because a late joiner must not act on an old state.
-* **/clock**: RELIABLE, depth 10. rclpy's time source subscribes best-effort, which matches a
-  reliable publisher; reliable lets the recorder keep every tick.
-* **Status / diagnostics**: RELIABLE, depth 50: what the papers plot, one per step, recorded.
+* **Lockstep data** (state, wheel and thruster states/commands, torque commands, applied
+  torque): RELIABLE,
+  VOLATILE, KEEP_LAST depth :data:`DEPTH` (200). Lockstep must not lose a state or a command (a
+  lost one costs a wall-clock timeout and a missed step). The controllers answer every state, but
+  the recorder only acknowledges: a RELIABLE KEEP_LAST writer drops a sample it has not had
+  acknowledged once ``depth`` newer ones are written, so a recorder that falls behind (seen under
+  CPU load with depth 10: five states missing from a 4 500-step bag) would lose data. Hence, when
+  a recorder is expected (``startup.expect_recorder``, set by the runner), the publishers of every
+  recorded per-step topic wait for all acknowledgements every :data:`ACK_INTERVAL` (50) steps: a
+  reader is then never more than ~50 steps behind, well inside the writer's depth, and the wait
+  (one heartbeat/acknowledgement round, up to ~50 ms) is paid once per 50 steps instead of at
+  every step. Memory stays bounded (200 messages per topic). The nodes' own subscriptions keep
+  depth :data:`SUB_DEPTH` (10, :func:`subscriber_qos`): a controller that falls behind in
+  real-time mode must act on recent states, not work through a backlog of 200 stale ones.
+  VOLATILE because a late joiner must not act on an old state.
+* **/clock**: RELIABLE, same depth and pacing. rclpy's time source subscribes best-effort, which
+  matches a reliable publisher; reliable lets the recorder keep every tick.
+* **Status / diagnostics**: RELIABLE, same depth and pacing: what the papers plot, one per step,
+  recorded.
 * **Faults**: RELIABLE, TRANSIENT_LOCAL, depth 100: a controller or recorder that joins late still
   learns which actuators are gone.
 * **Recorder** subscriptions: KEEP_ALL (see :func:`recorder_qos`). In lockstep free flight (no
@@ -35,18 +47,31 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
+DEPTH = 200        # writers' history of the per-step topics (messages)
+SUB_DEPTH = 10     # the nodes' own readers of those topics
+ACK_INTERVAL = 50  # steps between two waits for every reader's acknowledgement (< DEPTH)
+
 QOS_LOCKSTEP = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10,
+    history=HistoryPolicy.KEEP_LAST, depth=DEPTH,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
 QOS_CLOCK = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10,
+    history=HistoryPolicy.KEEP_LAST, depth=DEPTH,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
 QOS_STATUS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=50,
+    history=HistoryPolicy.KEEP_LAST, depth=DEPTH,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
 QOS_LATCHED = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=100,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def subscriber_qos(offered: QoSProfile) -> QoSProfile:
+    """A node's subscription QoS for a topic offered with ``offered``: the same, but a volatile
+    topic's queue is only :data:`SUB_DEPTH` deep (a latched one keeps its whole history)."""
+    if offered.durability != DurabilityPolicy.VOLATILE:
+        return offered
+    return QoSProfile(history=offered.history, depth=SUB_DEPTH, reliability=offered.reliability,
+                      durability=offered.durability)
 
 
 def recorder_qos(offered: QoSProfile) -> QoSProfile:

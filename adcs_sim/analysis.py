@@ -25,6 +25,11 @@ Definitions (every metric printed by ``adcs-run`` and ``adcs-analyze``):
   error quaternion's scalar part stays within ``1 ± δ``, i.e. an eigenaxis error within
   ``2 acos(1 - δ)``: 23.0° for 0.02, 16.2° for 0.01; last exit as above) and ``∫‖u‖ dt`` over
   ``[t0, end]``.
+* **Pointing** (seed 003; runs whose controller section has ``sigma`` and ``tau``): the pointing
+  error is the angle between the body axis ``σ̂`` and the inertial direction ``τ̂``
+  (:func:`adcs_controllers.laws.single_axis.pointing_error`, true attitude); at 1°, 0.1° and
+  0.01° (Table 1) the *first entry* and the *settling* (staying below to the end) times, as above,
+  and the final pointing error.
 * **Peak torque** per body axis ``max |u_i|`` over the applied-torque samples; **peak wheel
   speed** ``max |Ω|`` over all wheels and samples (rad/s, relative to the body); **missed
   steps** from the last ``dynamics/status`` that reports them.
@@ -154,6 +159,7 @@ class RunData:
     truncated: bool = False            # no MCAP summary/footer (writer killed): data up to the last whole chunk
     message_count: int = 0             # messages read from the bag, all topics
     missing_topics: list = field(default_factory=list)  # of REPORTED_TOPICS, those with no message
+    pointing: tuple | None = None      # (σ̂ body axis, τ̂ inertial direction) of a pointing run (seed 003)
     namespace: str = '/'               # the run's topic prefix ('/' or e.g. '/sat1/')
 
     @property
@@ -241,6 +247,7 @@ class RunData:
         if scenario_text:
             run.scenario = yaml.safe_load(scenario_text)
             run.q_ref = target_attitude(run.scenario)
+            run.pointing = pointing_request(run.scenario)
         return run
 
 
@@ -340,6 +347,37 @@ def target_attitude(scenario: dict) -> np.ndarray:
     return np.array([0.0, 0.0, 0.0, 1.0])
 
 
+def pointing_request(scenario: dict) -> tuple | None:
+    """(σ̂, τ̂) of a scenario whose controller section points a body axis (``sigma``, ``tau``)."""
+    for name, section in (scenario or {}).items():
+        params = (section or {}).get('ros__parameters') or {}
+        if isinstance(params, dict) and 'sigma' in params and 'tau' in params:
+            return np.asarray(params['sigma'], dtype=float), np.asarray(params['tau'], dtype=float)
+    return None
+
+
+POINTING_BANDS_DEG = (1.0, 0.1, 0.01)   # seed 003 Table 1
+
+
+def pointing_error_deg(run: RunData) -> np.ndarray:
+    """Angle (deg) between σ̂ and τ̂ at each state sample of a pointing run."""
+    from adcs_controllers.laws.single_axis import pointing_error
+    sigma, tau = run.pointing
+    return np.degrees(pointing_error(run.q, sigma, tau))
+
+
+def pointing_metrics(t: np.ndarray, error_deg: np.ndarray, bands=POINTING_BANDS_DEG) -> dict:
+    """First-entry and settling (staying below) times of the pointing error at each band (deg),
+    and the final error: ``pointing_first_<b>deg_s``, ``pointing_settling_<b>deg_s``,
+    ``final_pointing_error_deg``."""
+    out = {}
+    for b in bands:
+        out[f'pointing_first_{b:g}deg_s'] = first_entry_time(t, error_deg, b)
+        out[f'pointing_settling_{b:g}deg_s'] = settling_time(t, error_deg, b)
+    out['final_pointing_error_deg'] = float(error_deg[-1]) if len(error_deg) else math.nan
+    return out
+
+
 def attitude_errors(run: RunData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(error quaternion (N, 4), eigenaxis error (N,) deg, signed 2-1-3 Euler errors (N, 3) deg in
     sequence order y, x, z)."""
@@ -416,6 +454,8 @@ def run_metrics(run: RunData, tol_deg: float = 0.5, eigen_tol_deg: float | None 
         out['peak_wheel_speed_rad_s'] = float(np.abs(run.wheel_speed).max())
     out.update(fault_metrics(run))
     out.update(thruster_metrics(run))
+    if run.pointing is not None:
+        out.update(pointing_metrics(run.t, pointing_error_deg(run)))
     return out
 
 

@@ -64,6 +64,7 @@ class BatchResult:
     thruster_names: list = field(default_factory=list)
     thruster_on_time: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))  # (N, K, n) s
     thruster_impulse: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))  # (N, K + 1, n) N s
+    pointing: tuple | None = None  # (σ̂, τ̂) of a pointing law (seed 003), as RunData.pointing
 
     @property
     def n_runs(self) -> int:
@@ -76,7 +77,7 @@ class BatchResult:
         q_ref = self.q_ref[i] if self.q_ref.ndim == 2 else self.q_ref
         run = RunData(t=self.t[:k + 1], q=self.q[i, :k + 1], w=self.w[i, :k + 1],
                       t_u=self.t[:k], u=self.u[i, :k], q_ref=q_ref, missed_steps=0,
-                      faults=[f for f in self.faults if f[0] <= self.t[k]])
+                      faults=[f for f in self.faults if f[0] <= self.t[k]], pointing=self.pointing)
         if self.wheel_names:
             run.t_wheels, run.wheel_names = self.t[:k + 1], list(self.wheel_names)
             run.wheel_speed = self.wheel_speed[i, :k + 1]
@@ -148,6 +149,20 @@ class BatchSimulation:
         self.q_ref = self.law.q_ref if self.law is not None else np.array([0.0, 0.0, 0.0, 1.0])
         self.wheels = next((a for a in self.plant.actuators if isinstance(a, ReactionWheels)), None)
         self.thrusters = next((a for a in self.plant.actuators if isinstance(a, Thrusters)), None)
+        # A law that needs the wheels' momentum (seed 003) gets it as its node does: from the true
+        # speeds of the controller's wheels (by name; wheels/state carries no noise), through
+        # Actuation.wheel_momentum.
+        sigma, tau = getattr(self.law, 'sigma', None), getattr(self.law, 'tau', None)
+        self.pointing = None if sigma is None or tau is None else (np.asarray(sigma), np.asarray(tau))
+        self.needs_wheel_momentum = bool(getattr(self.law, 'needs_wheel_momentum', False))
+        self.momentum_index = None
+        if self.needs_wheel_momentum:
+            names = list(self.wheels.names) if self.wheels else []
+            missing = [n for n in self.actuation.wheel_names if n not in names]
+            if missing:
+                raise ParameterError('wheels.names', f'wheel(s) {missing} of the controller are not '
+                                     f'in the dynamics section ({names})', self.controller)
+            self.momentum_index = np.array([names.index(n) for n in self.actuation.wheel_names])
 
     def _apply_faults(self, t_ns: int, applied: int) -> int:
         """Apply the latest fault snapshot stamped ``<= t_ns`` if newer than snapshot ``applied``
@@ -179,9 +194,10 @@ class BatchSimulation:
             commands['torquers'] = values
         return commands
 
-    def run(self, progress=None) -> BatchResult:
+    def run(self, progress=None, observe=None) -> BatchResult:
         """Simulate every run to its end (or divergence). ``progress(steps_done)`` is called
-        after each control step if given."""
+        after each control step if given; ``observe(k, t, status)`` with the law's status of
+        step ``k`` (what the controller node publishes, with the batch axis), if given."""
         N, K = self.n_runs, int(self.n_steps.max())
         plant = self.plant
         period = self.period_ns / NS_PER_S
@@ -217,7 +233,13 @@ class BatchSimulation:
                     q_m, w_m = self.measurement.measure(x[:, :4], x[:, 4:7])
                     q_m = quat_normalize(q_m)  # what a controller does to the attitude it receives
                     momentum = self.law.output == 'wheel_momentum'
-                    out, _ = self.law.control(t, q_m, w_m)
+                    if self.needs_wheel_momentum:
+                        speed = x[:, wheel_sl][:, self.momentum_index]
+                        out, status = self.law.control(t, q_m, w_m, self.actuation.wheel_momentum(speed))
+                    else:
+                        out, status = self.law.control(t, q_m, w_m)
+                    if observe is not None:
+                        observe(k, t, status)
                     if momentum:
                         values = self.actuation.command_momentum(np.broadcast_to(out, (N, 3)))
                     elif self.actuation.kind == 'thrusters':
@@ -257,5 +279,6 @@ class BatchSimulation:
                                    for t_ns, snap in self.fault_schedule
                                    for name, (mode, _, _) in snap.items()],
                            thruster_names=list(self.thrusters.names) if self.thrusters else [],
-                           thruster_on_time=on_hist, thruster_impulse=impulse_hist)
+                           thruster_on_time=on_hist, thruster_impulse=impulse_hist,
+                           pointing=self.pointing)
 

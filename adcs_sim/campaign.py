@@ -9,6 +9,7 @@ A campaign file (YAML) names a scenario file and how to disperse it::
       chunk_size: 100                      # runs per batch / per Dask task
       tolerance_deg: 0.5                   # settling band of the metrics
       metrics: [settling_euler213_0.5deg_s, integrated_torque_Nms]   # default: all
+      series_every: 5                      # optional: keep each run's error every 5 control steps
       requirements:                        # optional: runs outside are listed with their inputs
         settling_euler213_0.5deg_s: {max: 400}
       dispersions:                         # <section>.<parameter>: how to draw it, in this order
@@ -24,6 +25,12 @@ Distributions (``shape`` is the nominal value's: a scalar or a list):
   (``max_deg``: one value or three in sequence order y, x, z), as seed 004 states its slews;
 * ``so3_uniform`` (quaternions): uniformly distributed on SO(3) (:meth:`Rotation.random`);
 * ``run_index`` (integers, e.g. ``dynamics.noise.seed``): ``offset`` + the run's index.
+
+A scenario whose controller points a body axis (seed 003: ``sigma``, ``tau`` in its section) adds
+the pointing metrics of :func:`adcs_sim.analysis.pointing_metrics` (first entry and settling at
+1°, 0.1°, 0.01°). ``series_every: k`` keeps each run's error time series (the pointing error for
+such a scenario, the eigenaxis error otherwise) every ``k`` control steps, for the figure of all
+runs (``adcs-montecarlo`` writes ``series.npz`` and ``figures/error_all_runs``).
 
 ``link`` copies the drawn value to other parameters (the controller's inertia model following the
 plant's, a torque limit known to both). Run ``i`` draws from its own generator
@@ -59,18 +66,20 @@ DISTRIBUTIONS = {
     'run_index': (set(), {'offset', 'link'}),
 }
 CAMPAIGN_KEYS = {'scenario', 'runs', 'seed', 'chunk_size', 'tolerance_deg', 'metrics', 'requirements',
-                 'dispersions'}
+                 'dispersions', 'series_every'}
 
 
 class CampaignError(ValueError):
     """The campaign file is malformed or a run's drawn parameters are impossible."""
 
 
-def metric_names(tol_deg: float) -> list[str]:
-    """Names of the scalar metric columns at settling band ``tol_deg`` (lists are split per axis)."""
+def metric_names(tol_deg: float, pointing: bool = False) -> list[str]:
+    """Names of the scalar metric columns at settling band ``tol_deg`` (lists are split per axis);
+    ``pointing``: with the pointing metrics of a seed 003 scenario."""
     t = np.array([0.0, 1.0])
     dummy = RunData(t=t, q=np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), w=np.zeros((2, 3)),
-                    t_u=t[:1], u=np.zeros((1, 3)), missed_steps=0)
+                    t_u=t[:1], u=np.zeros((1, 3)), missed_steps=0,
+                    pointing=(np.array([1.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0])) if pointing else None)
     return list(metric_columns(run_metrics(dummy, tol_deg)))
 
 
@@ -141,6 +150,7 @@ class Campaign:
     metrics: list[str]
     requirements: dict[str, dict[str, float]]
     dispersions: list[Dispersion]
+    series_every: int = 0   # keep each run's error series every this many steps (0: none)
 
     @classmethod
     def load(cls, path, runs: int | None = None) -> 'Campaign':
@@ -181,7 +191,10 @@ class Campaign:
         tol = c.get('tolerance_deg', 0.5)
         if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0 < tol < 180:
             raise CampaignError(f'campaign.tolerance_deg: must be a number in (0, 180), got {tol!r}')
-        known = metric_names(float(tol))
+        known = metric_names(float(tol), pointing=_points_an_axis(defaults))
+        series_every = _integer(c, 'series_every', None, default=0)
+        if series_every < 0:
+            raise CampaignError(f'campaign.series_every: must be >= 0 (0: no series), got {series_every}')
         metrics = c.get('metrics') or known
         if not isinstance(metrics, list):
             raise CampaignError('campaign.metrics: must be a list of metric names')
@@ -202,7 +215,7 @@ class Campaign:
                        defaults=defaults, runs=runs,
                        seed=seed, chunk_size=chunk, tol_deg=float(tol), metrics=list(dict.fromkeys(expanded)),
                        requirements={m: {k: float(v) for k, v in b.items()} for m, b in requirements.items()},
-                       dispersions=[])
+                       dispersions=[], series_every=series_every)
         dispersions = c.get('dispersions') or {}
         if not isinstance(dispersions, dict):
             raise CampaignError('campaign.dispersions: must be a mapping <section>.<parameter>: {...}')
@@ -362,9 +375,28 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
             status, reason = 'failed', result.failure[j]
         elif violations := campaign.verdict(columns):
             status, reason = 'violated', '; '.join(violations)
-        rows.append({'run': index, 'status': status, 'reason': reason, 'inputs': inputs[j],
-                     'metrics': {m: columns[m] for m in campaign.metrics}})
+        row = {'run': index, 'status': status, 'reason': reason, 'inputs': inputs[j],
+               'metrics': {m: columns[m] for m in campaign.metrics}}
+        if campaign.series_every:
+            row['series'] = error_series(result, j, campaign.series_every)
+        rows.append(row)
     return rows
+
+
+def error_series(result, j: int, every: int) -> dict:
+    """Run ``j``'s error every ``every`` samples (deg, float32): the pointing error of a pointing
+    run, else the eigenaxis attitude error; with its times (s)."""
+    from adcs_sim.analysis import attitude_errors_deg, pointing_error_deg
+    run = result.run_data(j)
+    with np.errstate(all='ignore'):
+        error = pointing_error_deg(run) if run.pointing is not None else attitude_errors_deg(run)[0]
+    return {'t': run.t[::every], 'error_deg': error[::every].astype(np.float32),
+            'kind': 'pointing' if run.pointing is not None else 'eigenaxis'}
+
+
+def _points_an_axis(sections: dict) -> bool:
+    """Whether a scenario's controller points a body axis (seed 003: ``sigma`` and ``tau``)."""
+    return any('sigma' in params and 'tau' in params for params in sections.values())
 
 
 def _resolve_campaign(path: Path) -> Path:

@@ -16,6 +16,9 @@ Output folder (``--out``, default ``runs/<campaign>_<timestamp>``):
 * ``replay/run_<i>.yaml`` — for each of those runs, a complete scenario file: replay it alone on
   the ROS graph with ``adcs-run replay/run_<i>.yaml`` (``--export-run I`` writes any run's);
 * ``figures/hist_<metric>.png|svg`` — histograms; ``campaign.yaml`` — a copy of the campaign;
+* with the campaign's ``series_every``: ``series.npz`` (``t``, ``error_deg`` (runs, samples),
+  ``runs``) and ``figures/error_all_runs.png``, every run's error on a log scale (seed 003's
+  Figure 3 for a pointing campaign);
 * with ``--paired-with DIR`` (another campaign's output over the same draws, e.g. another law):
   ``paired.md`` / ``paired.json``, the run-by-run relative change of every metric.
 
@@ -215,7 +218,43 @@ def write_outputs(campaign: Campaign, rows: list[dict], out: Path, figures: bool
         (replay / f'run_{r["run"]}.yaml').write_text(campaign.scenario_text(r['run']))
     if figures:
         write_histograms(campaign, rows, out / 'figures')
+    if rows and 'series' in rows[0]:
+        write_series(rows, out, figures)
     return summary
+
+
+def write_series(rows: list[dict], out: Path, figure: bool = True) -> list[Path]:
+    """``series.npz`` of every run's error series, and the figure of all of them on a log scale."""
+    longest = max(rows, key=lambda r: r['series']['t'].size)['series']
+    t = longest['t']
+    err = np.full((len(rows), t.size), np.nan, dtype=np.float32)
+    for i, r in enumerate(rows):
+        e = r['series']['error_deg']
+        err[i, :e.size] = e
+    np.savez_compressed(out / 'series.npz', t=t, error_deg=err, runs=np.array([r['run'] for r in rows]))
+    if not figure:
+        return []
+    from matplotlib.figure import Figure
+    from adcs_sim.report import DPI
+    kind = longest['kind']
+    fig = Figure(figsize=(6.4, 4.0), layout='constrained')
+    ax = fig.subplots()
+    floor = np.float32(1e-6)
+    for e in err:
+        ax.semilogy(t, np.maximum(e, floor), color='tab:blue', linewidth=0.4, alpha=0.15)
+    for band in (1.0, 0.1, 0.01):
+        ax.axhline(band, color='k', linestyle=':', linewidth=0.8)
+    ax.set_xlabel('time (s)')
+    ax.set_ylabel(f'{kind} error (deg)')
+    ax.set_title(f'{kind} error of all {len(rows)} runs', fontsize='medium')
+    ax.set_xlim(t[0], t[-1])
+    ax.set_ylim(max(floor, np.nanmin(err[:, -1]) / 3) if np.isfinite(np.nanmin(err[:, -1])) else floor, 200)
+    ax.grid(True, which='both', alpha=0.3)
+    # PNG only: an SVG of a thousand curves is megabytes
+    path = out / 'figures' / 'error_all_runs.png'
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=DPI)
+    return [path]
 
 
 def paired_comparison(rows: list[dict], other_csv: Path, metrics: list[str]) -> dict:

@@ -12,13 +12,24 @@ from typing import Any
 
 from adcs_msgs_py.params import Schema
 from adcs_controllers.laws.backstepping import BacksteppingLaw, ThrusterActuation
+from adcs_controllers.laws.inertia_free import M2rLaw, M2sLaw
 from adcs_controllers.laws.inverse_optimal import GsmnLaw, KtLaw, MinNormLaw
 from adcs_controllers.laws.pd import PdLaw
 from adcs_controllers.laws.reconfiguration import TwoWheelReconfiguration
+from adcs_controllers.laws.single_axis import PointingALaw, PointingBLaw
 from adcs_controllers.laws.underactuated import SnlcGsmnLaw, SnlcLaw, SnlcMinNormLaw, ZeroMomentumLaw
-from adcs_controllers.schemas import (BACKSTEPPING_SCHEMA, GSMN_SCHEMA, KT_SCHEMA, MINNORM_SCHEMA, PD_SCHEMA, SNLC_GSMN_SCHEMA,
-                                      SNLC_MINNORM_SCHEMA, SNLC_SCHEMA, ZERO_MOMENTUM_SCHEMA)
+from adcs_controllers.schemas import (BACKSTEPPING_SCHEMA, GSMN_SCHEMA, KT_SCHEMA, M2R_SCHEMA, M2S_SCHEMA,
+                                      MINNORM_SCHEMA, PD_SCHEMA, POINTING_A_SCHEMA, POINTING_B_SCHEMA,
+                                      SNLC_GSMN_SCHEMA, SNLC_MINNORM_SCHEMA, SNLC_SCHEMA, ZERO_MOMENTUM_SCHEMA)
 from adcs_sim.scenario import DYNAMICS_SCHEMA, FAULT_SCHEMA, RECORDER_SCHEMA
+
+
+def _pointing(law_class):
+    """Seed 003's laws from a validated section: the section's ``momentum`` is the law's ``H``."""
+    def build(p: dict):
+        return law_class({**p, 'H': p['momentum']})
+    build.__name__ = f'{law_class.__name__}_from_section'
+    return build
 
 
 @dataclass(frozen=True)
@@ -48,6 +59,14 @@ NODES: dict[str, NodeInfo] = {
                                         'controller', TwoWheelReconfiguration.factory(SnlcMinNormLaw)),
     'snlc_gsmn_controller': NodeInfo('adcs_controllers.nodes.snlc_gsmn_controller', SNLC_GSMN_SCHEMA,
                                      'controller', TwoWheelReconfiguration.factory(SnlcGsmnLaw)),
+    # seed 001: inertia-free laws on ideal external torquers
+    'm2r_controller': NodeInfo('adcs_controllers.nodes.m2r_controller', M2R_SCHEMA, 'controller', M2rLaw),
+    'm2s_controller': NodeInfo('adcs_controllers.nodes.m2s_controller', M2S_SCHEMA, 'controller', M2sLaw),
+    # seed 003: single-axis pointing, two wheels, non-zero momentum (laws need the wheel momentum)
+    'pointing_a_controller': NodeInfo('adcs_controllers.nodes.pointing_a_controller', POINTING_A_SCHEMA,
+                                      'controller', _pointing(PointingALaw)),
+    'pointing_b_controller': NodeInfo('adcs_controllers.nodes.pointing_b_controller', POINTING_B_SCHEMA,
+                                      'controller', _pointing(PointingBLaw)),
     # seed 002: thrusters + pitch wheel, backstepping tracking
     'backstepping_controller': NodeInfo('adcs_controllers.nodes.backstepping_controller', BACKSTEPPING_SCHEMA,
                                         'controller', BacksteppingLaw, ThrusterActuation),

@@ -164,6 +164,12 @@ def _dynamics_cross_check(v: dict) -> None:
     if v['thrusters.min_on_time'] > v['control_period']:
         raise ParameterError('thrusters.min_on_time', f'must not exceed control_period '
                              f'({v["control_period"]} s), got {v["thrusters.min_on_time"]}')
+    if len(v['initial.momentum']) not in (0, 3):
+        raise ParameterError('initial.momentum', f'expected 3 values (inertial axes, N m s) or none, '
+                             f'got {len(v["initial.momentum"])}')
+    if len(v['initial.momentum']) and np.any(np.asarray(v['initial.rate']) != 0.0):
+        raise ParameterError('initial.rate', 'must be left at zero when initial.momentum is given '
+                             '(the initial rate is then computed from the momentum)')
     n = len(v['wheels.names'])
     if n:
         J = inertia_matrix(v['inertia'])
@@ -232,6 +238,11 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
           check=check_unit_quaternion, doc='initial quaternion [x, y, z, w], body in inertial', batch=True),
     Param('initial.rate', 'double_array', default=[0.0, 0.0, 0.0], length=3,
           doc='initial body rate (rad/s, body axes)', batch=True),
+    Param('initial.momentum', 'double_array', default=[],
+          doc='total angular momentum H in inertial axes (N m s; empty: not given). When given, '
+              'the initial body rate is the rest of H once the wheels hold their initial_speed: '
+              'w0 = J^-1 (R(q0)^T H - sum_i a_i Js_i Omega0_i) (initial.rate must then be left '
+              'at zero; seed 003: all of H in the body, wheels at rest)'),
     *wheel_params(with_physics=True),
     Param('torquers.enabled', 'bool', default=False, doc='ideal external torquers (torque_cmd)'),
     Param('torquers.max_torque', 'double_array', default=[math.inf] * 3, length=3, check=all_positive,
@@ -309,8 +320,20 @@ def build_plant(v: dict) -> Plant:
 
 
 def initial_state(plant: Plant, v: dict) -> np.ndarray:
+    """The plant's state at t = 0. With ``initial.momentum`` (H, inertial axes) the wheels start at
+    their ``initial_speed`` and the body carries the rest: ``J w0 = R(q0)^T H - sum_i a_i Js_i
+    Omega0_i`` (total J, the plant's convention ``H = J w + sum_i a_i Js_i Omega_i``)."""
     q = np.asarray(v['initial.attitude'], dtype=float)
-    return plant.initial_state(q / np.linalg.norm(q, axis=-1, keepdims=True), v['initial.rate'])
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    H = np.asarray(v.get('initial.momentum', []), dtype=float)
+    if H.shape[-1:] != (3,):
+        return plant.initial_state(q, v['initial.rate'])
+    from adcs_sim.attitude import matvec
+    from adcs_sim.plant import rotate_to_body
+    x0 = plant.initial_state(q, np.zeros(3))
+    h_wheels = plant.angular_momentum(x0)          # the wheels' part alone (w = 0)
+    w0 = matvec(np.linalg.inv(plant.inertia), rotate_to_body(q, H) - h_wheels)
+    return plant.initial_state(q, w0)
 
 
 RECORDER_SCHEMA = Schema('recorder', [

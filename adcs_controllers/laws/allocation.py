@@ -108,6 +108,18 @@ class Actuation:
         applied = saturate(torque, self.limit, self.saturation)
         return applied, applied
 
+    def wheel_momentum(self, speed: np.ndarray) -> np.ndarray:
+        """The wheels' angular momentum RELATIVE to the body in body axes, ``h = sum_i a_i Js_i Ω_i``
+        (..., 3), for speeds ``speed`` (..., n) relative to the body (``wheels/state``'s velocity):
+        the papers' ``h`` with ``H = J ω + h``, ``J`` the total inertia (wheels locked), the plant's
+        convention (:mod:`adcs_sim.plant`: its ``Js_i a_i·ω`` part is in ``J ω``). Needs
+        ``wheels.spin_inertia``. One fixed summation order (:func:`adcs_sim.attitude.matvec`), so the
+        node and the batch engine get the same bits."""
+        if self.kind != 'wheels' or self.spin_inertia is None:
+            raise ValueError('the wheel momentum needs wheels with their spin inertia '
+                             '(wheels.spin_inertia in the controller section)')
+        return matvec(np.ascontiguousarray(self.axes.T), np.asarray(speed, dtype=float) * self.spin_inertia)
+
     def command_momentum(self, h: np.ndarray) -> np.ndarray:
         """Wheel speed commands (..., n) (rad/s, relative to the body) for the commanded wheel
         momentum ``h`` (..., 3) in body axes: minimum-norm over the available wheels (zero for the

@@ -88,6 +88,7 @@ __all__ = [
 MODE_UNSATURATED = 0  # commanded torque inside the box B(u_max)
 MODE_SATURATED = 1    # commanded torque outside the box: cutoff/scaling applied
 MODE_NAMES = {MODE_UNSATURATED: 'unsaturated', MODE_SATURATED: 'saturated'}
+GAMMA_NAMES = ('11', '22', '33', '23', '13', '12')  # γ = [J11 J22 J33 J23 J13 J12], eq. (31)
 
 _E = np.eye(3)
 
@@ -527,16 +528,22 @@ def extremum_tracking_step(t, w, axis, omega_bar, omega_bar0, delta, t_last, t_m
 
 # --- laws bound to validated controller sections -------------------------------------------------
 
+def _given(p, key):
+    """``p[key]``, or None when absent or empty (a params file's ``[]`` means "the default")."""
+    v = p.get(key)
+    return None if v is None or np.size(v) == 0 else v
+
+
 def _matrix_param(p, key, default):
     """An n x n gain from a section: absent -> ``default`` (n x n), a scalar (times ``default``),
     n diagonal values, or n² row-major values."""
-    v = p.get(key)
+    v = _given(p, key)
     if v is None:
         return default
     v = np.asarray(v, dtype=float)
     n = default.shape[-1]
-    if v.ndim == 0:
-        return v * default
+    if v.size == 1:
+        return v.reshape(()) * default
     if v.size == n:
         return np.diag(v.reshape(n))
     if v.size == n * n:
@@ -560,10 +567,12 @@ class _InertiaFreeLaw(SectionLaw):
             raise ValueError(f'A must be 3 distinct positive diagonal entries (eq. 13), got {self.a.tolist()}')
         self.alpha = np.asarray(p['alpha'], dtype=float)
         self.beta = np.asarray(p['beta'], dtype=float)
-        B = p.get('B')
-        self.B = None if B is None else _matrix_param(p, 'B', np.eye(3))
+        self.B = None if _given(p, 'B') is None else _matrix_param(p, 'B', np.eye(3))
         self.B_inv = None if self.B is None else np.linalg.inv(self.B)
-        self.u_max = np.asarray(p.get('u_max', p.get('torquers.max_torque', np.inf)), dtype=float)
+        if 'u_max' in p:
+            self.u_max = np.asarray(p['u_max'], dtype=float)
+        else:  # the section's scalar torquer limit (one per run in a batch): per axis, (..., 1)
+            self.u_max = np.asarray(p.get('torquers.max_torque', np.inf), dtype=float)[..., None]
         self.R_d0 = rotation_from_quaternion(self.q_ref)
 
 
@@ -615,7 +624,7 @@ class M2sLaw(_InertiaFreeLaw):
     * VAG: ``vag`` (bool, or one per batch element), ``q_max`` (10 000), ``K_Q`` (0.001), ``vag_excess`` ('printed'),
       ``vag_disturbance`` (bool, also divide the rate of d̂ by q; not in the paper's examples),
     * extremum tracking: ``extremum`` (bool), ``t_max`` (s), ``phi_max`` (rad), ``K_omega``,
-      ``delta0`` (default ‖ω_d‖),
+      ``delta0`` (default, or 0: ‖ω_d‖),
     * ``max_step`` (s): the largest RK4 step of the estimator between two control calls
       (default 0.05).
 
@@ -625,7 +634,7 @@ class M2sLaw(_InertiaFreeLaw):
     then computes u from the new measurement and updates q (eq. 56) and ω̄ (eq. 62). The batch
     shape is taken from the first call. ``reset()`` forgets the states.
 
-    Status: ``V`` (eq. 36), ``theta`` (eq. 10), ``gamma_hat`` (6), ``d_hat``, ``z_hat`` (ẑ_d),
+    Status: ``V`` (eq. 36), ``theta`` (eq. 10), ``gamma_hat`` (6), ``d_hat``, ``z_hat`` (ẑ_d, when estimated),
     ``q_vag`` (q), ``omega_bar`` (commanded spin rate), ``w_d``, ``u_cmd`` (u of eq. 41 before
     saturation), ``mode``."""
 
@@ -640,16 +649,17 @@ class M2sLaw(_InertiaFreeLaw):
         Jh = np.asarray(p.get('J_hat0', [1.0, 1.0, 1.0]), dtype=float)
         self.gamma0 = gamma_from_inertia(Jh[..., :, None] * np.eye(3) if Jh.shape[-1] == 3
                                          else Jh.reshape(Jh.shape[:-1] + (3, 3)))
-        C_d = p.get('C_d')
+        C_d = _given(p, 'C_d')
         self.C_d = None if C_d is None else np.asarray(C_d, dtype=float).reshape(3, -1)
         if self.C_d is not None and not np.any(self.C_d):
             self.C_d = None  # the paper's "C_d = 0": disturbance not estimated
         nd = 0 if self.C_d is None else self.C_d.shape[-1]
-        self.A_d = None if p.get('A_d') is None else np.asarray(p['A_d'], dtype=float).reshape(nd, nd)
+        self.A_d = None if _given(p, 'A_d') is None else np.asarray(p['A_d'], dtype=float).reshape(nd, nd)
         self.D = _matrix_param(p, 'D', np.eye(max(nd, 1)))
         self.D_inv = np.linalg.inv(self.D) if nd else None
-        self.d_hat0 = np.broadcast_to(np.asarray(p.get('d_hat0', 0.0), dtype=float), (nd,))
-        self.d_true = None if p.get('d_true') is None else np.asarray(p['d_true'], dtype=float)
+        d0 = _given(p, 'd_hat0')
+        self.d_hat0 = np.broadcast_to(np.asarray(0.0 if d0 is None else d0, dtype=float), (nd,))
+        self.d_true = None if _given(p, 'd_true') is None else np.asarray(p['d_true'], dtype=float)
         sat = p.get('saturation', 'none')
         self.saturation = np.vectorize(_SAT_CODES.__getitem__, otypes=[int])(sat) \
             if np.all(np.isin(sat, list(_SAT_CODES))) else saturate(np.zeros(3), 1.0, str(sat))
@@ -665,7 +675,8 @@ class M2sLaw(_InertiaFreeLaw):
         n0 = np.sqrt(_dot(self.w_d0, self.w_d0))
         self.omega_bar0 = n0
         self.axis = self.w_d0 / np.where(n0 > 0, n0, 1.0)[..., None]
-        self.delta0 = np.asarray(p.get('delta0', n0), dtype=float)
+        delta0 = p.get('delta0')
+        self.delta0 = np.asarray(n0 if delta0 is None or np.all(delta0 == 0) else delta0, dtype=float)
         self.max_step = float(p.get('max_step', 0.05))
         if not self.max_step > 0:
             raise ValueError(f'max_step must be positive, got {self.max_step}')
@@ -673,6 +684,20 @@ class M2sLaw(_InertiaFreeLaw):
 
     def reset(self) -> None:
         self.t_prev = None
+
+    def published_status(self, status: dict) -> dict:
+        """As the base class, with the inertia estimate γ̂ (eq. 31 order) as ``J_hat_11``,
+        ``J_hat_22``, ``J_hat_33``, ``J_hat_23``, ``J_hat_13``, ``J_hat_12`` and the disturbance
+        state estimate d̂ as ``d_hat_1``.. (``d_hat_x``.. when it has 3 components)."""
+        status = dict(status)
+        gamma = np.asarray(status.pop('gamma_hat'))
+        d_hat = np.asarray(status.pop('d_hat'))
+        out = super().published_status(status)
+        out.update({f'J_hat_{ij}': float(g) for ij, g in zip(GAMMA_NAMES, gamma)})
+        if d_hat.size:
+            out.update(super().published_status({'d_hat': d_hat}) if d_hat.shape == (3,) else
+                       {f'd_hat_{i + 1}': float(d) for i, d in enumerate(d_hat)})
+        return out
 
     def _init_states(self, t, shape):
         self.gamma_hat = np.broadcast_to(self.gamma0, shape + (6,)).copy()
@@ -778,9 +803,10 @@ class M2sLaw(_InertiaFreeLaw):
         status = {'mode': np.where(sat, MODE_SATURATED, MODE_UNSATURATED), 'V': V,
                   'theta': eigenaxis_error(terms['R_err']), 'gamma_hat': self.gamma_hat.copy(),
                   'd_hat': self.d_hat.copy(),
-                  'z_hat': np.zeros(w.shape) if z_hat is None else z_hat,
                   'q_vag': self.q_vag.copy(), 'omega_bar': self.omega_bar.copy(), 'w_d': w_d,
                   'u_cmd': u, 'w_err': terms['w_err']}
+        if z_hat is not None:
+            status['z_hat'] = z_hat
         if np.any(self.vag):
             self.q_vag = np.where(self.vag, qsat(self.q_vag, self.q_max, u, self.u_max, self.K_Q,
                                                  self.vag_excess), self.q_vag)

@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from rclpy.duration import Duration
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
@@ -50,6 +51,7 @@ class BacksteppingController(AdcsNode):
         self.pending_state: dict[int, tuple] = {}
         self.pending_speed: dict[int, np.ndarray] = {}
         self.firings = 0        # thruster-periods fired so far
+        self.steps = 0          # steps answered (the acknowledgement pacing counts them)
         # Faults name wheels only (the fault injector's actuators); followed for the late count.
         self.faults = FaultTracker()
         self.sub_faults = self.subscription(topics.FAULTS, self._on_faults)
@@ -108,6 +110,11 @@ class BacksteppingController(AdcsNode):
     # --- state -> commands ----------------------------------------------------------------
 
     def step(self, t_ns: int, q: np.ndarray, w: np.ndarray, speed: np.ndarray) -> None:
+        self.steps += 1
+        if self.params['startup.expect_recorder'] and self.steps % topics.ACK_INTERVAL == 0:
+            # as ControllerNode: the recorder never falls behind by the writers' depth (topics)
+            for pub in (self.pub_thrusters, self.pub_wheels, self.pub_status):
+                pub.wait_for_all_acked(Duration(seconds=self.params['startup.timeout']))
         tau, status = self.law.control(t_ns / cv.NS_PER_S, q, w)
         on_time, wheel_torque, info = self.actuation.command(tau, w, speed)
         self.pub_thrusters.publish(cv.thruster_cmd_to_msg(t_ns, self.thruster_names, on_time))

@@ -20,11 +20,20 @@ A concrete controller is its schema and its law: a pure object with ``control(t,
   ``recovered``, and telling the law (``law.on_wheels``: a reconfiguring law changes phase
   there, :mod:`adcs_controllers.laws.reconfiguration`). With ``startup.expect_faults`` it waits
   for the complete schedule before it subscribes to the state. ``available_wheels`` and ``late_faults`` are in its status.
+* a law with ``needs_wheel_momentum`` (seed 003's pointing laws) is called as
+  ``control(t, q, w, h)`` with the wheels' momentum ``h`` of the SAME step: the node also
+  subscribes to ``wheels/state`` (before ``state``, so the dynamics node, which publishes the wheel
+  state only to matched subscribers, has matched it by the time it sees this controller's state
+  subscription: one participant's endpoint announcements are processed in order), keeps the two
+  per stamp in a small buffer and computes when both of a stamp are in, with
+  ``h = sum_i a_i Js_i Ω_i`` (:meth:`~adcs_controllers.laws.allocation.Actuation.wheel_momentum`,
+  the batch engine's function). Laws without the flag never see the wheel state.
 """
 from __future__ import annotations
 
 
 import numpy as np
+from rclpy.duration import Duration
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
@@ -51,6 +60,11 @@ class ControllerNode(AdcsNode):
         self.pub_cmd = self.publisher(topics.WHEELS_CMD if self.actuator == 'wheels' else topics.TORQUE_CMD)
         self.pub_status = self.publisher(topics.CONTROLLER_STATUS)
         self.sub_state = None
+        self.states = 0  # states received (the acknowledgement pacing counts them)
+        self.sub_wheels = None
+        self.needs_wheel_momentum = bool(getattr(self.law, 'needs_wheel_momentum', False))
+        self._pending_states: dict[int, tuple] = {}   # stamp -> (q, w), waiting for the wheels
+        self._pending_wheels: dict[int, np.ndarray] = {}  # stamp -> h, waiting for the state
         self.faults = FaultTracker()
         self.wheel_index = ({n: i for i, n in enumerate(self.wheel_names)}
                             if self.actuator == 'wheels' else {})
@@ -62,8 +76,12 @@ class ControllerNode(AdcsNode):
         if note:
             self.get_logger().info(note)
 
-    def control(self, t: float, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, dict]:
-        """Desired body torque (N m) and status values for state (q, w) at time t: the law's."""
+    def control(self, t: float, q: np.ndarray, w: np.ndarray, h: np.ndarray | None = None
+                ) -> tuple[np.ndarray, dict]:
+        """Desired body torque (N m) and status values for state (q, w) at time t: the law's
+        (with the wheel momentum ``h`` of the same step for a law that needs it)."""
+        if self.needs_wheel_momentum:
+            return self.law.control(t, q, w, h)
         return self.law.control(t, q, w)
 
     # --- plumbing ---------------------------------------------------------------------------
@@ -73,6 +91,8 @@ class ControllerNode(AdcsNode):
         recorder = 1 if self.params['startup.expect_recorder'] else 0
         self.wait_for_publishers({self.pub_cmd: 1 + recorder, self.pub_status: recorder},
                                  self.params['startup.timeout'])
+        if self.needs_wheel_momentum:
+            self.sub_wheels = self.subscription(topics.WHEELS_STATE, self._on_wheel_state)
         self.sub_state = self.subscription(topics.STATE, self._on_state)
 
     def run(self, executor) -> None:
@@ -110,14 +130,63 @@ class ControllerNode(AdcsNode):
 
     # --- state -> command -------------------------------------------------------------------
 
+    PENDING_STAMPS = 8  # per-stamp buffer of a state / wheel state waiting for its pair
+
     def _on_state(self, msg) -> None:
         parsed = self.rejects.accept(topics.STATE, lambda: cv.state_from_msg(msg))
         if parsed is None:
             return
         t_ns, q, w = parsed
+        if not self.needs_wheel_momentum:
+            self._step(t_ns, q, w)
+            return
+        self._pending_states[t_ns] = (q, w)
+        self._pair(t_ns)
+
+    def _on_wheel_state(self, msg) -> None:
+        parsed = self.rejects.accept(topics.WHEELS_STATE, lambda: self._wheel_momentum_from_msg(msg))
+        if parsed is None:
+            return
+        t_ns, h = parsed
+        self._pending_wheels[t_ns] = h
+        self._pair(t_ns)
+
+    def _wheel_momentum_from_msg(self, msg) -> tuple[int, np.ndarray]:
+        """(stamp, h) from a ``wheels/state``: the speeds of this controller's wheels (by name; a
+        missing one makes the message invalid) -> ``h = sum_i a_i Js_i Ω_i``."""
+        t_ns, names, _, speed, _ = cv.wheel_state_from_msg(msg)
+        index = {n: i for i, n in enumerate(names)}
+        missing = [n for n in self.wheel_names if n not in index]
+        if missing:
+            raise cv.InvalidMessage(f'wheels/state: no speed for wheel(s) {missing} (got {names})')
+        return t_ns, self.actuation.wheel_momentum(np.array([speed[index[n]] for n in self.wheel_names]))
+
+    def _pair(self, t_ns: int) -> None:
+        """Compute the step ``t_ns`` once its state and wheel state are both here; drop older
+        stamps (they can no longer be answered) and keep the buffers small."""
+        if t_ns in self._pending_states and t_ns in self._pending_wheels:
+            q, w = self._pending_states.pop(t_ns)
+            h = self._pending_wheels.pop(t_ns)
+            for pending in (self._pending_states, self._pending_wheels):
+                for old in [s for s in pending if s < t_ns]:
+                    del pending[old]
+            self._step(t_ns, q, w, h)
+            return
+        for pending in (self._pending_states, self._pending_wheels):
+            while len(pending) > self.PENDING_STAMPS:
+                del pending[min(pending)]
+
+    def _step(self, t_ns: int, q: np.ndarray, w: np.ndarray, h: np.ndarray | None = None) -> None:
+        self.states += 1
+        if self.params['startup.expect_recorder'] and self.states % topics.ACK_INTERVAL == 0:
+            # every ACK_INTERVAL states, wait until every reader (the recorder) has acknowledged
+            # the commands and status sent so far: it never falls DEPTH steps behind and loses
+            # them (adcs_msgs_py.topics)
+            for pub in (self.pub_cmd, self.pub_status):
+                pub.wait_for_all_acked(Duration(seconds=self.params['startup.timeout']))
         self.apply_due_faults(t_ns)
         output = self.law.output  # torque or wheel momentum (a reconfiguring law's current phase)
-        value, status = self.control(t_ns / cv.NS_PER_S, q, w)
+        value, status = self.control(t_ns / cv.NS_PER_S, q, w, h)
         if output == 'wheel_momentum':
             self.publish_momentum(t_ns, value)
         else:

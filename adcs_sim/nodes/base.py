@@ -82,10 +82,10 @@ class AdcsNode(Node):
                                      event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
 
     def subscription(self, name: str, callback, qos=None, msg_type=None, raw: bool = False):
-        """Subscription to a graph topic (the interface's type and QoS unless given)."""
+        """Subscription to a graph topic (the interface's type and subscriber QoS unless given)."""
         s = topics.TOPICS.get(name)
         return self.create_subscription(
-            msg_type or s.msg_type, name, callback, qos or s.qos, raw=raw,
+            msg_type or s.msg_type, name, callback, qos or topics.subscriber_qos(s.qos), raw=raw,
             event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
 
     def wait_for(self, what: str, ready: Callable[[], bool], timeout: float) -> None:

@@ -283,20 +283,25 @@ class DynamicsNode(AdcsNode):
 
     def _wait_commands(self, executor, timeout: float) -> None:
         awaited = self.awaited
-        if not awaited:
-            # Free flight: nothing paces the loop, so pace it by the subscribers' acknowledgements
-            # (a slower recorder slows the run instead of losing messages).
-            for pub in self._step_publishers:
+        if awaited:
+            deadline = time.monotonic() + timeout
+            while not self.received.issuperset(awaited):
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    self._missed()
+                    break
+                executor.spin_once(timeout_sec=remaining)
+        # The controllers answering is not enough when a recorder listens: every ACK_INTERVAL
+        # steps (every step in free flight, where nothing else paces the loop) wait until every
+        # reader has acknowledged what was published, so the recorder never falls DEPTH steps
+        # behind and loses messages (adcs_msgs_py.topics).
+        if not awaited or (self.params['startup.expect_recorder']
+                           and self.step_ns // self.period_ns % topics.ACK_INTERVAL == 0):
+            for pub in self._step_publishers + [p for p in (self.pub_applied, self.pub_thrusters)
+                                                if p is not None]:
                 pub.wait_for_all_acked(Duration(seconds=timeout))
+        if not awaited:
             executor.spin_once(timeout_sec=0.0)
-            return
-        deadline = time.monotonic() + timeout
-        while not self.received.issuperset(awaited):
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                self._missed()
-                return
-            executor.spin_once(timeout_sec=remaining)
 
     def _missed(self) -> None:
         self.missed_steps += 1

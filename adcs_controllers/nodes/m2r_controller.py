@@ -1,0 +1,19 @@
+"""M2rController: seed 001's inertia-free motion-to-rest law (eq. 11-25) on the graph.
+
+Commands the external torquers (``torque_cmd``); the gains are checked at start against the torque
+bound of Proposition 1 or 2 for the torquer limit. The law: laws/inertia_free.py."""
+from __future__ import annotations
+
+from adcs_controllers.nodes.base import ControllerNode
+from adcs_controllers.schemas import M2R_SCHEMA
+from adcs_sim.nodes.base import entry_point
+
+
+class M2rController(ControllerNode):
+    schema = M2R_SCHEMA  # law: adcs_controllers.laws.inertia_free.M2rLaw (adcs_sim.registry)
+
+
+main = entry_point(M2rController)
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,21 @@
+"""M2sController: seed 001's adaptive motion-to-spin compensator (Theorem 2, eq. 31-46) on the graph.
+
+Commands the external torquers (``torque_cmd``) with cutoff or scaling saturation, the varying
+adaptation gain and extremum tracking as configured. The compensator's estimator states live in
+the law object and are integrated between state messages (continuous time). The law:
+laws/inertia_free.py."""
+from __future__ import annotations
+
+from adcs_controllers.nodes.base import ControllerNode
+from adcs_controllers.schemas import M2S_SCHEMA
+from adcs_sim.nodes.base import entry_point
+
+
+class M2sController(ControllerNode):
+    schema = M2S_SCHEMA  # law: adcs_controllers.laws.inertia_free.M2sLaw (adcs_sim.registry)
+
+
+main = entry_point(M2sController)
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,18 @@
+"""PointingBController: seed 003's controller B (single-axis pointing with two wheels and a
+non-zero angular momentum) on the graph. The law: laws/single_axis.py (PointingBLaw); it needs
+the wheels' momentum of the same step, which the base class pairs by stamp (nodes/base.py)."""
+from __future__ import annotations
+
+from adcs_controllers.nodes.base import ControllerNode
+from adcs_controllers.schemas import POINTING_B_SCHEMA
+from adcs_sim.nodes.base import entry_point
+
+
+class PointingBController(ControllerNode):
+    schema = POINTING_B_SCHEMA  # law: single_axis.PointingBLaw (adcs_sim.registry)
+
+
+main = entry_point(PointingBController)
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,137 @@
+"""Seed 003 (single-axis pointing with two wheels and non-zero momentum) against the paper,
+from the recordings of the ROS graph (bags/pointing_controller_{a,b}, made by
+``bags/regenerate.py``) and the committed Monte Carlo results (docs/montecarlo/pointing_table1*,
+made by ``adcs-montecarlo``). docs/seed003.md.
+
+Tolerances: the paper gives no number for the single run of section 5.2 (Fig. 4-8), only the
+shape: both converge; B is faster to large errors, A (LQR tail) to fine ones; A's stage 1 ends
+with a large precession error. Table 1's numbers are NOT reproduced (ours are ~2x faster, with
+the paper's gains: docs/seed003.md); we assert the comparison the paper draws from it.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from adcs_sim.analysis import RunData, pointing_error_deg, run_metrics
+from adcs_sim.batch import BatchSimulation
+from adcs_sim.runner import validate_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+BAGS = ROOT / 'bags'
+MC = ROOT / 'docs' / 'montecarlo'
+
+
+def run(which: str) -> RunData:
+    return RunData.from_bag(BAGS / f'pointing_controller_{which}' / 'bag')
+
+
+@pytest.mark.parametrize('which', ['a', 'b'])
+def test_recording_is_what_the_code_computes(which):
+    """The bag equals the batch engine's run of its scenario (the graph runs the pure law; the
+    recording is current)."""
+    graph = run(which)
+    batch = BatchSimulation.from_runs([validate_scenario(BAGS / f'pointing_controller_{which}' / 'scenario.yaml')]
+                                      ).run().run_data(0)
+    assert graph.missed_steps == 0
+    np.testing.assert_allclose(batch.t, graph.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(batch.q, graph.q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(batch.u, graph.u, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize('which', ['a', 'b'])
+def test_both_controllers_converge_through_the_graph(which):
+    r = run(which)
+    m = run_metrics(r)
+    assert math.isfinite(m['pointing_settling_0.01deg_s']) and m['final_pointing_error_deg'] < 1e-3
+    assert np.abs(r.u).max() <= 0.02 + 1e-12            # 20 mN m
+    assert np.all(r.wheel_speed[:, 2] == 0.0)           # the failed Z wheel holds no momentum
+    # the momentum ends in the two wheels: |h| = J_w |Omega| -> H0 = 0.85 N m s, body at rest
+    h = 0.0077 * np.linalg.norm(r.wheel_speed[-1, :2])
+    assert h == pytest.approx(0.85, rel=1e-4) and np.linalg.norm(r.w[-1]) < 1e-6
+
+
+def test_comparison_of_a_and_b_from_the_same_initial_condition():
+    """Section 5.2 / Fig. 4: same initial state; B is faster to 1 deg, A faster to 0.01 deg; A's
+    stage 1 ends (switch to the LQR) with the pointing error still large (precession error)."""
+    a, b = run('a'), run('b')
+    np.testing.assert_array_equal(a.q[0], b.q[0])
+    np.testing.assert_array_equal(a.w[0], b.w[0])
+    ma, mb = run_metrics(a), run_metrics(b)
+    assert mb['pointing_first_1deg_s'] < ma['pointing_first_1deg_s']
+    assert ma['pointing_settling_0.01deg_s'] < mb['pointing_settling_0.01deg_s']
+    stages = [(t, v['mode']) for t, _, v in a.controller_status]
+    switch = next(t for t, mode in stages if mode == 'A2_lqr')
+    assert all(mode == 'A1_momentum' for t, mode in stages if t < switch)
+    assert all(mode == 'A2_lqr' for t, mode in stages if t >= switch)
+    e_a = pointing_error_deg(a)
+    assert e_a[np.searchsorted(a.t, switch)] > 1.0     # large error when the LQR takes over
+    assert {v['mode'] for _, _, v in b.controller_status} == {'B'}
+
+
+# --- Table 1: the committed Monte Carlo ----------------------------------------------------------
+
+def results(name: str) -> list[dict]:
+    with open(MC / name / 'results.csv', newline='', encoding='utf-8') as f:
+        return list(csv.DictReader(f))
+
+
+def column(rows, key):
+    return np.array([float(r[key]) for r in rows])
+
+
+def test_table1_all_runs_converge_and_the_papers_comparison_holds():
+    b, a = results('pointing_table1'), results('pointing_table1_a')
+    assert len(a) == len(b) == 1000
+    for rows in (a, b):
+        assert all(r['status'] == 'ok' for r in rows)
+        assert np.all(np.isfinite(column(rows, 'pointing_settling_0.01deg_s')))
+        assert np.all(column(rows, 'final_pointing_error_deg') < 0.01)
+    # the same draws, run by run
+    assert [r['dynamics.initial.attitude[0]'] for r in a] == [r['dynamics.initial.attitude[0]'] for r in b]
+    # B faster to large errors, A faster to fine ones (section 5.3)
+    assert column(b, 'pointing_first_1deg_s').mean() < column(a, 'pointing_first_1deg_s').mean()
+    assert column(a, 'pointing_settling_0.01deg_s').mean() < column(b, 'pointing_settling_0.01deg_s').mean()
+    # B's spread barely depends on the precision (the paper's remark on Table 1): within 30 %
+    std = [column(b, f'pointing_settling_{x}deg_s').std() for x in ('1', '0.1', '0.01')]
+    assert max(std) < 1.3 * min(std)
+
+
+@pytest.mark.parametrize('name, campaign', [('pointing_table1', 'pointing_table1.yaml'),
+                                            ('pointing_table1_a', 'pointing_table1_a.yaml')])
+def test_committed_table1_results_are_not_stale(name, campaign):
+    """Four runs of each campaign recomputed now with the batch engine equal the committed rows
+    (run i's inputs and results do not depend on the batch it was in)."""
+    from adcs_sim.campaign import Campaign, run_chunk
+    c = Campaign.load(ROOT / 'config' / 'campaigns' / campaign)
+    committed = results(name)
+    indices = [0, 1, 500, 999]
+    for row in run_chunk(c, indices):
+        old = committed[row['run']]
+        assert old['status'] == row['status']
+        for m, v in row['metrics'].items():
+            assert float(old[m]) == pytest.approx(v, rel=1e-9, abs=1e-12), (row['run'], m)
+
+
+def test_small_campaign_through_the_cli_equals_the_committed_rows(tmp_path):
+    """adcs-montecarlo on the first 20 runs of the B campaign (one process): the pointing metrics,
+    the series and the all-runs figure are written, and each row equals the committed 1000-run
+    campaign's (a run does not depend on the campaign's size or split)."""
+    from adcs_sim.montecarlo import main
+    out = tmp_path / 'mc'
+    assert main([str(ROOT / 'config' / 'campaigns' / 'pointing_table1.yaml'), '--runs', '20',
+                 '--out', str(out), '--scheduler', 'none', '--quiet', '--no-figures']) == 0
+    with open(out / 'results.csv', newline='', encoding='utf-8') as f:
+        small = list(csv.DictReader(f))
+    committed = results('pointing_table1')
+    assert len(small) == 20
+    for row in small:
+        old = committed[int(row['run'])]
+        assert row == old
+    series = np.load(out / 'series.npz')
+    assert series['error_deg'].shape == (20, 151) and series['t'][-1] == 1500.0
+    assert np.all(series['error_deg'][:, -1] < 0.01)
