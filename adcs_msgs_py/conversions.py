@@ -118,23 +118,32 @@ def state_from_msg(msg: Odometry) -> tuple[int, np.ndarray, np.ndarray]:
 def wheel_state_to_msg(t_ns: int, names: Sequence[str], angle, speed, torque,
                        msg: JointState | None = None) -> JointState:
     """Wheel angles (rad), speeds relative to the body (rad/s), applied motor torques (N m)."""
-    if msg is None:
-        msg = JointState()
-        msg.name = list(names)
-    msg.header.stamp = stamp_from_ns(t_ns)
-    msg.position = [float(v) for v in angle]
-    msg.velocity = [float(v) for v in speed]
-    msg.effort = [float(v) for v in torque]
-    return msg
+    return _joint_state_to_msg(t_ns, names, angle, speed, torque, msg)
 
 
 def wheel_state_from_msg(msg: JointState) -> tuple[int, list[str], np.ndarray, np.ndarray, np.ndarray]:
     """sensor_msgs/JointState of the wheels -> (t_ns, names, angle, speed, torque)."""
+    return _joint_state_from_msg('wheels/state', msg)
+
+
+def _joint_state_to_msg(t_ns, names, position, velocity, effort, msg: JointState | None) -> JointState:
+    """A per-actuator JointState (wheels, thrusters); ``msg`` is reused (names kept) if given."""
+    if msg is None:
+        msg = JointState()
+        msg.name = list(names)
+    msg.header.stamp = stamp_from_ns(t_ns)
+    msg.position = [float(v) for v in position]
+    msg.velocity = [float(v) for v in velocity]
+    msg.effort = [float(v) for v in effort]
+    return msg
+
+
+def _joint_state_from_msg(topic: str, msg: JointState):
+    """(t_ns, names, position, velocity, effort) of a per-actuator JointState, each array finite
+    and one value per name (else InvalidMessage naming ``topic`` and the field)."""
     n = len(msg.name)
-    angle = _finite('wheels/state.position', msg.position, n)
-    speed = _finite('wheels/state.velocity', msg.velocity, n)
-    torque = _finite('wheels/state.effort', msg.effort, n)
-    return ns_from_stamp(msg.header.stamp), list(msg.name), angle, speed, torque
+    return (ns_from_stamp(msg.header.stamp), list(msg.name), _finite(f'{topic}.position', msg.position, n),
+            _finite(f'{topic}.velocity', msg.velocity, n), _finite(f'{topic}.effort', msg.effort, n))
 
 
 def wheel_cmd_to_msg(t_ns: int, names: Sequence[str], effort=None, velocity=None) -> JointState:
@@ -220,23 +229,12 @@ def thruster_state_to_msg(t_ns: int, names: Sequence[str], impulse, on_time, for
                           msg: JointState | None = None) -> JointState:
     """Thruster state of the step starting at ``t_ns``: cumulated impulse at the step's end
     (``position``, N s), on-time applied (``velocity``, s), thrust at ``t_ns`` (``effort``, N)."""
-    if msg is None:
-        msg = JointState()
-        msg.name = list(names)
-    msg.header.stamp = stamp_from_ns(t_ns)
-    msg.position = [float(v) for v in impulse]
-    msg.velocity = [float(v) for v in on_time]
-    msg.effort = [float(v) for v in force]
-    return msg
+    return _joint_state_to_msg(t_ns, names, impulse, on_time, force, msg)
 
 
 def thruster_state_from_msg(msg: JointState) -> tuple[int, list[str], np.ndarray, np.ndarray, np.ndarray]:
     """sensor_msgs/JointState of the thrusters -> (t_ns, names, impulse, on_time, force)."""
-    n = len(msg.name)
-    impulse = _finite('thrusters/state.position', msg.position, n)
-    on_time = _finite('thrusters/state.velocity', msg.velocity, n)
-    force = _finite('thrusters/state.effort', msg.effort, n)
-    return ns_from_stamp(msg.header.stamp), list(msg.name), impulse, on_time, force
+    return _joint_state_from_msg('thrusters/state', msg)
 
 
 # --- body torques ---------------------------------------------------------------------------

@@ -142,22 +142,23 @@ def record_pd_loop(tmp_path: Path, n: int, dynamics: dict | None = None, extra_c
     return bag_dir, dyn
 
 
-def run_fault_graph(scenario: Path, controller_class, n: int, timeout: float = 120.0):
-    """Recorder + fault injector + dynamics + ``controller_class`` in this process, lockstep, ``n``
-    steps of ``scenario`` (its recorder section names the bag); the controller collects the fault
-    schedule first; waits until the recorder has every message of the run. Returns
-    ``(dynamics node, controller node)``."""
+def run_lockstep_graph(scenario: Path, controller_class, expected: dict, faults: bool = False,
+                       timeout: float = 120.0):
+    """Recorder (+ fault injector when ``faults``) + dynamics + ``controller_class`` in this
+    process, lockstep, the run of ``scenario`` (its recorder section names the bag); with
+    ``faults`` the controller collects the fault schedule first. Waits until the recorder has
+    ``expected`` ({topic: message count}). Returns ``(dynamics node, controller node)``."""
     from adcs_sim.nodes.dynamics import DynamicsNode
     from adcs_sim.nodes.fault_injector import FaultInjectorNode
     from adcs_sim.nodes.recorder import RecorderNode
-    expected = {'/state': n + 1, '/controller/status': n + 1, '/wheels/cmd': n + 1,
-                '/wheels/state': n + 1, '/dynamics/status': 2, '/faults': 2}
     with InProcessGraph(scenario) as graph:
         rec = graph.add(RecorderNode)
-        graph.add(FaultInjectorNode)
+        if faults:
+            graph.add(FaultInjectorNode)
         dyn = graph.add(DynamicsNode)
         ctrl = graph.add(controller_class)
-        ctrl.wait_for_faults(graph.executor)
+        if faults:
+            ctrl.wait_for_faults(graph.executor)
         ctrl.connect()
         dyn.run(graph.executor)
         counts = rec.bag.topics
@@ -165,3 +166,10 @@ def run_fault_graph(scenario: Path, controller_class, n: int, timeout: float = 1
                          timeout=timeout, what=f'{expected}')
         rec.close()
     return dyn, ctrl
+
+
+def run_fault_graph(scenario: Path, controller_class, n: int, timeout: float = 120.0):
+    """:func:`run_lockstep_graph` with the fault injector, ``n`` steps of a wheel controller."""
+    expected = {'/state': n + 1, '/controller/status': n + 1, '/wheels/cmd': n + 1,
+                '/wheels/state': n + 1, '/dynamics/status': 2, '/faults': 2}
+    return run_lockstep_graph(scenario, controller_class, expected, faults=True, timeout=timeout)

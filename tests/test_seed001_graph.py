@@ -16,27 +16,7 @@ import pytest
 from numpy.testing import assert_array_equal
 
 from adcs_msgs_py.params import ParameterError
-from conftest import InProcessGraph, make_scenario
-
-
-def run_torquer_graph(scenario, controller_class, n: int, timeout: float = 120.0):
-    """Recorder + dynamics + ``controller_class`` (torque_cmd) in this process, lockstep, ``n``
-    steps; waits until the recorder has every message. Returns ``(dynamics, controller)``."""
-    from adcs_sim.nodes.dynamics import DynamicsNode
-    from adcs_sim.nodes.recorder import RecorderNode
-    expected = {'/state': n + 1, '/controller/status': n + 1, '/torque_cmd': n + 1,
-                '/dynamics/status': 2}
-    with InProcessGraph(scenario) as graph:
-        rec = graph.add(RecorderNode)
-        dyn = graph.add(DynamicsNode)
-        ctrl = graph.add(controller_class)
-        ctrl.connect()
-        dyn.run(graph.executor)
-        counts = rec.bag.topics
-        graph.spin_until(lambda: all(t in counts and counts[t].count == c for t, c in expected.items()),
-                         timeout=timeout, what=f'{expected}')
-        rec.close()
-    return dyn, ctrl
+from conftest import make_scenario, run_lockstep_graph
 
 
 def test_m2s_in_lockstep_is_the_batch_run_and_the_law(ros_domain, tmp_path):
@@ -57,7 +37,8 @@ def test_m2s_in_lockstep_is_the_batch_run_and_the_law(ros_domain, tmp_path):
     scenario = make_scenario(tmp_path, {
         'dynamics': {'duration': n * 0.02, **expect}, 'm2s_controller': expect,
         'recorder': {'output': str(tmp_path / 'bag')}}, base='m2s_disturbance_vagc_1.yaml')
-    dyn, ctrl = run_torquer_graph(scenario, M2sController, n)
+    dyn, ctrl = run_lockstep_graph(scenario, M2sController, {
+        '/state': n + 1, '/controller/status': n + 1, '/torque_cmd': n + 1, '/dynamics/status': 2})
     assert dyn.missed_steps == 0 and dyn.rejects.total == 0 and ctrl.rejects.total == 0
 
     bag = tmp_path / 'bag'

@@ -18,7 +18,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.params import ParameterError
-from conftest import CONFIG, InProcessGraph, make_scenario
+from conftest import CONFIG, InProcessGraph, make_scenario, run_lockstep_graph
 
 SLEW = 'eseo_backstepping_slew.yaml'
 NAMES = ['thr_1', 'thr_2', 'thr_3', 'thr_4']
@@ -31,8 +31,6 @@ def test_backstepping_pair_in_lockstep_equals_batch(ros_domain, tmp_path):
     from adcs_controllers.nodes.backstepping_controller import BacksteppingController
     from adcs_sim.analysis import RunData
     from adcs_sim.batch import BatchSimulation
-    from adcs_sim.nodes.dynamics import DynamicsNode
-    from adcs_sim.nodes.recorder import RecorderNode
     from adcs_sim.runner import validate_scenario
 
     n = 80
@@ -43,16 +41,7 @@ def test_backstepping_pair_in_lockstep_equals_batch(ros_domain, tmp_path):
                                         'recorder': {'output': str(bag)}}, base=SLEW)
     expected = {'/state': n + 1, '/controller/status': n + 1, '/thrusters/cmd': n + 1,
                 '/wheels/cmd': n + 1, '/thrusters/state': n, '/actuators/torque': n}
-    with InProcessGraph(scenario) as graph:
-        rec = graph.add(RecorderNode)
-        dyn = graph.add(DynamicsNode)
-        ctrl = graph.add(BacksteppingController)
-        ctrl.connect()
-        dyn.run(graph.executor)
-        counts = rec.bag.topics
-        graph.spin_until(lambda: all(t in counts and counts[t].count == c for t, c in expected.items()),
-                         what=f'{expected}')
-        rec.close()
+    dyn, ctrl = run_lockstep_graph(scenario, BacksteppingController, expected)
     assert dyn.missed_steps == 0 and dyn.stale_commands == 0
     assert dyn.rejects.total == 0 and ctrl.rejects.total == 0
     run = RunData.from_bag(bag)
