@@ -3,7 +3,8 @@
 1. Validates every section of the scenario file with its node's schema (nothing starts if one
    is wrong; the message names the key). An unknown section is an error.
 2. Leases a fresh ``ROS_DOMAIN_ID`` (1..99) and sets ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``
-   for every process it starts.
+   for every process it starts. Only ``--allow-network`` (discovery on the local subnet, for a
+   graph spread over several hosts; give every host the same ``--domain-id``) widens that.
 3. Starts the recorder first (always: a run of the runner is always recorded; a ``recorder``
    section only tunes it), waits until it is subscribed, then every other node of the file as
    its own process, each told to wait for the recorder before its first message.
@@ -209,21 +210,37 @@ class _Progress:
         self.rclpy.try_shutdown(context=self.context)
 
 
+def graph_env(lease: DomainLease, allow_network: bool = False) -> dict:
+    """The environment of every process of a run: the leased domain, loopback-only discovery
+    unless ``allow_network``, our Fast DDS profile unless the user gave one."""
+    network_hygiene_defaults()
+    return lease.env(allow_network=allow_network)
+
+
+def lease_domain(domain_id: int | None = None) -> DomainLease:
+    """A fresh domain id in 1..99, or exactly ``domain_id`` (refused if a run here holds it)."""
+    if domain_id is None:
+        return DomainLease(1, 99)
+    try:
+        return DomainLease(domain_id, domain_id)
+    except (RuntimeError, ValueError) as exc:
+        raise RunError(f'--domain-id {domain_id}: {exc}') from None
+
+
 def run_scenario(scenario: Path, out: Path, duration: float | None = None, progress: bool = True,
-                 tol_deg: float = 0.5) -> dict:
+                 tol_deg: float = 0.5, allow_network: bool = False, domain_id: int | None = None) -> dict:
     """Run one scenario end to end; return its metrics. Raises RunError / ParameterError."""
     from adcs_sim.analysis import RunData, jsonable_metrics, run_metrics
     from adcs_sim.registry import NODES
     validated = validate_scenario(scenario, duration)
     if out.exists() and any(out.iterdir()):
         raise RunError(f'output folder {out} exists and is not empty')
+    lease = lease_domain(domain_id)   # before anything is written: a refused id leaves no folder
     log_dir = out / 'logs'
     log_dir.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(scenario, out / 'scenario.yaml')
     bag_dir = out / 'bag'
-    lease = DomainLease(1, 99)
-    network_hygiene_defaults()
-    graph = Graph(lease.env(), log_dir)
+    graph = Graph(graph_env(lease, allow_network), log_dir)
     started = False
     interrupted = []
 
@@ -304,13 +321,19 @@ def main(argv=None) -> int:
     parser.add_argument('--no-progress', action='store_true', help='no progress bar')
     parser.add_argument('--report', action='store_true',
                         help='also write the report (adcs-analyze: report.md + figures) to <out>/report')
+    parser.add_argument('--allow-network', action='store_true',
+                        help='let DDS discover nodes on the local subnet (multi-host graphs); by '
+                             'default discovery is limited to this machine (localhost)')
+    parser.add_argument('--domain-id', type=int, default=None,
+                        help='use this ROS_DOMAIN_ID (0..232; e.g. the same on every host with '
+                             '--allow-network) instead of a fresh free one')
     args = parser.parse_args(argv)
     try:
         scenario = resolve_scenario(args.scenario)
         out = args.out or Path('runs') / f'{scenario.stem}-{datetime.now():%Y%m%d-%H%M%S}'
         print(f'adcs-run: {scenario} -> {out}', flush=True)
         metrics = run_scenario(scenario, out, args.duration, not args.no_progress and sys.stderr.isatty(),
-                               args.tolerance_deg)
+                               args.tolerance_deg, args.allow_network, args.domain_id)
     except (ParameterError, RunError) as exc:
         print(f'adcs-run: error: {exc}', file=sys.stderr)
         return 1 if isinstance(exc, RunError) else 2
