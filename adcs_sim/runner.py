@@ -14,8 +14,11 @@
 
 A node that fails at start stops the whole graph; the runner exits non-zero with that node's
 error and removes the output folder (no partial bag claims to be a run). A node that dies
-mid-run stops the graph too, but the bag of what was recorded is kept. Ctrl-C / SIGTERM stop
-everything cleanly (recorder last, so the bag is complete) and leave no process behind.
+mid-run stops the graph too, but the bag of what was recorded is kept (a folder holding a
+recorded state is never removed) and the error names the node and how it died. Ctrl-C /
+SIGTERM at any moment — start-up, mid-run, shutdown, twice — stop everything cleanly (recorder
+last, so the bag is complete) and leave no process behind: the handler only records the signal,
+the run loop acts on it at safe points, and once stopping has begun nothing interrupts it.
 
 Output folder layout: ``<out>/bag`` (the rosbag2 MCAP bag), ``<out>/logs/<node>.log``,
 ``<out>/metrics.json``, ``<out>/scenario.yaml`` (a copy).
@@ -112,6 +115,20 @@ class Graph:
         self.log_dir = log_dir
         self.procs: dict[str, subprocess.Popen] = {}
         self.logs: dict[str, Path] = {}
+        self.signals: list[int] = []   # SIGINT / SIGTERM received by the runner
+        self.stopping = False          # shutdown under way: a signal no longer interrupts it
+
+    def on_signal(self, signum, frame) -> None:  # noqa: ARG002
+        """The runner's SIGINT/SIGTERM handler: only records the signal. The run loop notices it
+        at its next safe point (:meth:`check`), never between starting a process and recording
+        it, and never in the middle of stopping the graph (a second Ctrl-C does not abort the
+        shutdown and leave processes behind)."""
+        self.signals.append(signum)
+
+    def check(self) -> None:
+        """Raise KeyboardInterrupt if a signal came and the graph is not already stopping."""
+        if self.signals and not self.stopping:
+            raise KeyboardInterrupt
 
     def start(self, name: str, module: str, args: list[str]) -> subprocess.Popen:
         log = self.log_dir / f'{name}.log'
@@ -135,11 +152,22 @@ class Graph:
         deadline = time.monotonic() + timeout
         proc = self.procs[name]
         while line not in self.logs[name].read_text(errors='replace'):
+            self.check()
             if proc.poll() is not None:
                 raise RunError(f'{name} exited with status {proc.returncode} at start:\n{self.log_tail(name)}')
             if time.monotonic() > deadline:
                 raise RunError(f'{name} not ready after {timeout:g} s:\n{self.log_tail(name)}')
             time.sleep(0.02)
+
+    def describe_exit(self, name: str) -> str:
+        """``'<name> exited with status N'`` or ``'<name> was killed by SIGKILL'``."""
+        code = self.procs[name].returncode
+        if code is not None and code < 0:
+            try:
+                return f'{name} was killed by {signal.Signals(-code).name}'
+            except ValueError:
+                pass
+        return f'{name} exited with status {code}'
 
     def failed(self, names) -> tuple[str, int] | None:
         """The first of ``names`` that has exited (name, status), or None."""
@@ -167,6 +195,7 @@ class Graph:
         return proc.returncode
 
     def stop_all(self, recorder_last: str | None = 'recorder') -> None:
+        self.stopping = True
         for name in list(self.procs):
             if name != recorder_last:
                 self.stop(name)
@@ -217,6 +246,15 @@ def graph_env(lease: DomainLease, allow_network: bool = False) -> dict:
     return lease.env(allow_network=allow_network)
 
 
+def recorded_state(bag_dir: Path) -> bool:
+    """Whether the bag (complete, or as flushed so far) holds at least one state message."""
+    from adcs_sim import bag as bagio
+    try:
+        return any(topic.endswith('/state') for topic, *_ in bagio.read_raw(bag_dir))
+    except (OSError, ValueError):
+        return False
+
+
 def lease_domain(domain_id: int | None = None) -> DomainLease:
     """A fresh domain id in 1..99, or exactly ``domain_id`` (refused if a run here holds it)."""
     if domain_id is None:
@@ -242,12 +280,7 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
     bag_dir = out / 'bag'
     graph = Graph(graph_env(lease, allow_network), log_dir)
     started = False
-    interrupted = []
-
-    def on_signal(signum, frame):  # noqa: ARG001
-        interrupted.append(signum)
-        raise KeyboardInterrupt
-    old_handlers = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    old_handlers = {s: signal.signal(s, graph.on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     prog = None
     try:
         common = ['--params-file', str(scenario)]
@@ -260,42 +293,52 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
         # With a fault injector, the nodes that act on faults first collect its whole schedule.
         expect_faults = ['-p', 'startup.expect_faults:=true'] if 'fault_injector' in validated else []
         for name in others:
+            graph.check()
             extra = expect_faults if NODES[name].role == 'controller' else []
             graph.start(name, NODES[name].module, [*common, '-p', 'startup.expect_recorder:=true', *extra])
         dyn_args = [*common, '-p', 'startup.expect_recorder:=true', *expect_faults,
                     '-p', f'startup.state_subscribers:={n_state_subscribers}']
         if duration is not None:
             dyn_args += ['-p', f'duration:={float(duration)!r}']
+        graph.check()
         dynamics = graph.start('dynamics', NODES['dynamics'].module, dyn_args)
         prog = _Progress(validated['dynamics']['duration'], progress)
         watched = ['recorder', *others]
         while dynamics.poll() is None:
+            graph.check()
             prog.spin(0.2)
             if prog.sim_time > 0:
                 started = True
             dead = graph.failed(watched)
             if dead:
-                name, code = dead
-                raise RunError(f'{name} exited with status {code} '
-                               f'{"during" if started else "before"} the run:\n{graph.log_tail(name)}')
+                name, _ = dead
+                started = started or recorded_state(bag_dir)   # /clock may not have reached us yet
+                raise RunError(f'{graph.describe_exit(name)} {"during" if started else "before"} the run; '
+                               f'graph stopped{f", bag kept in {bag_dir}" if started else ""}:\n'
+                               f'{graph.log_tail(name)}')
         if dynamics.returncode != 0:
             started = started or (bag_dir / 'metadata.yaml').exists() or prog.sim_time > 0
-            raise RunError(f'dynamics exited with status {dynamics.returncode}:\n{graph.log_tail("dynamics")}')
+            raise RunError(f'{graph.describe_exit("dynamics")}:\n{graph.log_tail("dynamics")}')
         started = True
         prog.close()
         prog = None
+        graph.stopping = True   # from here a signal cannot cut the shutdown short
         for name in others:
             graph.stop(name)
         code = graph.stop('recorder')
         if code != 0:
-            raise RunError(f'recorder exited with status {code}:\n{graph.log_tail("recorder")}')
+            raise RunError(f'{graph.describe_exit("recorder")}:\n{graph.log_tail("recorder")}')
+        if graph.signals:
+            raise RunError(f'interrupted by {signal.Signals(graph.signals[0]).name} during shutdown; '
+                           f'the run had completed, bag kept in {bag_dir}')
     except KeyboardInterrupt:
         graph.stop_all()
-        raise RunError(f'interrupted by signal {interrupted[0] if interrupted else "SIGINT"}; '
-                       f'bag kept in {bag_dir}') from None
+        sig = signal.Signals(graph.signals[0]).name if graph.signals else 'SIGINT'
+        kept = f'bag kept in {bag_dir}' if bag_dir.exists() else 'no bag was recorded yet'
+        raise RunError(f'interrupted by {sig} ({"during" if started else "before"} the run); {kept}') from None
     except BaseException:
         graph.stop_all()
-        if not started:
+        if not (started or recorded_state(bag_dir)):   # never delete recorded data
             shutil.rmtree(out, ignore_errors=True)
         raise
     finally:
