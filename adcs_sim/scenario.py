@@ -115,8 +115,14 @@ def check_per_wheel(v: dict, required=(), optional=(), why: str = '') -> None:
             raise ParameterError(key, f'expected one value per wheel ({n}), got {got}{why}')
 
 
+def fraction(v) -> str | None:
+    return None if 0.0 <= v <= 1.0 else f'must be a fraction in [0, 1], got {v}'
+
+
 def _dynamics_cross_check(v: dict) -> None:
     check_wheels(v, with_physics=True)
+    if v['link_faults.drop'] + v['link_faults.delay'] > 1.0:
+        raise ParameterError('link_faults.delay', 'link_faults.drop + link_faults.delay must not exceed 1')
     n = len(v['wheels.names'])
     if n:
         J = inertia_matrix(v['inertia'])
@@ -210,6 +216,11 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
           doc='wall seconds to wait for a step\'s commands before applying the timeout policy'),
     Param('lockstep.timeout_policy', 'string', default='hold', choices=('hold', 'zero'),
           doc='on a missed step: hold the last command or apply zero'),
+    Param('link_faults.seed', 'int', default=0, doc='seed of the lost / late command draws'),
+    Param('link_faults.drop', 'double', default=0.0, check=fraction,
+          doc='fraction of lockstep steps whose commands are lost (missed steps; adcs_sim/link_faults.py)'),
+    Param('link_faults.delay', 'double', default=0.0, check=fraction,
+          doc='fraction of lockstep steps whose commands come after the deadline (missed, then stale)'),
     Param('noise.seed', 'int', default=0, doc='seed of the measurement noise generator', batch=True),
     Param('noise.attitude_std', 'double', default=0.0, check=non_negative,
           doc='star-tracker noise, rad (1 sigma per axis, small-angle rotation)'),

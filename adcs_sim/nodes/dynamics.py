@@ -6,7 +6,9 @@ command topic has delivered a command stamped ``t_k``, publishes the applied con
 integrates ``[t_k, t_k+1]`` holding the commands (zero-order hold, fixed-step RK4). A step whose
 commands do not arrive within ``lockstep.timeout`` wall seconds is a *missed step*: the declared
 policy (hold the last command, or zero) applies and the miss is counted on ``dynamics/status``.
-Commands stamped for another step are counted as stale and ignored.
+Commands stamped for another step are counted as stale and ignored. ``link_faults.drop`` /
+``link_faults.delay`` make a seeded fraction of the steps lose their commands or get them late
+(:mod:`adcs_sim.link_faults`): missed steps under the same policy, deterministic.
 
 Realtime mode paces the same loop against the wall clock (``real_time_factor``) with no waiting:
 each step uses the latest commands received.
@@ -33,6 +35,7 @@ from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import RejectCounter
 from adcs_sim.faults import FaultTracker
+from adcs_sim.link_faults import DELAY, FATE_NAMES, OK, LinkFaults
 from adcs_sim.nodes.base import AdcsNode, main_for
 from adcs_sim.plant import ReactionWheels, WheelCommand
 from adcs_sim.scenario import DYNAMICS_SCHEMA, build_plant, command_topics, initial_state, step_timing
@@ -64,6 +67,9 @@ class DynamicsNode(AdcsNode):
         self.stale_commands = 0
         self.step_ns = 0
         self.received: set[str] = set()
+        self.link = LinkFaults(p['link_faults.seed'], p['link_faults.drop'], p['link_faults.delay'],
+                               self.n_steps)
+        self._late = 0   # commands of the previous step that the link delayed past its deadline
 
         self.pub_clock = self.publisher(topics.CLOCK)
         self.pub_state = self.publisher(topics.STATE)
@@ -168,6 +174,8 @@ class DynamicsNode(AdcsNode):
                   'rejected_messages': self.rejects.total, 'final': str(final).lower(),
                   'awaited_commands': ','.join(self.awaited) or 'none', 'mode': self.params['mode'],
                   'late_faults': self.faults.late}
+        if self.link.active:
+            values.update({'link_lost_steps': self.link.dropped, 'link_late_steps': self.link.delayed})
         level = 'WARN' if self.missed_steps else 'OK'
         self.pub_status.publish(cv.status_to_msg(self.step_ns, 'dynamics', values, level))
 
@@ -206,7 +214,7 @@ class DynamicsNode(AdcsNode):
         self.publish_state()
         for k in range(self.n_steps):
             if self.lockstep:
-                self._wait_commands(executor, timeout)
+                self._wait_commands(executor, timeout, k)
             else:
                 self._spin_until(executor, wall0 + k * pace)
             self.apply_due_faults()  # one that arrived while waiting (late unless stamped t_k)
@@ -225,8 +233,14 @@ class DynamicsNode(AdcsNode):
         self.get_logger().info(f'done at t = {self.step_ns / cv.NS_PER_S:g} s; '
                                f'missed steps: {self.missed_steps}')
 
-    def _wait_commands(self, executor, timeout: float) -> None:
+    def _wait_commands(self, executor, timeout: float, k: int = 0) -> None:
         awaited = self.awaited
+        if self._late:   # last step's late commands arrive now, stamped for that step: stale
+            self.stale_commands += self._late
+            self._late = 0
+        fate = self.link.fate(k) if awaited else OK
+        if fate != OK:
+            held = dict(self.commands)
         if not awaited:
             # Free flight: nothing paces the loop, so pace it by the subscribers' acknowledgements
             # (a slower recorder slows the run instead of losing messages).
@@ -241,14 +255,22 @@ class DynamicsNode(AdcsNode):
                 self._missed()
                 return
             executor.spin_once(timeout_sec=remaining)
+        if fate != OK:   # the commands came, but the simulated link loses them or delivers them late
+            self.commands = held
+            self.link.count(fate)
+            if fate == DELAY:
+                self._late = len(awaited)
+            self._missed(sorted(awaited), f'{FATE_NAMES[fate]} on the simulated link')
 
-    def _missed(self) -> None:
+    def _missed(self, missing: list[str] | None = None, why: str | None = None) -> None:
         self.missed_steps += 1
-        missing = sorted(set(self.awaited) - self.received)
+        if missing is None:
+            missing = sorted(set(self.awaited) - self.received)
+        why = why or f'not received within {self.params["lockstep.timeout"]:g} s'
         self.get_logger().warning(
-            f'step t = {self.step_ns / cv.NS_PER_S:g} s: no command on {missing} within '
-            f'{self.params["lockstep.timeout"]:g} s; policy {self.params["lockstep.timeout_policy"]} '
-            f'({self.missed_steps} missed)', throttle_duration_sec=5.0)
+            f'step t = {self.step_ns / cv.NS_PER_S:g} s: command on {missing} {why}; '
+            f'policy {self.params["lockstep.timeout_policy"]} ({self.missed_steps} missed)',
+            throttle_duration_sec=5.0)
         if self.params['lockstep.timeout_policy'] == 'zero':
             zero = self.plant.zero_commands()
             for topic in missing:
