@@ -139,6 +139,7 @@ class RunData:
     wheel_speed: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     wheel_torque: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     missed_steps: int | None = None
+    missed_at: np.ndarray = field(default_factory=lambda: np.empty(0))   # stamps (s) of missed steps
     q_ref: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))
     scenario: dict | None = None
     controller_status: list = field(default_factory=list)  # (t, name, {key: value text}) per status
@@ -213,13 +214,18 @@ class RunData:
         if t_u.size:
             run.t_u, run.u = t_u, cols['vector']
         _set_wheels(run, columns.get(ns + topics.WHEELS_STATE, []))
+        missed_at = []
         for stamp, statuses in _merged_statuses(diagnostics.get(ns + topics.DYNAMICS_STATUS, [])):
             for status in statuses:
                 if 'missed_steps' in status[4]:
                     try:
-                        run.missed_steps = int(float(status[4]['missed_steps']))
+                        count = int(float(status[4]['missed_steps']))
                     except ValueError:
-                        pass
+                        continue
+                    if count > (run.missed_steps or 0):   # the dynamics node reports each miss at its step
+                        missed_at.append(stamp)
+                    run.missed_steps = count
+        run.missed_at = np.asarray(missed_at, dtype=float)
         run.controller_status = [(stamp, s[1], s[4]) for stamp, statuses in
                                  _merged_statuses(diagnostics.get(ns + topics.CONTROLLER_STATUS, []))
                                  for s in statuses]
@@ -381,8 +387,25 @@ def run_metrics(run: RunData, tol_deg: float = 0.5, eigen_tol_deg: float | None 
         out['peak_torque_Nm'] = np.abs(run.u).max(axis=0).tolist()
     if run.wheel_speed.size:
         out['peak_wheel_speed_rad_s'] = float(np.abs(run.wheel_speed).max())
+    out.update(missed_step_gaps(run))
     out.update(fault_metrics(run))
     return out
+
+
+def missed_step_gaps(run: RunData) -> dict:
+    """Where the lockstep loop ran without commands: ``missed_step_gaps`` (runs of consecutive
+    missed steps) and ``longest_missed_gap_s`` ([first, last] stamp of the longest run), e.g. a
+    controller that crashed and was restarted. Empty when no step was missed."""
+    t = run.missed_at
+    if not t.size:
+        return {}
+    period = float(np.median(np.diff(run.t))) if run.t.size > 1 else 0.0
+    breaks = np.flatnonzero(np.diff(t) > 1.5 * period)
+    starts = np.r_[0, breaks + 1]
+    ends = np.r_[breaks, t.size - 1]
+    longest = int(np.argmax(t[ends] - t[starts]))
+    return {'missed_step_gaps': int(starts.size),
+            'longest_missed_gap_s': [float(t[starts[longest]]), float(t[ends[longest]])]}
 
 
 def jsonable_metrics(metrics: dict) -> dict:

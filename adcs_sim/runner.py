@@ -115,6 +115,7 @@ class Graph:
         self.log_dir = log_dir
         self.procs: dict[str, subprocess.Popen] = {}
         self.logs: dict[str, Path] = {}
+        self.commands: dict[str, tuple[str, list[str]]] = {}   # name -> (module, args), for restarts
         self.signals: list[int] = []   # SIGINT / SIGTERM received by the runner
         self.stopping = False          # shutdown under way: a signal no longer interrupts it
 
@@ -133,6 +134,7 @@ class Graph:
     def start(self, name: str, module: str, args: list[str]) -> subprocess.Popen:
         log = self.log_dir / f'{name}.log'
         self.logs[name] = log
+        self.commands[name] = (module, args)
         with open(log, 'wb') as f:
             proc = subprocess.Popen([sys.executable, '-m', module, '--ros-args', *args],
                                     stdout=f, stderr=subprocess.STDOUT, env=self.env,
@@ -158,6 +160,12 @@ class Graph:
             if time.monotonic() > deadline:
                 raise RunError(f'{name} not ready after {timeout:g} s:\n{self.log_tail(name)}')
             time.sleep(0.02)
+
+    def restart(self, name: str, attempt: int) -> subprocess.Popen:
+        """Start a dead node again with the same command line; its old log is kept as
+        ``<name>.<attempt>.log``."""
+        self.logs[name].rename(self.log_dir / f'{name}.{attempt}.log')
+        return self.start(name, *self.commands[name])
 
     def describe_exit(self, name: str) -> str:
         """``'<name> exited with status N'`` or ``'<name> was killed by SIGKILL'``."""
@@ -266,8 +274,13 @@ def lease_domain(domain_id: int | None = None) -> DomainLease:
 
 
 def run_scenario(scenario: Path, out: Path, duration: float | None = None, progress: bool = True,
-                 tol_deg: float = 0.5, allow_network: bool = False, domain_id: int | None = None) -> dict:
-    """Run one scenario end to end; return its metrics. Raises RunError / ParameterError."""
+                 tol_deg: float = 0.5, allow_network: bool = False, domain_id: int | None = None,
+                 restarts: int = 0) -> dict:
+    """Run one scenario end to end; return its metrics. Raises RunError / ParameterError.
+
+    ``restarts``: how many times a controller that dies mid-run is started again (it rejoins
+    the lockstep loop at the next state; the steps without it are missed steps under the
+    dynamics node's timeout policy). 0: a dead node stops the graph."""
     from adcs_sim.analysis import RunData, jsonable_metrics, run_metrics
     from adcs_sim.registry import NODES
     validated = validate_scenario(scenario, duration)
@@ -280,6 +293,7 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
     bag_dir = out / 'bag'
     graph = Graph(graph_env(lease, allow_network), log_dir)
     started = False
+    restarts_done = 0
     old_handlers = {s: signal.signal(s, graph.on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     prog = None
     try:
@@ -313,6 +327,12 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
             if dead:
                 name, _ = dead
                 started = started or recorded_state(bag_dir)   # /clock may not have reached us yet
+                if started and NODES[name].role == 'controller' and restarts_done < restarts:
+                    restarts_done += 1
+                    print(f'adcs-run: {graph.describe_exit(name)} at t = {prog.sim_time:g} s; '
+                          f'restarting it ({restarts_done} of {restarts})', file=sys.stderr, flush=True)
+                    graph.restart(name, restarts_done)
+                    continue
                 raise RunError(f'{graph.describe_exit(name)} {"during" if started else "before"} the run; '
                                f'graph stopped{f", bag kept in {bag_dir}" if started else ""}:\n'
                                f'{graph.log_tail(name)}')
@@ -370,13 +390,17 @@ def main(argv=None) -> int:
     parser.add_argument('--domain-id', type=int, default=None,
                         help='use this ROS_DOMAIN_ID (0..232; e.g. the same on every host with '
                              '--allow-network) instead of a fresh free one')
+    parser.add_argument('--restart', type=int, default=0, metavar='N',
+                        help='start a controller that dies mid-run again, up to N times (it rejoins '
+                             'the lockstep loop; the steps without it are missed steps); default 0: '
+                             'a node that dies stops the run')
     args = parser.parse_args(argv)
     try:
         scenario = resolve_scenario(args.scenario)
         out = args.out or Path('runs') / f'{scenario.stem}-{datetime.now():%Y%m%d-%H%M%S}'
         print(f'adcs-run: {scenario} -> {out}', flush=True)
         metrics = run_scenario(scenario, out, args.duration, not args.no_progress and sys.stderr.isatty(),
-                               args.tolerance_deg, args.allow_network, args.domain_id)
+                               args.tolerance_deg, args.allow_network, args.domain_id, args.restart)
     except (ParameterError, RunError) as exc:
         print(f'adcs-run: error: {exc}', file=sys.stderr)
         return 1 if isinstance(exc, RunError) else 2
