@@ -292,6 +292,8 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
     shutil.copyfile(scenario, out / 'scenario.yaml')
     bag_dir = out / 'bag'
     graph = Graph(graph_env(lease, allow_network), log_dir)
+    print(f'adcs-run: ROS_DOMAIN_ID={lease.domain_id}, discovery '
+          f'{graph.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]}', flush=True)
     started = False
     restarts_done = 0
     old_handlers = {s: signal.signal(s, graph.on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
