@@ -337,3 +337,24 @@ def test_checked_output_refuses_non_finite_law_output_with_a_reason(v):
     else:
         with pytest.raises(LawOutputRejected, match='non-finite'):
             checked_output('pd', v)
+
+
+def test_controller_node_refuses_a_non_finite_law_output(ros_domain, tmp_path):
+    """The node path: Krstic-Tsiotras at a 180 deg error (Gibbs p = q/q4 infinite) is refused
+    with a counted reason and nothing is published; the next, ordinary state is answered."""
+    from adcs_controllers.nodes.kt_controller import KtController
+    from adcs_sim.attitude import quat_multiply
+    from conftest import InProcessGraph, make_scenario
+    scenario = make_scenario(tmp_path, base='table1_krstic_tsiotras.yaml')
+    with InProcessGraph(scenario) as graph:
+        ctl = graph.add(KtController)
+        sent = []
+        ctl.pub_cmd.publish = sent.append
+        target = np.asarray(ctl.law.q_ref)
+        flip = np.array([1.0, 0.0, 0.0, 0.0])       # 180 deg about x, composed with the target
+        ctl._on_state(cv.state_to_msg(0, quat_multiply(target, flip), [0.0, 0.0, 0.0]))
+        assert sent == [] and ctl.rejects.counts['law'] == 1
+        ctl._on_state(cv.state_to_msg(1, target, [0.01, 0.0, 0.0]))
+        assert len(sent) == 1 and ctl.rejects.counts['law'] == 1
+        assert all(math.isfinite(v) for v in (list(sent[0].effort) if hasattr(sent[0], 'effort')
+                                               else [sent[0].vector.x, sent[0].vector.y, sent[0].vector.z]))
