@@ -3,43 +3,20 @@
 Names are relative (except ``/clock``) so that ``-r __ns:=/sat1`` runs several spacecraft in one
 domain. Every node and the recorder take their topics from :data:`TOPICS`.
 
-QoS choices, topic by topic
----------------------------
-Reliability, history depth and durability of each topic, and why (what a lost, late or
-overwritten message would cost). Lost and late commands are simulated and tested on purpose
-(``link_faults.*``, :mod:`adcs_sim.link_faults`); the QoS is what keeps them from happening for
-real.
-
-* ``state``, ``truth/state``, ``wheels/state`` — RELIABLE, VOLATILE, KEEP_LAST 10.
-  RELIABLE: in lockstep a lost state is a step the controller never answers, i.e. a wall-clock
-  timeout and a missed step, and a hole in the recording. Depth 10: the dynamics node publishes
-  one state per step and waits for the answer, so at most one or two are ever in flight; 10
-  absorbs a burst while a subscriber (the recorder) is busy, with bounded memory. VOLATILE: a
-  controller that joins (or restarts) late must act on the next state, never on an old one.
-* ``wheels/cmd``, ``torque_cmd`` — RELIABLE, VOLATILE, KEEP_LAST 10. One answer per state,
-  stamped with the state's stamp; a lost one is a missed step (the timeout policy applies), so
-  the transport must not lose it. VOLATILE: a command answers one step; replaying it to a
-  dynamics node that joins late would apply it at the wrong time (it would be counted stale).
-* ``actuators/torque`` — RELIABLE, VOLATILE, KEEP_LAST 10: the applied torque of each step,
-  for the recorder and the metrics (∫‖u‖dt needs every step); nobody acts on it.
-* ``/clock`` — RELIABLE, VOLATILE, KEEP_LAST 10. rclpy's time source subscribes best-effort,
-  which matches a reliable publisher; reliable lets the recorder keep every tick. VOLATILE: the
-  clock of the past is meaningless to a late joiner.
-* ``controller/status``, ``dynamics/status`` — RELIABLE, VOLATILE, KEEP_LAST 50: what the papers
-  plot (mode, Lyapunov value, missed steps), one per step and recorded; depth 50 because the
-  status goes out after the command, off the critical path, and may queue behind it.
-* ``faults`` — RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 100: the whole fault schedule is published
-  once at start (one snapshot per event, each stamped with its due time); a controller, the
-  dynamics node or the recorder that joins or restarts late must still receive all of it, so
-  the publisher keeps it (depth 100 bounds the schedule's length).
-* ``reference`` — RELIABLE, VOLATILE, KEEP_LAST 10, like the state it is compared with.
-* **Recorder** subscriptions: KEEP_ALL with the offered reliability and durability (see
-  :func:`recorder_qos`): a KEEP_LAST reader silently overwrites what it has not taken yet while
-  it writes a chunk; transient-local topics deliver their history to it. In lockstep free flight
-  (no command awaited) the dynamics node also waits for its step's messages to be acknowledged
+QoS choices
+-----------
+* **Lockstep data** (state, wheel state/commands, torque commands, applied torque): RELIABLE,
+  VOLATILE, KEEP_LAST depth 10. Lockstep must not lose a state or a command (a lost one costs a
+  wall-clock timeout and a missed step); depth 10 absorbs a burst while a subscriber is busy
+  without unbounded memory. VOLATILE because a late joiner must not act on an old state.
+* **/clock**: RELIABLE, depth 10. rclpy's time source subscribes best-effort, which matches a
+  reliable publisher; reliable lets the recorder keep every tick.
+* **Status / diagnostics**: RELIABLE, depth 50: what the papers plot, one per step, recorded.
+* **Faults**: RELIABLE, TRANSIENT_LOCAL, depth 100: a controller or recorder that joins late still
+  learns which actuators are gone.
+* **Recorder** subscriptions: KEEP_ALL (see :func:`recorder_qos`). In lockstep free flight (no
+  command awaited) the dynamics node also waits for its step's messages to be acknowledged
   before the next step, so a slower recorder paces the run instead of losing data.
-* Not BEST_EFFORT anywhere in the loop: best effort would turn every dropped UDP datagram into a
-  missed step (or a silent gap in the bag) and make lockstep runs depend on the network.
 """
 from __future__ import annotations
 
@@ -133,3 +110,44 @@ def spec(name: str) -> TopicSpec:
         raise KeyError(f'unknown topic {name!r}; known topics: {sorted(TOPICS)}') from None
 
 
+
+
+# Why each topic has the QoS it has: reliability, durability, history (issue #10). One entry per
+# topic of TOPICS (a test checks it). What a lost, late or overwritten message would cost; lost
+# and late commands are simulated on purpose by the dynamics node (``link_faults.*``,
+# adcs_sim/link_faults.py), the QoS is what keeps them from happening for real. BEST_EFFORT is
+# used nowhere in the loop: every dropped datagram would become a missed step or a silent hole in
+# the bag, and lockstep runs would depend on the network.
+QOS_RATIONALE: dict[str, str] = {
+    STATE: 'RELIABLE: a lost state is a step the controller never answers (a wall-clock timeout, '
+           'a missed step) and a hole in the recording. VOLATILE: a controller that joins or '
+           'restarts late must act on the next state, never on an old one. KEEP_LAST with the '
+           'lockstep depth: one state per step, at most a few in flight while the dynamics node '
+           'waits for the answer; the depth absorbs a busy recorder with bounded memory.',
+    TRUTH_STATE: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as state: recorded every step for '
+                 'the metrics; nobody acts on an old one.',
+    WHEELS_STATE: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as state: per-step wheel data for '
+                  'the recorder and observers; an old one is meaningless to a late joiner.',
+    WHEELS_CMD: 'RELIABLE: one answer per state, stamped with its stamp; a lost one is a missed '
+                'step under the timeout policy. VOLATILE: a command answers one step; replayed to '
+                'a dynamics node that joins late it would only be counted stale. KEEP_LAST '
+                'lockstep depth: one in flight per step.',
+    TORQUE_CMD: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, for the reasons of wheels/cmd.',
+    APPLIED_TORQUE: 'RELIABLE: the metrics integrate the applied torque of every step. VOLATILE, '
+                    'KEEP_LAST lockstep depth: for the recorder; nobody acts on it.',
+    CLOCK: 'RELIABLE: the recorder keeps every tick (rclpy\'s time source subscribes best effort, '
+           'which matches a reliable writer). VOLATILE: the past clock is meaningless to a late '
+           'joiner. KEEP_LAST lockstep depth: one tick per step.',
+    REFERENCE: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, like the state it is compared with.',
+    FAULTS: 'RELIABLE and TRANSIENT_LOCAL: the whole fault schedule is published once at start '
+            '(one snapshot per event, stamped with its due time); a node that joins or restarts '
+            'late, the recorder included, must still receive all of it from the writer\'s '
+            'history. KEEP_LAST depth 100 bounds the schedule.',
+    CONTROLLER_STATUS: 'RELIABLE: what the papers plot (mode, Lyapunov value), one per step, '
+                       'recorded. VOLATILE: diagnostics of the past are not state. KEEP_LAST '
+                       'status depth: it goes out after the command, off the critical path, and '
+                       'may queue behind it.',
+    DYNAMICS_STATUS: 'RELIABLE: missed steps and their times come from it (the metrics and the '
+                     'gap of a crashed controller). VOLATILE, KEEP_LAST status depth, as '
+                     'controller/status.',
+}

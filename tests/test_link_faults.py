@@ -65,3 +65,14 @@ def _statuses(bag):
     for topic, t, msg in bagio.read_messages(bag, {'/dynamics/status'}):
         for st in msg.status:
             yield topic, t, {kv.key: kv.value for kv in st.values}
+
+
+def test_every_topic_has_its_qos_justified():
+    """adcs_msgs_py.topics.QOS_RATIONALE: one reason per topic, naming the reliability,
+    durability and history the topic really has (changing a QoS means revisiting its reason)."""
+    from adcs_msgs_py import topics
+    assert set(topics.QOS_RATIONALE) == set(topics.TOPICS)
+    for name, spec in topics.TOPICS.items():
+        why = topics.QOS_RATIONALE[name]
+        for policy in (spec.qos.reliability, spec.qos.durability, spec.qos.history):
+            assert policy.name in why, (name, policy.name, why)

@@ -214,7 +214,9 @@ class DynamicsNode(AdcsNode):
         self.publish_state()
         for k in range(self.n_steps):
             if self.lockstep:
-                self._wait_commands(executor, timeout, k)
+                held = self._link_before(k)
+                self._wait_commands(executor, timeout)
+                self._link_after(k, held)
             else:
                 self._spin_until(executor, wall0 + k * pace)
             self.apply_due_faults()  # one that arrived while waiting (late unless stamped t_k)
@@ -233,14 +235,8 @@ class DynamicsNode(AdcsNode):
         self.get_logger().info(f'done at t = {self.step_ns / cv.NS_PER_S:g} s; '
                                f'missed steps: {self.missed_steps}')
 
-    def _wait_commands(self, executor, timeout: float, k: int = 0) -> None:
+    def _wait_commands(self, executor, timeout: float) -> None:
         awaited = self.awaited
-        if self._late:   # last step's late commands arrive now, stamped for that step: stale
-            self.stale_commands += self._late
-            self._late = 0
-        fate = self.link.fate(k) if awaited else OK
-        if fate != OK:
-            held = dict(self.commands)
         if not awaited:
             # Free flight: nothing paces the loop, so pace it by the subscribers' acknowledgements
             # (a slower recorder slows the run instead of losing messages).
@@ -255,25 +251,52 @@ class DynamicsNode(AdcsNode):
                 self._missed()
                 return
             executor.spin_once(timeout_sec=remaining)
-        if fate != OK:   # the commands came, but the simulated link loses them or delivers them late
-            self.commands = held
-            self.link.count(fate)
-            if fate == DELAY:
-                self._late = len(awaited)
-            self._missed(sorted(awaited), f'{FATE_NAMES[fate]} on the simulated link')
 
-    def _missed(self, missing: list[str] | None = None, why: str | None = None) -> None:
+    def _missed(self) -> None:
         self.missed_steps += 1
-        if missing is None:
-            missing = sorted(set(self.awaited) - self.received)
-        why = why or f'not received within {self.params["lockstep.timeout"]:g} s'
+        missing = sorted(set(self.awaited) - self.received)
         self.get_logger().warning(
-            f'step t = {self.step_ns / cv.NS_PER_S:g} s: command on {missing} {why}; '
-            f'policy {self.params["lockstep.timeout_policy"]} ({self.missed_steps} missed)',
-            throttle_duration_sec=5.0)
+            f'step t = {self.step_ns / cv.NS_PER_S:g} s: no command on {missing} within '
+            f'{self.params["lockstep.timeout"]:g} s; policy {self.params["lockstep.timeout_policy"]} '
+            f'({self.missed_steps} missed)', throttle_duration_sec=5.0)
         if self.params['lockstep.timeout_policy'] == 'zero':
             zero = self.plant.zero_commands()
             for topic in missing:
+                key = 'wheels' if topic == topics.WHEELS_CMD else 'torquers'
+                self.commands[key] = zero[key]
+        self.publish_status()
+
+    # --- simulated link faults (adcs_sim.link_faults) ----------------------------------------
+
+    def _link_before(self, k: int) -> dict | None:
+        """Before waiting for step k's commands: count last step's late ones as stale (they
+        arrive now, stamped for that step) and keep the commands in effect if step k's are to
+        be lost or late."""
+        if self._late:
+            self.stale_commands += self._late
+            self._late = 0
+        return dict(self.commands) if self.awaited and self.link.fate(k) != OK else None
+
+    def _link_after(self, k: int, held: dict | None) -> None:
+        """Step k's commands came, but the simulated link loses them or delivers them after the
+        deadline: the step runs without them, a missed step under the timeout policy (a step
+        already missed by timeout is left as it is)."""
+        if held is None or not self.received.issuperset(self.awaited):
+            return
+        fate = self.link.fate(k)
+        self.commands = held
+        self.link.count(fate)
+        if fate == DELAY:
+            self._late = len(self.awaited)
+        self.missed_steps += 1
+        self.get_logger().warning(
+            f'step t = {self.step_ns / cv.NS_PER_S:g} s: command on {sorted(self.awaited)} '
+            f'{FATE_NAMES[fate]} on the simulated link; policy '
+            f'{self.params["lockstep.timeout_policy"]} ({self.missed_steps} missed)',
+            throttle_duration_sec=5.0)
+        if self.params['lockstep.timeout_policy'] == 'zero':
+            zero = self.plant.zero_commands()
+            for topic in self.awaited:
                 key = 'wheels' if topic == topics.WHEELS_CMD else 'torquers'
                 self.commands[key] = zero[key]
         self.publish_status()
