@@ -121,8 +121,6 @@ def fraction(v) -> str | None:
 
 def _dynamics_cross_check(v: dict) -> None:
     check_wheels(v, with_physics=True)
-    if v['link_faults.drop'] + v['link_faults.delay'] > 1.0:
-        raise ParameterError('link_faults.delay', 'link_faults.drop + link_faults.delay must not exceed 1')
     n = len(v['wheels.names'])
     if n:
         J = inertia_matrix(v['inertia'])
@@ -139,6 +137,8 @@ def _dynamics_cross_check(v: dict) -> None:
         raise ParameterError('duration', f'must be at least one control period ({v["control_period"]} s)')
     if v['gravity_gradient'] and v['orbit.altitude'] <= 0:
         raise ParameterError('orbit.altitude', 'gravity_gradient needs an orbit altitude > 0 (m)')
+    if v['link_faults.drop'] + v['link_faults.delay'] > 1.0:
+        raise ParameterError('link_faults.delay', 'link_faults.drop + link_faults.delay must not exceed 1')
     commands = v['lockstep.commands']
     allowed = set(topics.COMMAND_TOPICS) | {'auto', 'none'}
     bad = [c for c in commands if c not in allowed]

@@ -67,13 +67,13 @@ def checked_output(law: str, value: np.ndarray) -> np.ndarray:
     return value
 
 
-def checked_control(law: SectionLaw, name: str, t: float, q: np.ndarray, w: np.ndarray):
-    """``law.control(t, q, w)`` with its output checked (:func:`checked_output`); a law that
+def checked_control(law: SectionLaw, name: str, t: float, q: np.ndarray, w: np.ndarray, *extra):
+    """``law.control(t, q, w, *extra)`` with its output checked (:func:`checked_output`); a law that
     refuses the state (``ValueError``, e.g. infeasible geometry) is reported the same way, so the
     node can count the step as rejected with the reason instead of crashing or publishing NaN."""
     try:
         with np.errstate(all='ignore'):   # a non-finite result is refused below, with a reason
-            value, status = law.control(t, q, w)
+            value, status = law.control(t, q, w, *extra)
     except LawOutputRejected:
         raise
     except (ValueError, FloatingPointError, ZeroDivisionError, np.linalg.LinAlgError) as exc:
