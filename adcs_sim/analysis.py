@@ -214,21 +214,17 @@ class RunData:
         if t_u.size:
             run.t_u, run.u = t_u, cols['vector']
         _set_wheels(run, columns.get(ns + topics.WHEELS_STATE, []))
-        missed_at = []
         for stamp, statuses in _merged_statuses(diagnostics.get(ns + topics.DYNAMICS_STATUS, [])):
             for status in statuses:
                 if 'missed_steps' in status[4]:
                     try:
-                        count = int(float(status[4]['missed_steps']))
+                        run.missed_steps = int(float(status[4]['missed_steps']))
                     except ValueError:
-                        continue
-                    if count > (run.missed_steps or 0):   # the dynamics node reports each miss at its step
-                        missed_at.append(stamp)
-                    run.missed_steps = count
-        run.missed_at = np.asarray(missed_at, dtype=float)
+                        pass
         run.controller_status = [(stamp, s[1], s[4]) for stamp, statuses in
                                  _merged_statuses(diagnostics.get(ns + topics.CONTROLLER_STATUS, []))
                                  for s in statuses]
+        run.missed_at = _missed_at(diagnostics.get(ns + topics.DYNAMICS_STATUS, []))
         run.faults = [(stamp, int(s[0]), s[1], s[2]) for stamp, statuses in
                       _merged_statuses(diagnostics.get(ns + topics.FAULTS, [])) for s in statuses]
         run.topic_counts = {_relative(name, ns): n for name, n in counts.items()}
@@ -390,6 +386,22 @@ def run_metrics(run: RunData, tol_deg: float = 0.5, eigen_tol_deg: float | None 
     out.update(missed_step_gaps(run))
     out.update(fault_metrics(run))
     return out
+
+
+def _missed_at(parts: list) -> np.ndarray:
+    """Stamps (s) at which the dynamics node's ``missed_steps`` count went up: it publishes its
+    status at each missed step, stamped with that step."""
+    out, count = [], 0
+    for stamp, statuses in _merged_statuses(parts):
+        for status in statuses:
+            try:
+                n = int(float(status[4].get('missed_steps', count)))
+            except ValueError:
+                continue
+            if n > count:
+                out.append(stamp)
+            count = max(count, n)
+    return np.asarray(out, dtype=float)
 
 
 def missed_step_gaps(run: RunData) -> dict:

@@ -115,10 +115,6 @@ def check_per_wheel(v: dict, required=(), optional=(), why: str = '') -> None:
             raise ParameterError(key, f'expected one value per wheel ({n}), got {got}{why}')
 
 
-def fraction(v) -> str | None:
-    return None if 0.0 <= v <= 1.0 else f'must be a fraction in [0, 1], got {v}'
-
-
 def _dynamics_cross_check(v: dict) -> None:
     check_wheels(v, with_physics=True)
     n = len(v['wheels.names'])
@@ -163,6 +159,10 @@ def command_topics(v: dict) -> list[str]:
             auto.append(topics.TORQUE_CMD)
         return auto
     return list(dict.fromkeys(commands))
+
+
+def _fraction(v) -> str | None:
+    return None if 0.0 <= v <= 1.0 else f'must be a fraction in [0, 1], got {v}'
 
 
 def startup_params() -> list[Param]:
@@ -217,9 +217,9 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
     Param('lockstep.timeout_policy', 'string', default='hold', choices=('hold', 'zero'),
           doc='on a missed step: hold the last command or apply zero'),
     Param('link_faults.seed', 'int', default=0, doc='seed of the lost / late command draws'),
-    Param('link_faults.drop', 'double', default=0.0, check=fraction,
+    Param('link_faults.drop', 'double', default=0.0, check=_fraction,
           doc='fraction of lockstep steps whose commands are lost (missed steps; adcs_sim/link_faults.py)'),
-    Param('link_faults.delay', 'double', default=0.0, check=fraction,
+    Param('link_faults.delay', 'double', default=0.0, check=_fraction,
           doc='fraction of lockstep steps whose commands come after the deadline (missed, then stale)'),
     Param('noise.seed', 'int', default=0, doc='seed of the measurement noise generator', batch=True),
     Param('noise.attitude_std', 'double', default=0.0, check=non_negative,
