@@ -147,6 +147,11 @@ QOS_RATIONALE: dict[str, str] = {
                        'recorded. VOLATILE: diagnostics of the past are not state. KEEP_LAST '
                        'status depth: it goes out after the command, off the critical path, and '
                        'may queue behind it.',
+    # seed 002's thrusters (their topics come with the thruster actuation)
+    'thrusters/cmd': 'RELIABLE: per-step on-times answering a state; a lost one is a missed step. '
+                     'VOLATILE: a command answers one step only. KEEP_LAST lockstep depth.',
+    'thrusters/state': 'RELIABLE: what the thrusters applied each step, recorded for the metrics. '
+                       'VOLATILE, KEEP_LAST lockstep depth, as wheels/state.',
     DYNAMICS_STATUS: 'RELIABLE: missed steps and their times come from it (the metrics and the '
                      'gap of a crashed controller). VOLATILE, KEEP_LAST status depth, as '
                      'controller/status.',
