@@ -27,6 +27,7 @@ NODES = {
 TOOLS = {
     'adcs-run': 'adcs_sim.runner:main',
     'adcs-analyze': 'adcs_sim.analyze:main',
+    'adcs-bag-repair': 'adcs_sim.repair:main',
     'adcs-montecarlo': 'adcs_sim.montecarlo:main',
     'adcs-tune-gsmn': 'adcs_controllers.tuning:main',
 }

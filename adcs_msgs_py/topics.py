@@ -142,3 +142,49 @@ def spec(name: str) -> TopicSpec:
         raise KeyError(f'unknown topic {name!r}; known topics: {sorted(TOPICS)}') from None
 
 
+
+
+# Why each topic has the QoS it has: reliability, durability, history (issue #10). One entry per
+# topic of TOPICS (a test checks it). What a lost, late or overwritten message would cost; lost
+# and late commands are simulated on purpose by the dynamics node (``link_faults.*``,
+# adcs_sim/link_faults.py), the QoS is what keeps them from happening for real. BEST_EFFORT is
+# used nowhere in the loop: every dropped datagram would become a missed step or a silent hole in
+# the bag, and lockstep runs would depend on the network.
+QOS_RATIONALE: dict[str, str] = {
+    STATE: 'RELIABLE: a lost state is a step the controller never answers (a wall-clock timeout, '
+           'a missed step) and a hole in the recording. VOLATILE: a controller that joins or '
+           'restarts late must act on the next state, never on an old one. KEEP_LAST with the '
+           'lockstep depth: one state per step, at most a few in flight while the dynamics node '
+           'waits for the answer; the depth absorbs a busy recorder with bounded memory.',
+    TRUTH_STATE: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as state: recorded every step for '
+                 'the metrics; nobody acts on an old one.',
+    WHEELS_STATE: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as state: per-step wheel data for '
+                  'the recorder and observers; an old one is meaningless to a late joiner.',
+    WHEELS_CMD: 'RELIABLE: one answer per state, stamped with its stamp; a lost one is a missed '
+                'step under the timeout policy. VOLATILE: a command answers one step; replayed to '
+                'a dynamics node that joins late it would only be counted stale. KEEP_LAST '
+                'lockstep depth: one in flight per step.',
+    TORQUE_CMD: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, for the reasons of wheels/cmd.',
+    APPLIED_TORQUE: 'RELIABLE: the metrics integrate the applied torque of every step. VOLATILE, '
+                    'KEEP_LAST lockstep depth: for the recorder; nobody acts on it.',
+    CLOCK: 'RELIABLE: the recorder keeps every tick (rclpy\'s time source subscribes best effort, '
+           'which matches a reliable writer). VOLATILE: the past clock is meaningless to a late '
+           'joiner. KEEP_LAST lockstep depth: one tick per step.',
+    REFERENCE: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, like the state it is compared with.',
+    FAULTS: 'RELIABLE and TRANSIENT_LOCAL: the whole fault schedule is published once at start '
+            '(one snapshot per event, stamped with its due time); a node that joins or restarts '
+            'late, the recorder included, must still receive all of it from the writer\'s '
+            'history. KEEP_LAST depth 100 bounds the schedule.',
+    CONTROLLER_STATUS: 'RELIABLE: what the papers plot (mode, Lyapunov value), one per step, '
+                       'recorded. VOLATILE: diagnostics of the past are not state. KEEP_LAST '
+                       'status depth: it goes out after the command, off the critical path, and '
+                       'may queue behind it.',
+    # seed 002's thrusters (their topics come with the thruster actuation)
+    'thrusters/cmd': 'RELIABLE: per-step on-times answering a state; a lost one is a missed step. '
+                     'VOLATILE: a command answers one step only. KEEP_LAST lockstep depth.',
+    'thrusters/state': 'RELIABLE: what the thrusters applied each step, recorded for the metrics. '
+                       'VOLATILE, KEEP_LAST lockstep depth, as wheels/state.',
+    DYNAMICS_STATUS: 'RELIABLE: missed steps and their times come from it (the metrics and the '
+                     'gap of a crashed controller). VOLATILE, KEEP_LAST status depth, as '
+                     'controller/status.',
+}

@@ -150,6 +150,7 @@ class RunData:
     thruster_on_time: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # per step, s
     thruster_force: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))    # at step starts, N
     missed_steps: int | None = None
+    missed_at: np.ndarray = field(default_factory=lambda: np.empty(0))   # stamps (s) of missed steps
     q_ref: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))
     scenario: dict | None = None
     controller_status: list = field(default_factory=list)  # (t, name, {key: value text}) per status
@@ -236,6 +237,7 @@ class RunData:
         run.controller_status = [(stamp, s[1], s[4]) for stamp, statuses in
                                  _merged_statuses(diagnostics.get(ns + topics.CONTROLLER_STATUS, []))
                                  for s in statuses]
+        run.missed_at = _missed_at(diagnostics.get(ns + topics.DYNAMICS_STATUS, []))
         run.faults = [(stamp, int(s[0]), s[1], s[2]) for stamp, statuses in
                       _merged_statuses(diagnostics.get(ns + topics.FAULTS, [])) for s in statuses]
         run.topic_counts = {_relative(name, ns): n for name, n in counts.items()}
@@ -452,11 +454,44 @@ def run_metrics(run: RunData, tol_deg: float = 0.5, eigen_tol_deg: float | None 
         out['peak_torque_Nm'] = np.abs(run.u).max(axis=0).tolist()
     if run.wheel_speed.size:
         out['peak_wheel_speed_rad_s'] = float(np.abs(run.wheel_speed).max())
+    out.update(missed_step_gaps(run))
     out.update(fault_metrics(run))
     out.update(thruster_metrics(run))
     if run.pointing is not None:
         out.update(pointing_metrics(run.t, pointing_error_deg(run)))
     return out
+
+
+def _missed_at(parts: list) -> np.ndarray:
+    """Stamps (s) at which the dynamics node's ``missed_steps`` count went up: it publishes its
+    status at each missed step, stamped with that step."""
+    out, count = [], 0
+    for stamp, statuses in _merged_statuses(parts):
+        for status in statuses:
+            try:
+                n = int(float(status[4].get('missed_steps', count)))
+            except ValueError:
+                continue
+            if n > count:
+                out.append(stamp)
+            count = max(count, n)
+    return np.asarray(out, dtype=float)
+
+
+def missed_step_gaps(run: RunData) -> dict:
+    """Where the lockstep loop ran without commands: ``missed_step_gaps`` (runs of consecutive
+    missed steps) and ``longest_missed_gap_s`` ([first, last] stamp of the longest run), e.g. a
+    controller that crashed and was restarted. Empty when no step was missed."""
+    t = run.missed_at
+    if not t.size:
+        return {}
+    period = float(np.median(np.diff(run.t))) if run.t.size > 1 else 0.0
+    breaks = np.flatnonzero(np.diff(t) > 1.5 * period)
+    starts = np.r_[0, breaks + 1]
+    ends = np.r_[breaks, t.size - 1]
+    longest = int(np.argmax(t[ends] - t[starts]))
+    return {'missed_step_gaps': int(starts.size),
+            'longest_missed_gap_s': [float(t[starts[longest]]), float(t[ends[longest]])]}
 
 
 def jsonable_metrics(metrics: dict) -> dict:

@@ -97,13 +97,14 @@ class BagWriter:
     path: Path
     chunk_size: int = 65536
     metadata: dict[str, str] = field(default_factory=dict)
+    file_name: str | None = None   # default <folder name>_0.mcap, as ros2 bag record names it
 
     def __post_init__(self) -> None:
         self.path = Path(self.path)
         if self.path.exists() and any(self.path.iterdir()):
             raise FileExistsError(f'bag folder {self.path} exists and is not empty')
         self.path.mkdir(parents=True, exist_ok=True)
-        self.mcap_path = self.path / f'{self.path.name}_0.mcap'
+        self.mcap_path = self.path / (self.file_name or f'{self.path.name}_0.mcap')
         self._file = open(self.mcap_path, 'wb')
         self._writer = Writer(self._file, chunk_size=self.chunk_size, compression=CompressionType.ZSTD)
         self._writer.start(profile='ros2', library='adcs_sim')
@@ -117,14 +118,18 @@ class BagWriter:
             self._writer.add_metadata(name, {'text': text})
         self._file.flush()
 
-    def add_topic(self, name: str, type_name: str, qos: list[dict[str, Any]]) -> None:
-        """Register a topic (idempotent)."""
+    def add_topic(self, name: str, type_name: str, qos: list[dict[str, Any]],
+                  schema: tuple[str, bytes] | None = None) -> None:
+        """Register a topic (idempotent). ``schema`` (encoding, data): the message definition to
+        store (default: the ``ros2msg`` text of the Jazzy type store)."""
         if name in self.topics:
             return
         if type_name not in self._schemas:
-            text, _ = typestore().generate_msgdef(type_name, ros_version=2)
+            if schema is None:
+                text, _ = typestore().generate_msgdef(type_name, ros_version=2)
+                schema = ('ros2msg', text.encode())
             self._schemas[type_name] = self._writer.register_schema(
-                name=type_name, encoding='ros2msg', data=text.encode())
+                name=type_name, encoding=schema[0], data=schema[1])
         cid = self._writer.register_channel(
             topic=name, message_encoding='cdr', schema_id=self._schemas[type_name],
             metadata={'offered_qos_profiles': yaml.safe_dump(qos, sort_keys=False)})
@@ -186,6 +191,104 @@ class BagWriter:
             'custom_data': custom_data or {},
             'ros_distro': 'jazzy',
         }
+
+
+# --- repairing a bag whose writer was killed -------------------------------------------------
+
+TRUNCATED_SUFFIX = '.truncated'
+
+
+@dataclass
+class RepairResult:
+    bag: Path
+    status: str                 # 'repaired' or 'complete' (nothing to do)
+    messages: int = 0
+    kept: Path | None = None    # the original truncated file, kept beside the repaired one
+
+
+def _salvage(path: Path):
+    """Every whole record of an MCAP file, in file order, up to its first damaged or missing byte:
+    (schemas {id: Schema}, channels {id: Channel} in order, metadata [Metadata], messages
+    [Message]). A killed writer's file ends mid-chunk; the records before it are intact."""
+    from mcap.records import Channel, Message, Metadata, Schema
+    from mcap.stream_reader import StreamReader
+    schemas, channels, metadata, messages = {}, {}, [], []
+    with open(path, 'rb') as f:
+        try:
+            for record in StreamReader(f, skip_magic=False, emit_chunks=False, validate_crcs=True).records:
+                if isinstance(record, Schema):
+                    schemas[record.id] = record
+                elif isinstance(record, Channel):
+                    channels[record.id] = record
+                elif isinstance(record, Metadata):
+                    metadata.append(record)
+                elif isinstance(record, Message):
+                    messages.append(record)
+        except Exception:  # noqa: BLE001 - the truncated tail (EOF, short record, bad CRC)
+            pass
+    return schemas, channels, metadata, messages
+
+
+def is_complete(bag: str | os.PathLike) -> bool:
+    """Whether a bag folder's MCAP file has its summary and the folder its ``metadata.yaml``."""
+    path = Path(bag)
+    folder = path if path.is_dir() else path.parent
+    with open(mcap_file(bag), 'rb') as f:
+        _, complete = _open_reader(f)
+    return complete and (folder / 'metadata.yaml').exists()
+
+
+def repair(bag: str | os.PathLike, force: bool = False) -> RepairResult:
+    """Rewrite the MCAP file of a bag whose writer was killed into a complete rosbag2 bag, in place.
+
+    Every whole record of the truncated file is kept (schemas, channels with their offered QoS,
+    the embedded metadata such as the scenario, every message with its log time); the new file
+    has a summary and index, and ``metadata.yaml`` is written (format 9, ``custom_data`` notes the
+    repair). The original is kept beside it as ``<name>.mcap.truncated`` (so nothing is lost if
+    the repair itself is interrupted). A bag that is already complete is left alone unless
+    ``force``. Raises FileNotFoundError / ValueError for what is not an MCAP bag.
+    """
+    path = Path(bag)
+    kind, files = bag_files(path)
+    if kind != 'mcap' or len(files) != 1:
+        raise ValueError(f'{path}: repair handles a one-file MCAP bag (found {kind}, {len(files)} file(s))')
+    src = files[0]
+    folder = path if path.is_dir() else path.parent
+    if not force and is_complete(folder):
+        return RepairResult(folder, 'complete')
+    schemas, channels, metadata, messages = _salvage(src)
+    tmp = folder.parent / f'.{folder.name}.repair-{os.getpid()}'
+    if tmp.exists():
+        import shutil
+        shutil.rmtree(tmp)
+    writer = BagWriter(tmp, metadata={m.name: m.metadata.get('text', '') for m in metadata
+                                      if m.name != 'rosbag2' and 'text' in m.metadata},
+                       file_name=src.name)
+    names = {}
+    for cid, ch in channels.items():
+        schema = schemas.get(ch.schema_id)
+        if schema is None:
+            continue
+        try:
+            qos = yaml.safe_load(ch.metadata.get('offered_qos_profiles', '')) or []
+        except yaml.YAMLError:
+            qos = []
+        writer.add_topic(ch.topic, schema.name, qos, (schema.encoding, schema.data))
+        names[cid] = ch.topic
+    written = 0
+    for m in messages:
+        if m.channel_id in names:
+            writer.write(names[m.channel_id], m.data, log_time_ns=m.log_time)
+            written += 1
+    writer.close({'repaired_by': 'adcs-bag-repair',
+                  'repaired_from': src.name + TRUNCATED_SUFFIX,
+                  'repaired_messages': str(written)})
+    kept = src.with_name(src.name + TRUNCATED_SUFFIX)
+    os.replace(src, kept)                                   # the original, kept
+    os.replace(tmp / src.name, src)                         # the complete file
+    os.replace(tmp / 'metadata.yaml', folder / 'metadata.yaml')
+    tmp.rmdir()
+    return RepairResult(folder, 'repaired', written, kept)
 
 
 # --- reading --------------------------------------------------------------------------------

@@ -36,11 +36,16 @@ class DomainLease:
             return
         raise RuntimeError(f'no free ROS domain id in {first}..{last}')
 
-    def env(self, base: dict | None = None) -> dict:
-        """Environment for a process of this run: own domain, loopback-only discovery."""
+    def env(self, base: dict | None = None, allow_network: bool = False) -> dict:
+        """Environment for a process of this run: own domain, loopback-only discovery.
+
+        ``allow_network=True`` (``adcs-run --allow-network``, for a graph spread over several
+        hosts) lets DDS discover participants on the local subnet instead
+        (``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET``); nothing else ever widens discovery."""
         env = dict(os.environ if base is None else base)
         env['ROS_DOMAIN_ID'] = str(self.domain_id)
-        env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+        env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'SUBNET' if allow_network else 'LOCALHOST'
+        env.pop('ROS_LOCALHOST_ONLY', None)   # deprecated; would override the range above
         return env
 
     def release(self) -> None:

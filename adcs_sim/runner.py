@@ -3,7 +3,8 @@
 1. Validates every section of the scenario file with its node's schema (nothing starts if one
    is wrong; the message names the key). An unknown section is an error.
 2. Leases a fresh ``ROS_DOMAIN_ID`` (1..99) and sets ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``
-   for every process it starts.
+   for every process it starts. Only ``--allow-network`` (discovery on the local subnet, for a
+   graph spread over several hosts; give every host the same ``--domain-id``) widens that.
 3. Starts the recorder first (always: a run of the runner is always recorded; a ``recorder``
    section only tunes it), waits until it is subscribed, then every other node of the file as
    its own process, each told to wait for the recorder before its first message.
@@ -13,8 +14,11 @@
 
 A node that fails at start stops the whole graph; the runner exits non-zero with that node's
 error and removes the output folder (no partial bag claims to be a run). A node that dies
-mid-run stops the graph too, but the bag of what was recorded is kept. Ctrl-C / SIGTERM stop
-everything cleanly (recorder last, so the bag is complete) and leave no process behind.
+mid-run stops the graph too, but the bag of what was recorded is kept (a folder holding a
+recorded state is never removed) and the error names the node and how it died. Ctrl-C /
+SIGTERM at any moment — start-up, mid-run, shutdown, twice — stop everything cleanly (recorder
+last, so the bag is complete) and leave no process behind: the handler only records the signal,
+the run loop acts on it at safe points, and once stopping has begun nothing interrupts it.
 
 Output folder layout: ``<out>/bag`` (the rosbag2 MCAP bag), ``<out>/logs/<node>.log``,
 ``<out>/metrics.json``, ``<out>/scenario.yaml`` (a copy).
@@ -111,10 +115,26 @@ class Graph:
         self.log_dir = log_dir
         self.procs: dict[str, subprocess.Popen] = {}
         self.logs: dict[str, Path] = {}
+        self.commands: dict[str, tuple[str, list[str]]] = {}   # name -> (module, args), for restarts
+        self.signals: list[int] = []   # SIGINT / SIGTERM received by the runner
+        self.stopping = False          # shutdown under way: a signal no longer interrupts it
+
+    def on_signal(self, signum, frame) -> None:  # noqa: ARG002
+        """The runner's SIGINT/SIGTERM handler: only records the signal. The run loop notices it
+        at its next safe point (:meth:`check`), never between starting a process and recording
+        it, and never in the middle of stopping the graph (a second Ctrl-C does not abort the
+        shutdown and leave processes behind)."""
+        self.signals.append(signum)
+
+    def check(self) -> None:
+        """Raise KeyboardInterrupt if a signal came and the graph is not already stopping."""
+        if self.signals and not self.stopping:
+            raise KeyboardInterrupt
 
     def start(self, name: str, module: str, args: list[str]) -> subprocess.Popen:
         log = self.log_dir / f'{name}.log'
         self.logs[name] = log
+        self.commands[name] = (module, args)
         with open(log, 'wb') as f:
             proc = subprocess.Popen([sys.executable, '-m', module, '--ros-args', *args],
                                     stdout=f, stderr=subprocess.STDOUT, env=self.env,
@@ -134,11 +154,28 @@ class Graph:
         deadline = time.monotonic() + timeout
         proc = self.procs[name]
         while line not in self.logs[name].read_text(errors='replace'):
+            self.check()
             if proc.poll() is not None:
                 raise RunError(f'{name} exited with status {proc.returncode} at start:\n{self.log_tail(name)}')
             if time.monotonic() > deadline:
                 raise RunError(f'{name} not ready after {timeout:g} s:\n{self.log_tail(name)}')
             time.sleep(0.02)
+
+    def restart(self, name: str, attempt: int) -> subprocess.Popen:
+        """Start a dead node again with the same command line; its old log is kept as
+        ``<name>.<attempt>.log``."""
+        self.logs[name].rename(self.log_dir / f'{name}.{attempt}.log')
+        return self.start(name, *self.commands[name])
+
+    def describe_exit(self, name: str) -> str:
+        """``'<name> exited with status N'`` or ``'<name> was killed by SIGKILL'``."""
+        code = self.procs[name].returncode
+        if code is not None and code < 0:
+            try:
+                return f'{name} was killed by {signal.Signals(-code).name}'
+            except ValueError:
+                pass
+        return f'{name} exited with status {code}'
 
     def failed(self, names) -> tuple[str, int] | None:
         """The first of ``names`` that has exited (name, status), or None."""
@@ -166,6 +203,7 @@ class Graph:
         return proc.returncode
 
     def stop_all(self, recorder_last: str | None = 'recorder') -> None:
+        self.stopping = True
         for name in list(self.procs):
             if name != recorder_last:
                 self.stop(name)
@@ -209,28 +247,56 @@ class _Progress:
         self.rclpy.try_shutdown(context=self.context)
 
 
+def graph_env(lease: DomainLease, allow_network: bool = False) -> dict:
+    """The environment of every process of a run: the leased domain, loopback-only discovery
+    unless ``allow_network``, our Fast DDS profile unless the user gave one."""
+    network_hygiene_defaults()
+    return lease.env(allow_network=allow_network)
+
+
+def recorded_state(bag_dir: Path) -> bool:
+    """Whether the bag (complete, or as flushed so far) holds at least one state message."""
+    from adcs_sim import bag as bagio
+    try:
+        return any(topic.endswith('/state') for topic, *_ in bagio.read_raw(bag_dir))
+    except (OSError, ValueError):
+        return False
+
+
+def lease_domain(domain_id: int | None = None) -> DomainLease:
+    """A fresh domain id in 1..99, or exactly ``domain_id`` (refused if a run here holds it)."""
+    if domain_id is None:
+        return DomainLease(1, 99)
+    try:
+        return DomainLease(domain_id, domain_id)
+    except (RuntimeError, ValueError) as exc:
+        raise RunError(f'--domain-id {domain_id}: {exc}') from None
+
+
 def run_scenario(scenario: Path, out: Path, duration: float | None = None, progress: bool = True,
-                 tol_deg: float = 0.5) -> dict:
-    """Run one scenario end to end; return its metrics. Raises RunError / ParameterError."""
+                 tol_deg: float = 0.5, allow_network: bool = False, domain_id: int | None = None,
+                 restarts: int = 0) -> dict:
+    """Run one scenario end to end; return its metrics. Raises RunError / ParameterError.
+
+    ``restarts``: how many times a controller that dies mid-run is started again (it rejoins
+    the lockstep loop at the next state; the steps without it are missed steps under the
+    dynamics node's timeout policy). 0: a dead node stops the graph."""
     from adcs_sim.analysis import RunData, jsonable_metrics, run_metrics
     from adcs_sim.registry import NODES
     validated = validate_scenario(scenario, duration)
     if out.exists() and any(out.iterdir()):
         raise RunError(f'output folder {out} exists and is not empty')
+    lease = lease_domain(domain_id)   # before anything is written: a refused id leaves no folder
     log_dir = out / 'logs'
     log_dir.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(scenario, out / 'scenario.yaml')
     bag_dir = out / 'bag'
-    lease = DomainLease(1, 99)
-    network_hygiene_defaults()
-    graph = Graph(lease.env(), log_dir)
+    graph = Graph(graph_env(lease, allow_network), log_dir)
+    print(f'adcs-run: ROS_DOMAIN_ID={lease.domain_id}, discovery '
+          f'{graph.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]}', flush=True)
     started = False
-    interrupted = []
-
-    def on_signal(signum, frame):  # noqa: ARG001
-        interrupted.append(signum)
-        raise KeyboardInterrupt
-    old_handlers = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    restarts_done = 0
+    old_handlers = {s: signal.signal(s, graph.on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     prog = None
     try:
         common = ['--params-file', str(scenario)]
@@ -243,42 +309,58 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
         # With a fault injector, the nodes that act on faults first collect its whole schedule.
         expect_faults = ['-p', 'startup.expect_faults:=true'] if 'fault_injector' in validated else []
         for name in others:
+            graph.check()
             extra = expect_faults if NODES[name].role == 'controller' else []
             graph.start(name, NODES[name].module, [*common, '-p', 'startup.expect_recorder:=true', *extra])
         dyn_args = [*common, '-p', 'startup.expect_recorder:=true', *expect_faults,
                     '-p', f'startup.state_subscribers:={n_state_subscribers}']
         if duration is not None:
             dyn_args += ['-p', f'duration:={float(duration)!r}']
+        graph.check()
         dynamics = graph.start('dynamics', NODES['dynamics'].module, dyn_args)
         prog = _Progress(validated['dynamics']['duration'], progress)
         watched = ['recorder', *others]
         while dynamics.poll() is None:
+            graph.check()
             prog.spin(0.2)
             if prog.sim_time > 0:
                 started = True
             dead = graph.failed(watched)
             if dead:
-                name, code = dead
-                raise RunError(f'{name} exited with status {code} '
-                               f'{"during" if started else "before"} the run:\n{graph.log_tail(name)}')
+                name, _ = dead
+                started = started or recorded_state(bag_dir)   # /clock may not have reached us yet
+                if started and NODES[name].role == 'controller' and restarts_done < restarts:
+                    restarts_done += 1
+                    print(f'adcs-run: {graph.describe_exit(name)} at t = {prog.sim_time:g} s; '
+                          f'restarting it ({restarts_done} of {restarts})', file=sys.stderr, flush=True)
+                    graph.restart(name, restarts_done)
+                    continue
+                raise RunError(f'{graph.describe_exit(name)} {"during" if started else "before"} the run; '
+                               f'graph stopped{f", bag kept in {bag_dir}" if started else ""}:\n'
+                               f'{graph.log_tail(name)}')
         if dynamics.returncode != 0:
             started = started or (bag_dir / 'metadata.yaml').exists() or prog.sim_time > 0
-            raise RunError(f'dynamics exited with status {dynamics.returncode}:\n{graph.log_tail("dynamics")}')
+            raise RunError(f'{graph.describe_exit("dynamics")}:\n{graph.log_tail("dynamics")}')
         started = True
         prog.close()
         prog = None
+        graph.stopping = True   # from here a signal cannot cut the shutdown short
         for name in others:
             graph.stop(name)
         code = graph.stop('recorder')
         if code != 0:
-            raise RunError(f'recorder exited with status {code}:\n{graph.log_tail("recorder")}')
+            raise RunError(f'{graph.describe_exit("recorder")}:\n{graph.log_tail("recorder")}')
+        if graph.signals:
+            raise RunError(f'interrupted by {signal.Signals(graph.signals[0]).name} during shutdown; '
+                           f'the run had completed, bag kept in {bag_dir}')
     except KeyboardInterrupt:
         graph.stop_all()
-        raise RunError(f'interrupted by signal {interrupted[0] if interrupted else "SIGINT"}; '
-                       f'bag kept in {bag_dir}') from None
+        sig = signal.Signals(graph.signals[0]).name if graph.signals else 'SIGINT'
+        kept = f'bag kept in {bag_dir}' if bag_dir.exists() else 'no bag was recorded yet'
+        raise RunError(f'interrupted by {sig} ({"during" if started else "before"} the run); {kept}') from None
     except BaseException:
         graph.stop_all()
-        if not started:
+        if not (started or recorded_state(bag_dir)):   # never delete recorded data
             shutil.rmtree(out, ignore_errors=True)
         raise
     finally:
@@ -304,13 +386,23 @@ def main(argv=None) -> int:
     parser.add_argument('--no-progress', action='store_true', help='no progress bar')
     parser.add_argument('--report', action='store_true',
                         help='also write the report (adcs-analyze: report.md + figures) to <out>/report')
+    parser.add_argument('--allow-network', action='store_true',
+                        help='let DDS discover nodes on the local subnet (multi-host graphs); by '
+                             'default discovery is limited to this machine (localhost)')
+    parser.add_argument('--domain-id', type=int, default=None,
+                        help='use this ROS_DOMAIN_ID (0..232; e.g. the same on every host with '
+                             '--allow-network) instead of a fresh free one')
+    parser.add_argument('--restart', type=int, default=0, metavar='N',
+                        help='start a controller that dies mid-run again, up to N times (it rejoins '
+                             'the lockstep loop; the steps without it are missed steps); default 0: '
+                             'a node that dies stops the run')
     args = parser.parse_args(argv)
     try:
         scenario = resolve_scenario(args.scenario)
         out = args.out or Path('runs') / f'{scenario.stem}-{datetime.now():%Y%m%d-%H%M%S}'
         print(f'adcs-run: {scenario} -> {out}', flush=True)
         metrics = run_scenario(scenario, out, args.duration, not args.no_progress and sys.stderr.isatty(),
-                               args.tolerance_deg)
+                               args.tolerance_deg, args.allow_network, args.domain_id, args.restart)
     except (ParameterError, RunError) as exc:
         print(f'adcs-run: error: {exc}', file=sys.stderr)
         return 1 if isinstance(exc, RunError) else 2

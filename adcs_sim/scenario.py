@@ -186,6 +186,8 @@ def _dynamics_cross_check(v: dict) -> None:
         raise ParameterError('duration', f'must be at least one control period ({v["control_period"]} s)')
     if v['gravity_gradient'] and v['orbit.altitude'] <= 0:
         raise ParameterError('orbit.altitude', 'gravity_gradient needs an orbit altitude > 0 (m)')
+    if v['link_faults.drop'] + v['link_faults.delay'] > 1.0:
+        raise ParameterError('link_faults.delay', 'link_faults.drop + link_faults.delay must not exceed 1')
     commands = v['lockstep.commands']
     allowed = set(topics.COMMAND_TOPICS) | {'auto', 'none'}
     bad = [c for c in commands if c not in allowed]
@@ -214,6 +216,10 @@ def command_topics(v: dict) -> list[str]:
             auto.append(topics.THRUSTERS_CMD)
         return auto
     return list(dict.fromkeys(commands))
+
+
+def _fraction(v) -> str | None:
+    return None if 0.0 <= v <= 1.0 else f'must be a fraction in [0, 1], got {v}'
 
 
 def startup_params() -> list[Param]:
@@ -273,6 +279,11 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
           doc='wall seconds to wait for a step\'s commands before applying the timeout policy'),
     Param('lockstep.timeout_policy', 'string', default='hold', choices=('hold', 'zero'),
           doc='on a missed step: hold the last command or apply zero'),
+    Param('link_faults.seed', 'int', default=0, doc='seed of the lost / late command draws'),
+    Param('link_faults.drop', 'double', default=0.0, check=_fraction,
+          doc='fraction of lockstep steps whose commands are lost (missed steps; adcs_sim/link_faults.py)'),
+    Param('link_faults.delay', 'double', default=0.0, check=_fraction,
+          doc='fraction of lockstep steps whose commands come after the deadline (missed, then stale)'),
     Param('noise.seed', 'int', default=0, doc='seed of the measurement noise generator', batch=True),
     Param('noise.attitude_std', 'double', default=0.0, check=non_negative,
           doc='star-tracker noise, rad (1 sigma per axis, small-angle rotation)'),

@@ -3,6 +3,7 @@ Lie derivatives, the min-norm law (eq. 14), the gain-scheduled min-norm law (eq.
 Krstic-Tsiotras law (eq. 18). No ROS."""
 from __future__ import annotations
 
+import pathlib
 import subprocess
 import sys
 
@@ -15,7 +16,7 @@ from adcs_controllers.laws import inverse_optimal as io
 from adcs_controllers.laws.pd import pd_torque
 from adcs_sim.attitude import quat_kinematics, quat_multiply
 
-ROOT = __import__('pathlib').Path(__file__).resolve().parents[1]
+ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 # Section III.F (micro-satellite) and Table I (Krstic-Tsiotras comparison) parameters.
 I_3F = np.diag([12.0, 14.0, 10.0])

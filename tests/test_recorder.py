@@ -404,6 +404,19 @@ def test_sigkill_keeps_everything_flushed(recorders, tmp_path, seed):
             pass  # the truncated tail
     assert state_prefix(got) == n
 
+    # adcs-bag-repair makes it a complete rosbag2 bag (summary, index, metadata.yaml) holding
+    # exactly what was readable, which rosbags' AnyReader opens
+    from adcs_sim.repair import main as repair_main
+    assert repair_main([str(out)]) == 0
+    assert (out / 'metadata.yaml').is_file() and bagmod.is_complete(out)
+    with AnyReader([out], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        conns = [c for c in reader.connections if c.topic == STATE_TOPIC]
+        got = [(*odom_fields(reader.deserialize(data, c.msgtype))[:1], t,
+                *odom_fields(reader.deserialize(data, c.msgtype))[1:])
+               for c, t, data in reader.messages(connections=conns)]
+    assert state_prefix(got) == n
+    assert bagmod.read_metadata(out).get('scenario') == scenario_text
+
 
 # --- 3. refusals -----------------------------------------------------------------------------
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import pathlib
 import subprocess
 import sys
 
@@ -12,7 +13,7 @@ from numpy.testing import assert_allclose
 
 from adcs_controllers import tuning as tn
 
-ROOT = __import__('pathlib').Path(__file__).resolve().parents[1]
+ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 # The paper's example (IV.G): J = 10, 30°, kp1 = 0.02, kd1 = 0.5 (γ is not printed: 0.01 here).
 J, THETA0, KP1, KD1, GAMMA = 10.0, math.radians(30.0), 0.02, 0.5, 0.01

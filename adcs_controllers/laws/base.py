@@ -49,3 +49,33 @@ class SectionLaw:
             else:
                 out[key] = value
         return out
+
+
+class LawOutputRejected(ValueError):
+    """A law produced a non-finite output: the controller node refuses to publish it."""
+
+
+def checked_output(law: str, value: np.ndarray) -> np.ndarray:
+    """``value`` if every entry is finite, else :class:`LawOutputRejected` with the reason.
+
+    The controller node's last line of defence: validation lets only finite states with unit
+    quaternions through and every law is fuzzed to stay finite on them (tests/test_fuzz.py), but
+    a NaN must never reach the wheels if a law misbehaves anyway (the step is then counted as
+    rejected and the dynamics node's missed-step policy applies)."""
+    if not np.all(np.isfinite(value)):
+        raise LawOutputRejected(f'{law}: non-finite output {np.asarray(value).tolist()} refused')
+    return value
+
+
+def checked_control(law: SectionLaw, name: str, t: float, q: np.ndarray, w: np.ndarray, *extra):
+    """``law.control(t, q, w, *extra)`` with its output checked (:func:`checked_output`); a law that
+    refuses the state (``ValueError``, e.g. infeasible geometry) is reported the same way, so the
+    node can count the step as rejected with the reason instead of crashing or publishing NaN."""
+    try:
+        with np.errstate(all='ignore'):   # a non-finite result is refused below, with a reason
+            value, status = law.control(t, q, w, *extra)
+    except LawOutputRejected:
+        raise
+    except (ValueError, FloatingPointError, ZeroDivisionError, np.linalg.LinAlgError) as exc:
+        raise LawOutputRejected(f'{name}: the law refused the state: {exc}') from None
+    return checked_output(name, value), status

@@ -23,6 +23,7 @@ from rclpy.duration import Duration
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import RejectCounter
+from adcs_controllers.laws.base import LawOutputRejected, checked_control
 from adcs_controllers.schemas import BACKSTEPPING_SCHEMA
 from adcs_sim.faults import FaultTracker
 from adcs_sim.nodes.base import AdcsNode, entry_point
@@ -115,7 +116,11 @@ class BacksteppingController(AdcsNode):
             # as ControllerNode: the recorder never falls behind by the writers' depth (topics)
             for pub in (self.pub_thrusters, self.pub_wheels, self.pub_status):
                 pub.wait_for_all_acked(Duration(seconds=self.params['startup.timeout']))
-        tau, status = self.law.control(t_ns / cv.NS_PER_S, q, w)
+        try:  # a law refusing the state or giving a non-finite output: counted, nothing published
+            tau, status = checked_control(self.law, self.get_name(), t_ns / cv.NS_PER_S, q, w)
+        except LawOutputRejected as exc:
+            self.rejects.reject('law', str(exc))
+            return
         on_time, wheel_torque, info = self.actuation.command(tau, w, speed)
         self.pub_thrusters.publish(cv.thruster_cmd_to_msg(t_ns, self.thruster_names, on_time))
         self.pub_wheels.publish(cv.wheel_cmd_to_msg(t_ns, self.wheel_names, effort=wheel_torque))

@@ -39,6 +39,7 @@ from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import RejectCounter
 from adcs_controllers.laws.allocation import Actuation
+from adcs_controllers.laws.base import LawOutputRejected, checked_control
 from adcs_sim.faults import FaultTracker
 from adcs_sim.nodes.base import AdcsNode
 
@@ -186,7 +187,11 @@ class ControllerNode(AdcsNode):
                 pub.wait_for_all_acked(Duration(seconds=self.params['startup.timeout']))
         self.apply_due_faults(t_ns)
         output = self.law.output  # torque or wheel momentum (a reconfiguring law's current phase)
-        value, status = self.control(t_ns / cv.NS_PER_S, q, w, h)
+        try:  # a law refusing the state or giving a non-finite output: counted, nothing published
+            value, status = checked_control(self, self.get_name(), t_ns / cv.NS_PER_S, q, w, h)
+        except LawOutputRejected as exc:
+            self.rejects.reject('law', str(exc))
+            return
         if output == 'wheel_momentum':
             self.publish_momentum(t_ns, value)
         else:

@@ -6,7 +6,9 @@ command topic has delivered a command stamped ``t_k``, publishes the applied con
 integrates ``[t_k, t_k+1]`` holding the commands (zero-order hold, fixed-step RK4). A step whose
 commands do not arrive within ``lockstep.timeout`` wall seconds is a *missed step*: the declared
 policy (hold the last command, or zero) applies and the miss is counted on ``dynamics/status``.
-Commands stamped for another step are counted as stale and ignored.
+Commands stamped for another step are counted as stale and ignored. ``link_faults.drop`` /
+``link_faults.delay`` make a seeded fraction of the steps lose their commands or get them late
+(:mod:`adcs_sim.link_faults`): missed steps under the same policy, deterministic.
 
 Thrusters (seed 002): a ``thrusters/cmd`` stamped ``t_k`` gives each thruster's on-time from
 ``t_k``; the node builds the valve command for ``[t_k, t_k+1]`` from it
@@ -42,6 +44,7 @@ from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import RejectCounter
 from adcs_sim.faults import FaultTracker
+from adcs_sim.link_faults import DELAY, FATE_NAMES, OK, LinkFaults
 from adcs_sim.nodes.base import AdcsNode, main_for
 from adcs_sim.plant import ReactionWheels, WheelCommand
 from adcs_sim.scenario import DYNAMICS_SCHEMA, build_plant, command_topics, initial_state, step_timing
@@ -79,6 +82,9 @@ class DynamicsNode(AdcsNode):
         self.stale_commands = 0
         self.step_ns = 0
         self.received: set[str] = set()
+        self.link = LinkFaults(p['link_faults.seed'], p['link_faults.drop'], p['link_faults.delay'],
+                               self.n_steps)
+        self._late = 0   # commands of the previous step that the link delayed past its deadline
 
         self.pub_clock = self.publisher(topics.CLOCK)
         self.pub_state = self.publisher(topics.STATE)
@@ -219,6 +225,8 @@ class DynamicsNode(AdcsNode):
                   'rejected_messages': self.rejects.total, 'final': str(final).lower(),
                   'awaited_commands': ','.join(self.awaited) or 'none', 'mode': self.params['mode'],
                   'late_faults': self.faults.late}
+        if self.link.active:
+            values.update({'link_lost_steps': self.link.dropped, 'link_late_steps': self.link.delayed})
         level = 'WARN' if self.missed_steps else 'OK'
         self.pub_status.publish(cv.status_to_msg(self.step_ns, 'dynamics', values, level))
 
@@ -262,7 +270,9 @@ class DynamicsNode(AdcsNode):
         self.publish_state()
         for k in range(self.n_steps):
             if self.lockstep:
+                held = self._link_before(k)
                 self._wait_commands(executor, timeout)
+                self._link_after(k, held)
             else:
                 self._spin_until(executor, wall0 + k * pace)
             self.apply_due_faults()  # one that arrived while waiting (late unless stamped t_k)
@@ -316,6 +326,41 @@ class DynamicsNode(AdcsNode):
                 if topic == topics.THRUSTERS_CMD:
                     self.on_time = np.zeros_like(self.on_time)
                     continue
+                key = 'wheels' if topic == topics.WHEELS_CMD else 'torquers'
+                self.commands[key] = zero[key]
+        self.publish_status()
+
+    # --- simulated link faults (adcs_sim.link_faults) ----------------------------------------
+
+    def _link_before(self, k: int) -> dict | None:
+        """Before waiting for step k's commands: count last step's late ones as stale (they
+        arrive now, stamped for that step) and keep the commands in effect if step k's are to
+        be lost or late."""
+        if self._late:
+            self.stale_commands += self._late
+            self._late = 0
+        return dict(self.commands) if self.awaited and self.link.fate(k) != OK else None
+
+    def _link_after(self, k: int, held: dict | None) -> None:
+        """Step k's commands came, but the simulated link loses them or delivers them after the
+        deadline: the step runs without them, a missed step under the timeout policy (a step
+        already missed by timeout is left as it is)."""
+        if held is None or not self.received.issuperset(self.awaited):
+            return
+        fate = self.link.fate(k)
+        self.commands = held
+        self.link.count(fate)
+        if fate == DELAY:
+            self._late = len(self.awaited)
+        self.missed_steps += 1
+        self.get_logger().warning(
+            f'step t = {self.step_ns / cv.NS_PER_S:g} s: command on {sorted(self.awaited)} '
+            f'{FATE_NAMES[fate]} on the simulated link; policy '
+            f'{self.params["lockstep.timeout_policy"]} ({self.missed_steps} missed)',
+            throttle_duration_sec=5.0)
+        if self.params['lockstep.timeout_policy'] == 'zero':
+            zero = self.plant.zero_commands()
+            for topic in self.awaited:
                 key = 'wheels' if topic == topics.WHEELS_CMD else 'torquers'
                 self.commands[key] = zero[key]
         self.publish_status()
