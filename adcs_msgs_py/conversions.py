@@ -160,6 +160,19 @@ def wheel_cmd_to_msg(t_ns: int, names: Sequence[str], effort=None, velocity=None
     return msg
 
 
+def _command_names(topic: str, what: str, msg: JointState, known: Mapping[str, int]) -> list[str]:
+    """The actuator names of a command: at least one, unique, all known (else InvalidMessage)."""
+    names = list(msg.name)
+    if not names:
+        raise InvalidMessage(f'{topic}: no {what} names')
+    if len(set(names)) != len(names):
+        raise InvalidMessage(f'{topic}: duplicate {what} names {names}')
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise InvalidMessage(f'{topic}: unknown {what} name(s) {unknown}; known: {list(known)}')
+    return names
+
+
 def wheel_cmd_from_msg(msg: JointState, known: Mapping[str, int]) -> tuple[int, np.ndarray, np.ndarray, str]:
     """Validate a wheel command against the known wheel names.
 
@@ -167,14 +180,7 @@ def wheel_cmd_from_msg(msg: JointState, known: Mapping[str, int]) -> tuple[int, 
     the plant, ``mode`` is ``'torque'`` (effort) or ``'speed'`` (velocity). A command may name a
     subset of the wheels; wheels it does not name keep their previous command.
     """
-    names = list(msg.name)
-    if not names:
-        raise InvalidMessage('wheels/cmd: no wheel names')
-    if len(set(names)) != len(names):
-        raise InvalidMessage(f'wheels/cmd: duplicate wheel names {names}')
-    unknown = [n for n in names if n not in known]
-    if unknown:
-        raise InvalidMessage(f'wheels/cmd: unknown wheel name(s) {unknown}; known: {list(known)}')
+    names = _command_names('wheels/cmd', 'wheel', msg, known)
     has_effort, has_velocity = len(msg.effort) > 0, len(msg.velocity) > 0
     if has_effort == has_velocity:
         raise InvalidMessage('wheels/cmd: set exactly one of effort (torque) or velocity (speed)')
@@ -207,14 +213,7 @@ def thruster_cmd_from_msg(msg: JointState, known: Mapping[str, int]) -> tuple[in
     """Validate a thruster command: ``(t_ns, index, on_time)``. Known, unique names; one finite,
     non-negative on-time (``effort``, s) per name; no ``position``/``velocity``. A command may name
     a subset of the thrusters; the others are off for the period."""
-    names = list(msg.name)
-    if not names:
-        raise InvalidMessage('thrusters/cmd: no thruster names')
-    if len(set(names)) != len(names):
-        raise InvalidMessage(f'thrusters/cmd: duplicate thruster names {names}')
-    unknown = [n for n in names if n not in known]
-    if unknown:
-        raise InvalidMessage(f'thrusters/cmd: unknown thruster name(s) {unknown}; known: {list(known)}')
+    names = _command_names('thrusters/cmd', 'thruster', msg, known)
     if len(msg.position) or len(msg.velocity):
         raise InvalidMessage('thrusters/cmd: the on-times go in effort (s); position and velocity '
                              'must be empty')

@@ -5,6 +5,8 @@ import os
 import sys
 from pathlib import Path
 
+import numpy as np
+
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -173,3 +175,16 @@ def run_fault_graph(scenario: Path, controller_class, n: int, timeout: float = 1
     expected = {'/state': n + 1, '/controller/status': n + 1, '/wheels/cmd': n + 1,
                 '/wheels/state': n + 1, '/dynamics/status': 2, '/faults': 2}
     return run_lockstep_graph(scenario, controller_class, expected, faults=True, timeout=timeout)
+
+
+def plain_message(value):
+    """A deserialised message as nested tuples (numpy arrays as dtype + bytes), comparable with
+    ==: message content, not CDR bytes (Fast DDS leaves a serialised message's alignment padding
+    uninitialised, so equal messages can differ there)."""
+    if hasattr(value, '__dataclass_fields__'):
+        return tuple(plain_message(getattr(value, f)) for f in value.__dataclass_fields__)
+    if isinstance(value, np.ndarray):
+        return (value.dtype.str, value.tobytes())
+    if isinstance(value, (list, tuple)):
+        return tuple(plain_message(v) for v in value)
+    return value

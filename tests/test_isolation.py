@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from adcs_sim import bag as bagio
 from adcs_sim.analysis import RunData
-from conftest import ROOT, make_scenario
+from conftest import ROOT, make_scenario, plain_message
 
 N_RUNS = 8
 DURATION = 60.0
@@ -49,17 +49,6 @@ def _finish(proc):
     return int(re.search(r'ROS_DOMAIN_ID=(\d+), discovery LOCALHOST', out).group(1))
 
 
-def _plain(value):
-    """A deserialised message as nested tuples, comparable with ==."""
-    if hasattr(value, '__dataclass_fields__'):
-        return tuple(_plain(getattr(value, f)) for f in value.__dataclass_fields__)
-    if isinstance(value, np.ndarray):
-        return (value.dtype.str, value.tobytes())
-    if isinstance(value, (list, tuple)):
-        return tuple(_plain(v) for v in value)
-    return value
-
-
 def _content(bag):
     """{topic: [(log time, message content), ...] in the order received}: everything the run
     recorded. Content, not CDR bytes: Fast DDS leaves a serialised message's alignment padding
@@ -67,7 +56,7 @@ def _content(bag):
     differ there."""
     out = defaultdict(list)
     for topic, t, msg in bagio.read_messages(bag):
-        out[topic].append((t, _plain(msg)))
+        out[topic].append((t, plain_message(msg)))
     return dict(out)
 
 

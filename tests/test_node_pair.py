@@ -17,7 +17,7 @@ from rosbags.typesys import Stores, get_typestore
 from adcs_sim import bag as bagio
 from adcs_sim.analysis import RunData, run_metrics
 from adcs_sim.runner import run_scenario
-from conftest import InProcessGraph, make_scenario, record_pd_loop
+from conftest import InProcessGraph, make_scenario, plain_message, record_pd_loop
 from reference_pd import pd_slew_reference
 
 J = np.diag([12.0, 14.0, 10.0])
@@ -55,21 +55,10 @@ def test_in_process_loop_converges_and_matches_reference(ros_domain, tmp_path):
     assert metrics['missed_steps'] == 0
 
 
-def _plain(value):
-    """A deserialised message as nested tuples (numpy arrays as bytes), comparable with ==."""
-    if hasattr(value, '__dataclass_fields__'):
-        return tuple(_plain(getattr(value, f)) for f in value.__dataclass_fields__)
-    if isinstance(value, np.ndarray):
-        return (value.dtype.str, value.tobytes())
-    if isinstance(value, (list, tuple)):
-        return tuple(_plain(v) for v in value)
-    return value
-
-
 def _contents(bag_dir: Path):
     """Every message's (topic, log time, content). Content, not CDR bytes: Fast DDS leaves the
     alignment padding of a serialised message uninitialised, so equal messages can differ there."""
-    return [(topic, t, _plain(msg)) for topic, t, msg in bagio.read_messages(bag_dir)]
+    return [(topic, t, plain_message(msg)) for topic, t, msg in bagio.read_messages(bag_dir)]
 
 
 def test_separate_processes_deterministic_and_match_reference(tmp_path):
