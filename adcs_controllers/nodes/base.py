@@ -61,7 +61,7 @@ class ControllerNode(AdcsNode):
         self.pub_cmd = self.publisher(topics.WHEELS_CMD if self.actuator == 'wheels' else topics.TORQUE_CMD)
         self.pub_status = self.publisher(topics.CONTROLLER_STATUS)
         self.sub_state = None
-        self.states = 0  # states received (the acknowledgement pacing counts them)
+        self.states = 0  # steps computed (the acknowledgement pacing counts them)
         self.sub_wheels = None
         self.needs_wheel_momentum = bool(getattr(self.law, 'needs_wheel_momentum', False))
         self._pending_states: dict[int, tuple] = {}   # stamp -> (q, w), waiting for the wheels
