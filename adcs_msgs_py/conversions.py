@@ -146,6 +146,17 @@ def _joint_state_from_msg(topic: str, msg: JointState):
             _finite(f'{topic}.velocity', msg.velocity, n), _finite(f'{topic}.effort', msg.effort, n))
 
 
+def wheel_speeds_from_msg(msg: JointState, names: Sequence[str]) -> tuple[int, np.ndarray]:
+    """``(t_ns, speeds)`` of the wheels ``names`` (in that order) from a ``wheels/state``; a wheel
+    the message does not carry makes it invalid."""
+    t_ns, got, _, speed, _ = wheel_state_from_msg(msg)
+    index = {n: i for i, n in enumerate(got)}
+    missing = [n for n in names if n not in index]
+    if missing:
+        raise InvalidMessage(f'wheels/state: no speed for wheel(s) {missing} (got {got})')
+    return t_ns, speed[[index[n] for n in names]]
+
+
 def wheel_cmd_to_msg(t_ns: int, names: Sequence[str], effort=None, velocity=None) -> JointState:
     """Wheel command: motor torques (``effort``) or speeds (``velocity``), one per named wheel."""
     if (effort is None) == (velocity is None):

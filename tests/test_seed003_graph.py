@@ -98,7 +98,7 @@ def test_wheel_state_without_the_controllers_wheels_is_rejected(ros_domain, tmp_
         for k in range(20):   # wheel states whose state never comes: the buffer keeps only a few
             ctrl._on_wheel_state(cv.wheel_state_to_msg(k * 10**9, ['rw_x', 'rw_y', 'rw_z'], [0.0] * 3,
                                                        [0.0] * 3, [0.0] * 3))
-        assert len(ctrl._pending_wheels) <= ctrl.PENDING_STAMPS
+        assert len(ctrl.pairs.sides[1]) <= ctrl.pairs.keep
 
 
 def test_registry_builds_the_pointing_laws_from_the_sections():

@@ -18,19 +18,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from rclpy.duration import Duration
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import RejectCounter
 from adcs_controllers.laws.base import LawOutputRejected, checked_control
+from adcs_controllers.nodes.base import StampPairs
 from adcs_controllers.schemas import BACKSTEPPING_SCHEMA
 from adcs_sim.faults import FaultTracker
 from adcs_sim.nodes.base import AdcsNode, entry_point
-
-# Unpaired messages older than this many steps behind the newest are dropped (a lost partner).
-MAX_PENDING = 8
-
 
 class BacksteppingController(AdcsNode):
     schema = BACKSTEPPING_SCHEMA  # law: BacksteppingLaw, actuation: ThrusterActuation (adcs_sim.registry)
@@ -49,8 +45,7 @@ class BacksteppingController(AdcsNode):
         self.pub_wheels = self.publisher(topics.WHEELS_CMD)
         self.pub_status = self.publisher(topics.CONTROLLER_STATUS)
         self.sub_state = self.sub_wheel_state = None
-        self.pending_state: dict[int, tuple] = {}
-        self.pending_speed: dict[int, np.ndarray] = {}
+        self.pairs = StampPairs()  # (q, w) and the wheel speed of one stamp
         self.firings = 0        # thruster-periods fired so far
         self.steps = 0          # steps answered (the acknowledgement pacing counts them)
         # Faults name wheels only (the fault injector's actuators); followed for the late count.
@@ -84,38 +79,25 @@ class BacksteppingController(AdcsNode):
     def _on_state(self, msg) -> None:
         parsed = self.rejects.accept(topics.STATE, lambda: cv.state_from_msg(msg))
         if parsed is not None:
-            self.pending_state[parsed[0]] = parsed[1:]
-            self._try(parsed[0])
+            self._paired(parsed[0], self.pairs.add(0, parsed[0], parsed[1:]))
 
     def _on_wheel_state(self, msg) -> None:
-        parsed = self.rejects.accept(topics.WHEELS_STATE, lambda: cv.wheel_state_from_msg(msg))
-        if parsed is None:
-            return
-        t_ns, names, _, speed, _ = parsed
-        try:
-            index = [names.index(n) for n in self.wheel_names]
-        except ValueError:
-            self.rejects.reject(topics.WHEELS_STATE, f'no state for wheel(s) {self.wheel_names} in {names}')
-            return
-        self.pending_speed[t_ns] = speed[index]
-        self._try(t_ns)
+        parsed = self.rejects.accept(topics.WHEELS_STATE,
+                                     lambda: cv.wheel_speeds_from_msg(msg, self.wheel_names))
+        if parsed is not None:
+            self._paired(parsed[0], self.pairs.add(1, *parsed))
 
-    def _try(self, t_ns: int) -> None:
-        if t_ns in self.pending_state and t_ns in self.pending_speed:
-            (q, w), speed = self.pending_state.pop(t_ns), self.pending_speed.pop(t_ns)
+    def _paired(self, t_ns: int, pair) -> None:
+        if pair is not None:
+            (q, w), speed = pair
             self.step(t_ns, q, w, speed)
-        for pending in (self.pending_state, self.pending_speed):
-            while len(pending) > MAX_PENDING:
-                pending.pop(min(pending))
 
     # --- state -> commands ----------------------------------------------------------------
 
     def step(self, t_ns: int, q: np.ndarray, w: np.ndarray, speed: np.ndarray) -> None:
         self.steps += 1
-        if self.params['startup.expect_recorder'] and self.steps % topics.ACK_INTERVAL == 0:
-            # as ControllerNode: the recorder never falls behind by the writers' depth (topics)
-            for pub in (self.pub_thrusters, self.pub_wheels, self.pub_status):
-                pub.wait_for_all_acked(Duration(seconds=self.params['startup.timeout']))
+        self.pace_recorder(self.steps, (self.pub_thrusters, self.pub_wheels, self.pub_status),
+                           self.params['startup.timeout'])
         try:  # a law refusing the state or giving a non-finite output: counted, nothing published
             tau, status = checked_control(self.law, self.get_name(), t_ns / cv.NS_PER_S, q, w)
         except LawOutputRejected as exc:

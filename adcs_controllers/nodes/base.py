@@ -33,7 +33,6 @@ from __future__ import annotations
 
 
 import numpy as np
-from rclpy.duration import Duration
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
@@ -42,6 +41,29 @@ from adcs_controllers.laws.allocation import Actuation
 from adcs_controllers.laws.base import LawOutputRejected, checked_control
 from adcs_sim.faults import FaultTracker
 from adcs_sim.nodes.base import AdcsNode
+
+
+class StampPairs:
+    """Pairs two messages of the same step by stamp, whichever arrives first (``state`` and
+    ``wheels/state``): :meth:`add` returns the pair once both are here and drops the older
+    stamps (they can no longer be answered); unpaired stamps are kept up to ``keep`` a side."""
+
+    def __init__(self, keep: int = 8) -> None:
+        self.keep = keep
+        self.sides: tuple[dict, dict] = ({}, {})  # stamp -> value, side 0 and side 1
+
+    def add(self, side: int, t_ns: int, value) -> tuple | None:
+        self.sides[side][t_ns] = value
+        if t_ns in self.sides[1 - side]:
+            pair = (self.sides[0].pop(t_ns), self.sides[1].pop(t_ns))
+            for pending in self.sides:
+                for old in [s for s in pending if s < t_ns]:
+                    del pending[old]
+            return pair
+        for pending in self.sides:
+            while len(pending) > self.keep:
+                del pending[min(pending)]
+        return None
 
 
 class ControllerNode(AdcsNode):
@@ -64,8 +86,7 @@ class ControllerNode(AdcsNode):
         self.states = 0  # steps computed (the acknowledgement pacing counts them)
         self.sub_wheels = None
         self.needs_wheel_momentum = bool(getattr(self.law, 'needs_wheel_momentum', False))
-        self._pending_states: dict[int, tuple] = {}   # stamp -> (q, w), waiting for the wheels
-        self._pending_wheels: dict[int, np.ndarray] = {}  # stamp -> h, waiting for the state
+        self.pairs = StampPairs()  # (q, w) and the wheel speeds of one stamp
         self.faults = FaultTracker()
         self.wheel_index = ({n: i for i, n in enumerate(self.wheel_names)}
                             if self.actuator == 'wheels' else {})
@@ -131,7 +152,6 @@ class ControllerNode(AdcsNode):
 
     # --- state -> command -------------------------------------------------------------------
 
-    PENDING_STAMPS = 8  # per-stamp buffer of a state / wheel state waiting for its pair
 
     def _on_state(self, msg) -> None:
         parsed = self.rejects.accept(topics.STATE, lambda: cv.state_from_msg(msg))
@@ -141,50 +161,24 @@ class ControllerNode(AdcsNode):
         if not self.needs_wheel_momentum:
             self._step(t_ns, q, w)
             return
-        self._pending_states[t_ns] = (q, w)
-        self._pair(t_ns)
+        self._paired(t_ns, self.pairs.add(0, t_ns, (q, w)))
 
     def _on_wheel_state(self, msg) -> None:
-        parsed = self.rejects.accept(topics.WHEELS_STATE, lambda: self._wheel_momentum_from_msg(msg))
-        if parsed is None:
-            return
-        t_ns, h = parsed
-        self._pending_wheels[t_ns] = h
-        self._pair(t_ns)
+        parsed = self.rejects.accept(topics.WHEELS_STATE,
+                                     lambda: cv.wheel_speeds_from_msg(msg, self.wheel_names))
+        if parsed is not None:
+            self._paired(parsed[0], self.pairs.add(1, *parsed))
 
-    def _wheel_momentum_from_msg(self, msg) -> tuple[int, np.ndarray]:
-        """(stamp, h) from a ``wheels/state``: the speeds of this controller's wheels (by name; a
-        missing one makes the message invalid) -> ``h = sum_i a_i Js_i Ω_i``."""
-        t_ns, names, _, speed, _ = cv.wheel_state_from_msg(msg)
-        index = {n: i for i, n in enumerate(names)}
-        missing = [n for n in self.wheel_names if n not in index]
-        if missing:
-            raise cv.InvalidMessage(f'wheels/state: no speed for wheel(s) {missing} (got {names})')
-        return t_ns, self.actuation.wheel_momentum(np.array([speed[index[n]] for n in self.wheel_names]))
-
-    def _pair(self, t_ns: int) -> None:
-        """Compute the step ``t_ns`` once its state and wheel state are both here; drop older
-        stamps (they can no longer be answered) and keep the buffers small."""
-        if t_ns in self._pending_states and t_ns in self._pending_wheels:
-            q, w = self._pending_states.pop(t_ns)
-            h = self._pending_wheels.pop(t_ns)
-            for pending in (self._pending_states, self._pending_wheels):
-                for old in [s for s in pending if s < t_ns]:
-                    del pending[old]
-            self._step(t_ns, q, w, h)
-            return
-        for pending in (self._pending_states, self._pending_wheels):
-            while len(pending) > self.PENDING_STAMPS:
-                del pending[min(pending)]
+    def _paired(self, t_ns: int, pair) -> None:
+        """Compute the step ``t_ns`` once its state and wheel speeds are both here, with
+        ``h = sum_i a_i Js_i Ω_i``."""
+        if pair is not None:
+            (q, w), speed = pair
+            self._step(t_ns, q, w, self.actuation.wheel_momentum(speed))
 
     def _step(self, t_ns: int, q: np.ndarray, w: np.ndarray, h: np.ndarray | None = None) -> None:
         self.states += 1
-        if self.params['startup.expect_recorder'] and self.states % topics.ACK_INTERVAL == 0:
-            # every ACK_INTERVAL states, wait until every reader (the recorder) has acknowledged
-            # the commands and status sent so far: it never falls DEPTH steps behind and loses
-            # them (adcs_msgs_py.topics)
-            for pub in (self.pub_cmd, self.pub_status):
-                pub.wait_for_all_acked(Duration(seconds=self.params['startup.timeout']))
+        self.pace_recorder(self.states, (self.pub_cmd, self.pub_status), self.params['startup.timeout'])
         self.apply_due_faults(t_ns)
         output = self.law.output  # torque or wheel momentum (a reconfiguring law's current phase)
         try:  # a law refusing the state or giving a non-finite output: counted, nothing published

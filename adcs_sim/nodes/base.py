@@ -19,6 +19,7 @@ from pathlib import Path
 
 import rclpy
 from rclpy.context import Context
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
@@ -105,6 +106,20 @@ class AdcsNode(Node):
             if remaining <= 0:
                 raise GraphTimeout(f'{self.get_name()}: timed out after {timeout:g} s waiting for {what}')
             executor.spin_once(timeout_sec=min(remaining, 0.1))
+
+    def wait_acked(self, publishers, timeout: float) -> None:
+        """Block until every reader has acknowledged what ``publishers`` (None entries skipped)
+        sent, or ``timeout`` wall seconds per publisher."""
+        for pub in publishers:
+            if pub is not None:
+                pub.wait_for_all_acked(Duration(seconds=timeout))
+
+    def pace_recorder(self, step: int, publishers, timeout: float) -> None:
+        """Every :data:`~adcs_msgs_py.topics.ACK_INTERVAL` steps, when a recorder is expected,
+        :meth:`wait_acked`: the recorder never falls the writers' history depth behind and loses
+        messages (adcs_msgs_py.topics)."""
+        if self.params['startup.expect_recorder'] and step % topics.ACK_INTERVAL == 0:
+            self.wait_acked(publishers, timeout)
 
     def wait_for_publishers(self, required: dict, timeout: float) -> None:
         """Wait until each publisher has at least the given number of matched subscriptions."""

@@ -38,7 +38,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from rclpy.duration import Duration
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
@@ -301,16 +300,13 @@ class DynamicsNode(AdcsNode):
                     self._missed()
                     break
                 executor.spin_once(timeout_sec=remaining)
-        # The controllers answering is not enough when a recorder listens: every ACK_INTERVAL
-        # steps (every step in free flight, where nothing else paces the loop) wait until every
-        # reader has acknowledged what was published, so the recorder never falls DEPTH steps
-        # behind and loses messages (adcs_msgs_py.topics).
-        if not awaited or (self.params['startup.expect_recorder']
-                           and self.step_ns // self.period_ns % topics.ACK_INTERVAL == 0):
-            for pub in self._step_publishers + [p for p in (self.pub_applied, self.pub_thrusters)
-                                                if p is not None]:
-                pub.wait_for_all_acked(Duration(seconds=timeout))
-        if not awaited:
+        # The controllers answering is not enough when a recorder listens (pace_recorder); in
+        # free flight nothing else paces the loop, so wait for the acknowledgements every step.
+        recorded = self._step_publishers + [self.pub_applied, self.pub_thrusters]
+        if awaited:
+            self.pace_recorder(self.step_ns // self.period_ns, recorded, timeout)
+        else:
+            self.wait_acked(recorded, timeout)
             executor.spin_once(timeout_sec=0.0)
 
     def _missed(self) -> None:
@@ -371,9 +367,7 @@ class DynamicsNode(AdcsNode):
             executor.spin_once(timeout_sec=remaining)
 
     def _drain_acks(self) -> None:
-        for pub in self._step_publishers + [p for p in (self.pub_applied, self.pub_status,
-                                                        self.pub_thrusters) if p is not None]:
-            pub.wait_for_all_acked(Duration(seconds=5.0))
+        self.wait_acked(self._step_publishers + [self.pub_applied, self.pub_status, self.pub_thrusters], 5.0)
 
 
 def main(args=None) -> None:
