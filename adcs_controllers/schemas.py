@@ -199,26 +199,23 @@ def _inertia_free_check(v: dict) -> None:
     if v['actuator'] != 'torquers':
         raise ParameterError('actuator', "the seed 001 laws command external torques: set actuator "
                              "'torquers' (and torquers.enabled in the dynamics section)")
-    B = v['B']
-    if B:
-        import numpy as np
-        m = np.diag(B) if len(B) == 3 else np.asarray(B, dtype=float).reshape(3, 3)
-        if not np.linalg.matrix_rank(m) == 3:
-            raise ParameterError('B', f'the actuation matrix must be invertible (u = -B^-1(...)), got {B!r}')
+    import numpy as np
+    from adcs_controllers.laws.inertia_free import actuation_matrix
+    B = actuation_matrix(v)
+    if B is not None and np.linalg.matrix_rank(B) != 3:
+        raise ParameterError('B', f'the actuation matrix must be invertible (u = -B^-1(...)), got {v["B"]!r}')
 
 
 def _m2r_check(v: dict) -> None:
     from adcs_msgs_py.params import ParameterError
-    from adcs_controllers.laws.inertia_free import check_m2r_gains
+    from adcs_controllers.laws.inertia_free import actuation_matrix, check_m2r_gains
     _inertia_free_check(v)
     if any(v['target.rate']):
         raise ParameterError('target.rate', f'M2R brings the body to rest: must be [0, 0, 0], got {v["target.rate"]!r}')
     u_max = v['torquers.max_torque']
     if u_max != float('inf'):
-        import numpy as np
-        B = None if not v['B'] else (np.diag(v['B']) if len(v['B']) == 3 else np.reshape(v['B'], (3, 3)))
         try:
-            check_m2r_gains(v['alpha'], v['beta'], u_max, B, v['proposition'])
+            check_m2r_gains(v['alpha'], v['beta'], u_max, actuation_matrix(v), v['proposition'])
         except ValueError as exc:
             raise ParameterError('alpha', str(exc)) from None
 

@@ -82,7 +82,7 @@ __all__ = [
     'm2r_torque', 'm2r_lyapunov', 'prop1_bound', 'prop2_bound', 'check_m2r_gains',
     'l_matrix', 'gamma_from_inertia', 'inertia_from_gamma', 'm2s_terms', 'm2s_torque',
     'm2s_estimator_inputs', 'm2s_estimator_rates', 'm2s_lyapunov', 'sat_cutoff', 'sat_scaling', 'saturate', 'qsat',
-    'extremum_tracking_step', 'k0_metric', 'M2rLaw', 'M2sLaw', 'MODE_NAMES',
+    'extremum_tracking_step', 'k0_metric', 'actuation_matrix', 'M2rLaw', 'M2sLaw', 'MODE_NAMES',
 ]
 
 MODE_UNSATURATED = 0  # commanded torque inside the box B(u_max)
@@ -551,6 +551,12 @@ def _matrix_param(p, key, default):
     raise ValueError(f'{key} must be a scalar, {n} diagonal or {n * n} row-major values, got shape {v.shape}')
 
 
+def actuation_matrix(p) -> np.ndarray | None:
+    """B of eq. (1) from a section's ``B`` (3 diagonal or 9 row-major values), None when empty
+    (B = I)."""
+    return None if _given(p, 'B') is None else _matrix_param(p, 'B', np.eye(3))
+
+
 class _InertiaFreeLaw(SectionLaw):
     """Common keys: ``A`` diag(A) (3 values, eq. 13), ``alpha``, ``beta`` (eq. 15-16 / 44), ``B``
     (3 diagonal or 9 row-major values, default I), ``u_max`` (N m, scalar or 3; default: the
@@ -567,7 +573,7 @@ class _InertiaFreeLaw(SectionLaw):
             raise ValueError(f'A must be 3 distinct positive diagonal entries (eq. 13), got {self.a.tolist()}')
         self.alpha = np.asarray(p['alpha'], dtype=float)
         self.beta = np.asarray(p['beta'], dtype=float)
-        self.B = None if _given(p, 'B') is None else _matrix_param(p, 'B', np.eye(3))
+        self.B = actuation_matrix(p)
         self.B_inv = None if self.B is None else np.linalg.inv(self.B)
         if 'u_max' in p:
             self.u_max = np.asarray(p['u_max'], dtype=float)
