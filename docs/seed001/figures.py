@@ -30,9 +30,9 @@ ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT))
 
 from adcs_controllers.laws import inertia_free as inf  # noqa: E402
-from adcs_msgs_py.params import Schema  # noqa: E402,F401
 from adcs_sim.analysis import RunData  # noqa: E402
 from adcs_sim.batch import BatchSimulation  # noqa: E402
+from adcs_sim.registry import NODES  # noqa: E402
 from adcs_sim.runner import validate_scenario  # noqa: E402
 
 BAGS = ROOT / 'bags'
@@ -124,12 +124,11 @@ def batch_runs(base: str, variants: list[dict], duration: float | None = None, o
     the observed status series {key: (K, N, ...)}."""
     sections = validate_scenario(CONFIG / f'{base}.yaml', duration=duration)
     ctrl = next(s for s in sections if s.endswith('_controller'))
-    schema = __import__('adcs_sim.registry', fromlist=['NODES']).NODES[ctrl].schema
+    schema = NODES[ctrl].schema
     runs = []
     for v in variants:
-        dyn = dict(sections['dynamics'], **v.get('dynamics', {}))
-        c = schema.validate({k: val for k, val in {**sections[ctrl], **v.get('controller', {})}.items()})
-        runs.append({'dynamics': dyn, ctrl: c})
+        runs.append({'dynamics': sections['dynamics'],
+                      ctrl: schema.validate({**sections[ctrl], **v.get('controller', {})})})
     seen: dict[str, list] = {k: [] for k in observe_keys}
 
     def observe(k, t, st):
