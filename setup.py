@@ -25,18 +25,18 @@ NODES = {
     'backstepping_controller': 'adcs_controllers.nodes.backstepping_controller:main',
 }
 TOOLS = {
-    'adcs-run': 'adcs_sim.runner:main',
-    'adcs-analyze': 'adcs_sim.analyze:main',
-    'adcs-bag-repair': 'adcs_sim.repair:main',
-    'adcs-montecarlo': 'adcs_sim.montecarlo:main',
-    'adcs-tune-gsmn': 'adcs_controllers.tuning:main',
+    'adcs-run': 'adcs_sim.app.runner:main',
+    'adcs-analyze': 'adcs_sim.app.analyze:main',
+    'adcs-bag-repair': 'adcs_sim.app.repair:main',
+    'adcs-montecarlo': 'adcs_sim.app.montecarlo:main',
+    'adcs-tune-gsmn': 'adcs_sim.app.tuning:main',
 }
 
 setup(
     name=PACKAGE,
     version='0.1.0',
-    packages=find_packages(include=['adcs_sim*', 'adcs_controllers*', 'adcs_msgs_py*']),
-    package_data={'adcs_sim': ['fastdds_profile.xml']},
+    packages=find_packages(include=['adcs_core*', 'adcs_msgs_py*', 'adcs_controllers*', 'adcs_sim*']),
+    package_data={'adcs_msgs_py': ['fastdds_profile.xml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),

@@ -12,7 +12,6 @@ import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3Stamped
@@ -20,9 +19,8 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from adcs_sim.attitude import quat_norm
-
-from adcs_msgs_py.names import FAULT_ERROR_MODES, FAULT_OK_MODES
+from adcs_core.attitude import quat_norm
+from adcs_core.faults import FAULT_ERROR_MODES, FAULT_OK_MODES
 
 NS_PER_S = 1_000_000_000
 # A quaternion whose norm is further than this from 1 is rejected (not silently renormalised).
@@ -207,7 +205,7 @@ def wheel_cmd_from_msg(msg: JointState, known: Mapping[str, int]) -> tuple[int, 
 #
 # Command = an on-time per thruster, not a force: a thruster is an on/off valve, so the on-time is
 # what its driver is given; the plant applies the valve's rules (clip to the period, minimum
-# on-time) and integrates the pulse exactly (adcs_sim.thrusters.step_pulsed). A force command
+# on-time) and integrates the pulse exactly (adcs_sim.truth.thrusters.step_pulsed). A force command
 # would make the plant re-invent the pulse (PWM) that the controller's firing logic decides.
 
 def thruster_cmd_to_msg(t_ns: int, names: Sequence[str], on_time) -> JointState:

@@ -19,9 +19,3 @@ DYNAMICS_STATUS = 'dynamics/status'
 # Command topics a controller may answer a state with (what the dynamics node can wait for).
 COMMAND_TOPICS = (WHEELS_CMD, TORQUE_CMD, THRUSTERS_CMD)
 
-# Wheel states carried on FAULTS (one status per actuator): the faults (level ERROR) and the
-# nominal states (level OK). The plant, the fault schedule and the message conversions share them.
-FAULT_ERROR_MODES = ('failed', 'degraded', 'bias', 'stuck')
-FAULT_OK_MODES = ('nominal', 'recovered')
-# Faults under which a wheel produces no commanded torque: controllers allocate around it.
-FAULT_UNUSABLE_MODES = ('failed', 'stuck')

@@ -34,18 +34,30 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-
-from adcs_msgs_py.names import (APPLIED_TORQUE, CLOCK, COMMAND_TOPICS, CONTROLLER_STATUS,  # noqa: F401
-                                DYNAMICS_STATUS, FAULTS, REFERENCE, STATE, THRUSTERS_CMD,
-                                THRUSTERS_STATE, TORQUE_CMD, TRUTH_STATE, WHEELS_CMD, WHEELS_STATE)
-
 from builtin_interfaces.msg import Time  # noqa: F401  (re-exported for type hints)
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 from nav_msgs.msg import Odometry
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+
+from adcs_msgs_py.names import (  # noqa: F401
+    APPLIED_TORQUE,
+    CLOCK,
+    COMMAND_TOPICS,
+    CONTROLLER_STATUS,
+    DYNAMICS_STATUS,
+    FAULTS,
+    REFERENCE,
+    STATE,
+    THRUSTERS_CMD,
+    THRUSTERS_STATE,
+    TORQUE_CMD,
+    TRUTH_STATE,
+    WHEELS_CMD,
+    WHEELS_STATE,
+)
 
 DEPTH = 200        # writers' history of the per-step topics (messages)
 SUB_DEPTH = 10     # the nodes' own readers of those topics
@@ -147,7 +159,7 @@ def spec(name: str) -> TopicSpec:
 # Why each topic has the QoS it has: reliability, durability, history (issue #10). One entry per
 # topic of TOPICS (a test checks it). What a lost, late or overwritten message would cost; lost
 # and late commands are simulated on purpose by the dynamics node (``link_faults.*``,
-# adcs_sim/link_faults.py), the QoS is what keeps them from happening for real. BEST_EFFORT is
+# adcs_sim/truth/link_faults.py), the QoS is what keeps them from happening for real. BEST_EFFORT is
 # used nowhere in the loop: every dropped datagram would become a missed step or a silent hole in
 # the bag, and lockstep runs would depend on the network.
 QOS_RATIONALE: dict[str, str] = {

@@ -10,7 +10,7 @@ first (ignored by git) and replaces the old recording only when it succeeded.
     .venv/bin/python bags/regenerate.py --check         # no run: do the kept metrics still match?
 
 ``adcs-run`` leases its own ROS_DOMAIN_ID and keeps discovery on localhost. ``--check`` recomputes
-every recording's metrics from its bag with the current :mod:`adcs_sim.analysis` and compares
+every recording's metrics from its bag with the current :mod:`adcs_sim.app.analysis` and compares
 them with its ``metrics.json`` (what tests/test_any_bag.py also checks).
 """
 from __future__ import annotations
@@ -49,7 +49,7 @@ NOT_RECORDED = {
 
 def runner_command() -> list[str]:
     exe = Path(sys.executable).parent / 'adcs-run'
-    return [str(exe)] if exe.exists() else [sys.executable, '-m', 'adcs_sim.runner']
+    return [str(exe)] if exe.exists() else [sys.executable, '-m', 'adcs_sim.app.runner']
 
 
 def regenerate(name: str) -> Path:
@@ -66,7 +66,7 @@ def regenerate(name: str) -> Path:
                          f'output kept in {tmp}')
     shutil.rmtree(tmp / 'logs', ignore_errors=True)
     # The run's report (report/: report.md + PNG/SVG figures), so the docs can show it.
-    from adcs_sim.analyze import main as analyze
+    from adcs_sim.app.analyze import main as analyze
     if not name.startswith(NO_REPORT_PREFIXES) and analyze([str(tmp / 'bag'), '--out', str(tmp / 'report')]) != 0:
         raise SystemExit(f'regenerate: adcs-analyze failed for {name}; output kept in {tmp}')
     dest = HERE / name
@@ -78,7 +78,7 @@ def regenerate(name: str) -> Path:
 def check(folder: Path) -> list[str]:
     """Differences between a recording's metrics.json and its bag's metrics computed now."""
     sys.path.insert(0, str(ROOT))
-    from adcs_sim.analysis import RunData, jsonable_metrics, run_metrics
+    from adcs_sim.app.analysis import RunData, jsonable_metrics, run_metrics
     kept = json.loads((folder / 'metrics.json').read_text())
     now = json.loads(json.dumps(jsonable_metrics(run_metrics(RunData.from_bag(folder / 'bag')))))
     return [f'{folder.name}: {k}: kept {kept[k]!r}, now {now.get(k)!r}'

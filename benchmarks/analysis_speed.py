@@ -38,7 +38,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from adcs_sim import bag as bagio  # noqa: E402
-from adcs_sim.analysis import RunData, run_metrics  # noqa: E402
+from adcs_sim.app.analysis import RunData, run_metrics  # noqa: E402
 
 TAU = 3600.0          # s, time constant of the synthetic attitude error
 ANGLE0 = math.radians(30.0)

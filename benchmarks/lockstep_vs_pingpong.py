@@ -119,7 +119,7 @@ def _role_node(name: str, interruptible: bool = True):
 
     context = Context()
     # A non-default context gets no signal handlers by default: SIGINT would then wait for
-    # spin() to wake up. Install them, as adcs_sim.nodes.base.main_for does.
+    # spin() to wake up. Install them, as adcs_msgs_py.node.main_for does.
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.ALL)
     node = rclpy.create_node(name, context=context)
     executor = SingleThreadedExecutor(context=context)
@@ -372,7 +372,7 @@ def main() -> int:
     if args.role == 'observer':
         return role_status_observer()
 
-    from adcs_sim.domains import DomainLease
+    from adcs_sim.app.domains import DomainLease
 
     signal.signal(signal.SIGINT, signal.default_int_handler)  # even if started with SIGINT ignored
     signal.signal(signal.SIGTERM, _on_sigterm)

@@ -13,12 +13,12 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from adcs_sim.domains import DomainLease  # noqa: E402
+from adcs_sim.app.domains import DomainLease  # noqa: E402
 
 # Tests use UDP only: a killed Fast DDS process would otherwise leave shared-memory files.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ['FASTDDS_BUILTIN_TRANSPORTS'] = 'UDPv4'
-from adcs_sim.nodes.base import network_hygiene_defaults  # noqa: E402
+from adcs_msgs_py.node import network_hygiene_defaults  # noqa: E402
 
 network_hygiene_defaults()  # the same Fast DDS profile as the nodes, for in-process graphs
 CONFIG = ROOT / 'config'

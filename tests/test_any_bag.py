@@ -15,13 +15,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ROOT
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 from scipy.spatial.transform import Rotation
 
 from adcs_sim import bag as bagio
-from adcs_sim.analysis import REPORTED_TOPICS, RunData, jsonable_metrics, run_metrics
-from conftest import ROOT
+from adcs_sim.app.analysis import REPORTED_TOPICS, RunData, jsonable_metrics, run_metrics
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 T = STORE.types
@@ -90,7 +90,7 @@ class Synthetic:
                                       np.full(N, 5.0)])
         self.torque = np.vstack([-self.u, np.zeros(3)])   # wheel motor torque = -(applied body torque)
 
-    # expected numbers, from the definitions (adcs_sim.analysis) in closed form
+    # expected numbers, from the definitions (adcs_sim.app.analysis) in closed form
     settling_eigen = TAU * math.log(ANGLE0_DEG / 0.5)
     integrated = (30 + 230) * float(np.linalg.norm(U))
     energy = (30 + 230) * float(U @ U)
@@ -266,8 +266,8 @@ def test_reference_recording_metrics_unchanged(folder):
     """The metrics computed now from each kept bag are the ones adcs-run printed when it was made,
     and the bag holds every step of the run (state, applied torque, controller status): nothing
     was lost on the way to the recorder."""
-    from adcs_sim.runner import validate_scenario
-    from adcs_sim.scenario import step_timing
+    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.truth.schema import step_timing
     kept = json.loads((folder / 'metrics.json').read_text())
     run = RunData.from_bag(folder / 'bag')
     now = json.loads(json.dumps(jsonable_metrics(run_metrics(run))))

@@ -14,13 +14,13 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import ROOT
 from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 
 from adcs_sim import bag as bagio
-from adcs_sim.analyze import main as analyze_main
-from adcs_sim.repair import main as repair_main
-from conftest import ROOT
+from adcs_sim.app.analyze import main as analyze_main
+from adcs_sim.app.repair import main as repair_main
 
 CHILD = ROOT / 'tests' / 'helpers' / 'bag_writer_child.py'
 SCENARIO = ROOT / 'config' / 'microsat_pd_slew.yaml'

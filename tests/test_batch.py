@@ -1,4 +1,4 @@
-"""The batch engine (adcs_sim/batch.py): the graph's plant, sensor, law and actuation code with a
+"""The batch engine (adcs_sim/app/batch.py): the graph's plant, sensor, law and actuation code with a
 leading batch axis.
 
 * one run of the batch equals the same run through the ROS graph (recorded bag) to round-off;
@@ -12,14 +12,14 @@ import math
 
 import numpy as np
 import pytest
+from conftest import make_scenario, record_pd_loop
 from numpy.testing import assert_allclose, assert_array_equal
 
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.analysis import RunData, run_metrics
-from adcs_sim.batch import BatchSimulation
-from adcs_sim.registry import NODES
-from adcs_sim.runner import validate_scenario
-from conftest import make_scenario, record_pd_loop
+from adcs_sim.app.analysis import RunData, run_metrics
+from adcs_sim.app.batch import BatchSimulation
+from adcs_sim.app.registry import NODES
+from adcs_sim.app.scenario_files import validate_scenario
 
 NOISE = {'noise.seed': 7, 'noise.attitude_std': 1e-4, 'noise.rate_std': 1e-6}
 # Q0 of the paper's slew and two other attitudes to share its batch.
@@ -114,7 +114,7 @@ def test_runs_that_end_early_or_diverge_are_masked(tmp_path):
 def test_batched_plant_conserves_each_runs_momentum(tmp_path):
     """Free flight of 3 spacecraft with different inertias and spinning wheels in one batch: each
     run's inertial angular momentum is conserved, and equals the solo run's bit for bit."""
-    from adcs_sim.scenario import build_plant, initial_state
+    from adcs_sim.truth.schema import build_plant, initial_state
     given = validate_scenario(make_scenario(tmp_path))['dynamics']
     inertias = np.array([[12.0, 14.0, 10.0], [20.0, 15.0, 10.0], [5.0, 6.0, 7.0]])
     speeds = np.array([[50.0, -30.0, 10.0], [0.0, 100.0, 0.0], [-20.0, 20.0, 40.0]])

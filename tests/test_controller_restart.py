@@ -16,10 +16,10 @@ import time
 
 import numpy as np
 import yaml
+from conftest import CONFIG, ROOT, make_scenario
 
 from adcs_sim import bag as bagio
-from adcs_sim.analysis import RunData, run_metrics
-from conftest import CONFIG, ROOT, make_scenario
+from adcs_sim.app.analysis import RunData, run_metrics
 
 DEADLINE = 180.0
 DURATION = 2000.0   # simulated s (1 s steps): long enough to be killed mid-run, short once rejoined
@@ -65,7 +65,7 @@ def _assert_whole_run_with_gap(bag, killed_after: int):
 def test_runner_restarts_a_killed_controller_which_rejoins(tmp_path):
     scenario = make_scenario(tmp_path, {'dynamics': {'duration': DURATION, 'lockstep.timeout': TIMEOUT}})
     out = tmp_path / 'run'
-    proc = subprocess.Popen([sys.executable, '-m', 'adcs_sim.runner', str(scenario), '--out', str(out),
+    proc = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
                              '--no-progress', '--restart', '1'], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, cwd=ROOT)
     try:

@@ -4,11 +4,11 @@ from __future__ import annotations
 import time
 
 import numpy as np
-
-from adcs_sim import bag as bagio
-from adcs_sim.analysis import RunData
-from adcs_sim.attitude import eigenaxis_angle, error_quaternion
 from conftest import InProcessGraph, make_scenario
+
+from adcs_core.attitude import eigenaxis_angle, error_quaternion
+from adcs_sim import bag as bagio
+from adcs_sim.app.analysis import RunData
 
 
 def test_realtime_mode_paces_and_uses_latest_commands(ros_domain, tmp_path):

@@ -7,7 +7,7 @@ output is finite or the input is rejected with a reason:
 
 * message validation (``adcs_msgs_py.conversions``) either returns finite values (a unit
   quaternion) or raises ``InvalidMessage`` with a non-empty reason;
-* every law on the graph (all of ``adcs_sim.registry``), given what validation lets through (a
+* every law on the graph (all of ``adcs_sim.app.registry``), given what validation lets through (a
   unit quaternion, finite rates of any size), returns a finite torque / wheel momentum, and the
   actuation turns it into finite commands inside the limits, whatever wheels are left;
 * the pure laws not yet on the graph (inertia-free M2R / M2S, backstepping, single-axis pointing)
@@ -34,10 +34,10 @@ from adcs_controllers.laws import inertia_free as inf
 from adcs_controllers.laws import single_axis as sa
 from adcs_controllers.laws.allocation import Actuation
 from adcs_controllers.laws.base import LawOutputRejected, checked_control, checked_output
+from adcs_core.attitude import error_quaternion
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py.params import flatten
-from adcs_sim.attitude import error_quaternion
-from adcs_sim.registry import NODES
+from adcs_sim.app.registry import NODES
 
 settings.register_profile('adcs-fuzz', derandomize=True, max_examples=60, deadline=None,
                           suppress_health_check=[HealthCheck.too_slow], database=None)
@@ -364,9 +364,10 @@ def test_checked_output_refuses_non_finite_law_output_with_a_reason(v):
 def test_controller_node_refuses_a_non_finite_law_output(ros_domain, tmp_path):
     """The node path: Krstic-Tsiotras at a 180 deg error (Gibbs p = q/q4 infinite) is refused
     with a counted reason and nothing is published; the next, ordinary state is answered."""
-    from adcs_controllers.nodes.kt_controller import KtController
-    from adcs_sim.attitude import quat_multiply
     from conftest import InProcessGraph, make_scenario
+
+    from adcs_controllers.nodes.kt_controller import KtController
+    from adcs_core.attitude import quat_multiply
     scenario = make_scenario(tmp_path, base='table1_krstic_tsiotras.yaml')
     with InProcessGraph(scenario) as graph:
         ctl = graph.add(KtController)

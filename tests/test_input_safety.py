@@ -13,10 +13,10 @@ import os
 from pathlib import Path
 
 import pytest
+from conftest import ROOT
 
 from adcs_msgs_py.params import ParameterError, load_params_file
-from adcs_sim import runner
-from conftest import ROOT
+from adcs_sim.app import runner
 
 SOURCE_DIRS = ['adcs_sim', 'adcs_controllers', 'adcs_msgs_py', 'benchmarks', 'tests']
 SOURCES = sorted(p for d in SOURCE_DIRS for p in (ROOT / d).rglob('*.py')) + [ROOT / 'setup.py']
@@ -91,7 +91,7 @@ def test_yaml_code_tags_in_a_scenario_are_refused_not_run(tmp_path):
 def test_parameter_strings_are_data_not_code(tmp_path):
     """A string where a number is due is a type error naming the key, never evaluated; a string
     parameter keeps the text verbatim."""
-    from adcs_sim.registry import NODES
+    from adcs_sim.app.registry import NODES
     marker = tmp_path / 'pwned'
     code = f"__import__('os').system('touch {marker}')"
     section = load_params_file(str(ROOT / 'config' / 'microsat_pd_slew.yaml'))['pd_controller']
@@ -126,7 +126,7 @@ def test_run_processes_discover_on_localhost_only_on_a_leased_domain(monkeypatch
 
 
 def test_nodes_default_to_localhost_discovery(monkeypatch):
-    from adcs_sim.nodes.base import network_hygiene_defaults
+    from adcs_msgs_py.node import network_hygiene_defaults
     monkeypatch.delenv('ROS_AUTOMATIC_DISCOVERY_RANGE', raising=False)
     network_hygiene_defaults()
     assert os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'

@@ -15,11 +15,11 @@ import sys
 from collections import defaultdict
 
 import numpy as np
+from conftest import ROOT, make_scenario, plain_message
 from scipy.spatial.transform import Rotation
 
 from adcs_sim import bag as bagio
-from adcs_sim.analysis import RunData
-from conftest import ROOT, make_scenario, plain_message
+from adcs_sim.app.analysis import RunData
 
 N_RUNS = 8
 DURATION = 60.0
@@ -34,7 +34,7 @@ def _scenarios(tmp_path):
 
 
 def _launch(scenario, out):
-    return subprocess.Popen([sys.executable, '-m', 'adcs_sim.runner', str(scenario), '--out', str(out),
+    return subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
                              '--no-progress'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
 
 

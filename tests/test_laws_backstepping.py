@@ -13,9 +13,10 @@ from numpy.testing import assert_allclose, assert_array_equal
 from scipy.spatial.transform import Rotation
 
 from adcs_controllers.laws import backstepping as bs
-from adcs_sim.attitude import quat_kinematics, quat_multiply
-from adcs_sim.plant import CircularOrbit, Plant, ReactionWheels, Torquers, rotate_to_body
-from adcs_sim.thrusters import Thrusters, orbit_frame_attitude, orbit_rate, step_pulsed
+from adcs_core.attitude import quat_kinematics, quat_multiply, rotate_to_body
+from adcs_core.orbit import CircularOrbit, orbit_frame_attitude, orbit_rate
+from adcs_sim.truth.plant import Plant, ReactionWheels, Torquers
+from adcs_sim.truth.thrusters import Thrusters, step_pulsed
 
 # Section 4.1: ESEO.
 J_ESEO = np.diag([4.350, 4.3370, 3.6640])

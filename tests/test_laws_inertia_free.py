@@ -1,7 +1,7 @@
 """Seed 001's inertia-free laws (adcs_controllers.laws.inertia_free): M2R (eq. 11-25) with the
 torque bounds of Propositions 1 and 2, the adaptive M2S compensator (Theorem 2, eq. 31-46), cutoff
 and scaling saturation (eq. 47-51), VAG (eq. 55-58) and extremum tracking (eq. 60-67); closed
-loops on the pure plant (adcs_sim.plant.Plant with ideal external Torquers, no momentum storage).
+loops on the pure plant (adcs_sim.truth.plant.Plant with ideal external Torquers, no momentum storage).
 
 Runtime: unit tests ~3 s; closed loops batched (one Plant, several runs per batch): M2R ~5 s,
 M2S at 10/1 N m ~5 s; ONE long test (test_LONG_m2s_vag_low_torque_reaches_the_spin, 9000
@@ -18,7 +18,7 @@ from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
 from adcs_controllers.laws import inertia_free as inf
-from adcs_sim.plant import Plant, Torquers
+from adcs_sim.truth.plant import Plant, Torquers
 
 # Eq. (26): M2R example inertia; eq. (52): M2S example inertia (kg m²).
 J26 = np.array([[5.0, -0.1, -0.5], [-0.1, 2.0, 1.0], [-0.5, 1.0, 3.5]])

@@ -23,8 +23,8 @@ from numpy.testing import assert_allclose, assert_array_equal
 from scipy.spatial.transform import Rotation
 
 from adcs_controllers.laws import single_axis as sa
-from adcs_sim.attitude import cross
-from adcs_sim.plant import Plant, ReactionWheels, WheelCommand, rotate_to_body, rotate_to_inertial
+from adcs_core.attitude import cross, rotate_to_body, rotate_to_inertial
+from adcs_sim.truth.plant import Plant, ReactionWheels, WheelCommand
 
 J = np.diag([10.0, 8.0, 9.0])
 JW = 0.0077

@@ -8,8 +8,8 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from adcs_controllers.laws import underactuated as ua
-from adcs_sim.attitude import quat_kinematics
-from adcs_sim.plant import Plant, ReactionWheels, WheelCommand
+from adcs_core.attitude import quat_kinematics
+from adcs_sim.truth.plant import Plant, ReactionWheels, WheelCommand
 
 # Section VI.A: UoSAT-12 inertia and gains.
 I_UOSAT = np.diag([40.45, 42.09, 42.36])

@@ -6,13 +6,12 @@ import subprocess
 import sys
 
 import pytest
-
 from conftest import ROOT
 
 PURE_MODULES = [
-    'adcs_sim.plant', 'adcs_sim.attitude', 'adcs_sim.scenario', 'adcs_sim.analysis',
-    'adcs_sim.batch', 'adcs_sim.faults', 'adcs_sim.sensors', 'adcs_sim.thrusters',
-    'adcs_controllers.laws.pd', 'adcs_controllers.laws.allocation', 'adcs_controllers.schemas',
+    'adcs_sim.truth.plant', 'adcs_core.attitude', 'adcs_sim.truth.schema', 'adcs_sim.app.analysis',
+    'adcs_sim.app.batch', 'adcs_core.faults', 'adcs_sim.truth.sensors', 'adcs_sim.truth.thrusters',
+    'adcs_controllers.laws.pd', 'adcs_controllers.laws.allocation', 'adcs_controllers.families',
     'adcs_controllers.laws.inverse_optimal', 'adcs_controllers.laws.underactuated',
     'adcs_controllers.laws.reconfiguration', 'adcs_controllers.laws.inertia_free',
     'adcs_controllers.laws.single_axis', 'adcs_controllers.laws.backstepping',

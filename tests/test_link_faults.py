@@ -1,5 +1,5 @@
 """Lost and late messages (issue #10 item 2): a seeded fraction of the lockstep steps lose their
-commands or get them late (``link_faults.*`` of the dynamics node, :mod:`adcs_sim.link_faults`).
+commands or get them late (``link_faults.*`` of the dynamics node, :mod:`adcs_sim.truth.link_faults`).
 The run completes, the metrics report the missed steps, and seed 004's PD slew still converges
 with 10 % of the commands lost (and 5 % late)."""
 from __future__ import annotations
@@ -10,12 +10,12 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import ROOT, make_scenario
 
 from adcs_msgs_py.params import ParameterError
 from adcs_sim import bag as bagio
-from adcs_sim.link_faults import DELAY, DROP, LinkFaults
-from adcs_sim.registry import NODES
-from conftest import ROOT, make_scenario
+from adcs_sim.app.registry import NODES
+from adcs_sim.truth.link_faults import DELAY, DROP, LinkFaults
 
 
 def test_fates_are_seeded_and_have_the_fractions():
@@ -47,7 +47,7 @@ def test_pd_slew_with_10_percent_lost_commands_converges(tmp_path):
     scenario = make_scenario(tmp_path, {'dynamics': {'link_faults.seed': seed, 'link_faults.drop': drop,
                                                      'link_faults.delay': delay}})
     out = tmp_path / 'run'
-    result = subprocess.run([sys.executable, '-m', 'adcs_sim.runner', str(scenario), '--out', str(out),
+    result = subprocess.run([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
                              '--no-progress'], capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert result.returncode == 0, result.stderr
     fates = LinkFaults(seed, drop, delay, 600).fates

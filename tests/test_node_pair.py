@@ -11,14 +11,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import InProcessGraph, make_scenario, plain_message, record_pd_loop
+from reference_pd import pd_slew_reference
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
 from adcs_sim import bag as bagio
-from adcs_sim.analysis import RunData, run_metrics
-from adcs_sim.runner import run_scenario
-from conftest import InProcessGraph, make_scenario, plain_message, record_pd_loop
-from reference_pd import pd_slew_reference
+from adcs_sim.app.analysis import RunData, run_metrics
+from adcs_sim.app.runner import run_scenario
 
 J = np.diag([12.0, 14.0, 10.0])
 Q0 = [0.3062, 0.1768, 0.1768, 0.9186]
@@ -89,11 +89,12 @@ def test_silent_controller_counts_missed_steps_and_applies_policy(ros_domain, tm
     """A controller that answers only the first step: every later step times out, is counted,
     and the declared policy applies (hold: the first command stays; zero: no torque after it).
     The run completes."""
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import JointState
+
     from adcs_msgs_py import conversions as cv
     from adcs_msgs_py import topics
     from adcs_sim.nodes.dynamics import DynamicsNode
-    from nav_msgs.msg import Odometry
-    from sensor_msgs.msg import JointState
 
     steps, tau = 4, 0.01
     scenario = make_scenario(tmp_path, {'dynamics': {

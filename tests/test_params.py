@@ -14,10 +14,11 @@ import pytest
 import yaml
 from numpy.testing import assert_allclose, assert_array_equal
 
-from adcs_controllers.schemas import PD_SCHEMA
+from adcs_controllers.families import PD_SCHEMA
 from adcs_msgs_py.params import ParameterError, load_params_file
-from adcs_sim.plant import ReactionWheels
-from adcs_sim.scenario import DYNAMICS_SCHEMA, RECORDER_SCHEMA, build_plant, initial_state
+from adcs_sim.bag.schema import RECORDER_SCHEMA
+from adcs_sim.truth.plant import ReactionWheels
+from adcs_sim.truth.schema import DYNAMICS_SCHEMA, build_plant, initial_state
 
 SCENARIO = Path(__file__).resolve().parents[1] / 'config' / 'microsat_pd_slew.yaml'
 SCHEMAS = {'dynamics': DYNAMICS_SCHEMA, 'pd_controller': PD_SCHEMA, 'recorder': RECORDER_SCHEMA}

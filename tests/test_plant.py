@@ -1,4 +1,4 @@
-"""Physics of the plant core (adcs_sim.plant, adcs_sim.attitude): pure numpy, no ROS.
+"""Physics of the plant core (adcs_sim.truth.plant, adcs_core.attitude): pure numpy, no ROS.
 
 Conventions under test (plant.py docstring): ``J`` is the TOTAL inertia (wheels' spin inertia
 included), ``J_s = J - sum_i Js_i a_i a_i^T``, wheel speeds ``Omega`` are relative to the body and
@@ -21,9 +21,9 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 from scipy.spatial.transform import Rotation
 
-from adcs_sim.attitude import euler_213, quat_kinematics
-from adcs_sim.plant import (CircularOrbit, Disturbance, Plant, ReactionWheels, Torquers,
-                            rotate_to_body, rotate_to_inertial)
+from adcs_core.attitude import euler_213, quat_kinematics, rotate_to_body, rotate_to_inertial
+from adcs_core.orbit import CircularOrbit
+from adcs_sim.truth.plant import Disturbance, Plant, ReactionWheels, Torquers
 
 INF = np.inf
 IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])

@@ -34,8 +34,8 @@ from std_msgs.msg import Float64
 
 from adcs_msgs_py import topics
 from adcs_msgs_py.conversions import NS_PER_S, clock_msg, state_to_msg
+from adcs_msgs_py.node import EXIT_BAD_PARAMETERS
 from adcs_sim import bag as bagmod
-from adcs_sim.nodes.base import EXIT_BAD_PARAMETERS
 from adcs_sim.nodes.recorder import READY_LINE
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -406,7 +406,7 @@ def test_sigkill_keeps_everything_flushed(recorders, tmp_path, seed):
 
     # adcs-bag-repair makes it a complete rosbag2 bag (summary, index, metadata.yaml) holding
     # exactly what was readable, which rosbags' AnyReader opens
-    from adcs_sim.repair import main as repair_main
+    from adcs_sim.app.repair import main as repair_main
     assert repair_main([str(out)]) == 0
     assert (out / 'metadata.yaml').is_file() and bagmod.is_complete(out)
     with AnyReader([out], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
-from adcs_sim.analyze import main as analyze_main
+from adcs_sim.app.analyze import main as analyze_main
 from adcs_sim.bag import BagWriter
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
@@ -286,7 +286,7 @@ def test_comparison_default_folder_and_bad_member(bags, tmp_path, capsys):
 
 def test_report_module_is_pure():
     """No rclpy and no pyplot (GUI backends) behind the report module."""
-    code = 'import sys, adcs_sim.report; print("rclpy" in sys.modules, "matplotlib.pyplot" in sys.modules)'
+    code = 'import sys, adcs_sim.app.report; print("rclpy" in sys.modules, "matplotlib.pyplot" in sys.modules)'
     from conftest import ROOT
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, cwd=ROOT, check=True)
     assert out.stdout.split() == ['False', 'False']

@@ -9,11 +9,11 @@ import sys
 import time
 
 import pytest
+from conftest import ROOT, make_scenario
 
 from adcs_sim import bag as bagio
-from adcs_sim.analysis import RunData, run_metrics
-from adcs_sim.analyze import main as analyze_main
-from conftest import ROOT, make_scenario
+from adcs_sim.app.analysis import RunData, run_metrics
+from adcs_sim.app.analyze import main as analyze_main
 
 
 def _children(pid: int) -> list[int]:
@@ -33,7 +33,7 @@ def test_runner_end_to_end_and_analyze_agree(tmp_path, capsys):
     """adcs-run prints the metrics and writes them; adcs-analyze on the bag gives the same."""
     scenario = make_scenario(tmp_path, {'dynamics': {'duration': 400.0}})
     out = tmp_path / 'run'
-    result = subprocess.run([sys.executable, '-m', 'adcs_sim.runner', str(scenario), '--out', str(out)],
+    result = subprocess.run([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out)],
                             capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert result.returncode == 0, result.stderr
     assert 'settling_euler213_0.5deg_s' in result.stdout and 'missed_steps' in result.stdout
@@ -51,7 +51,7 @@ def test_runner_end_to_end_and_analyze_agree(tmp_path, capsys):
 def test_runner_interrupted_mid_run_leaves_readable_bag_and_no_orphans(tmp_path, sig):
     scenario = make_scenario(tmp_path, {'dynamics': {'duration': 1.0e6}})
     out = tmp_path / 'run'
-    proc = subprocess.Popen([sys.executable, '-m', 'adcs_sim.runner', str(scenario), '--out', str(out),
+    proc = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
                              '--no-progress'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             cwd=ROOT)
     try:

@@ -16,10 +16,10 @@ import sys
 import time
 
 import pytest
+from conftest import ROOT, make_scenario
 
 from adcs_sim import bag as bagio
-from adcs_sim.analysis import RunData
-from conftest import ROOT, make_scenario
+from adcs_sim.app.analysis import RunData
 
 DEADLINE = 120.0
 
@@ -52,7 +52,7 @@ class Run:
         self.scenario = make_scenario(tmp_path, {'dynamics': {'duration': duration}})
         self.out = tmp_path / 'run'
         self.bag = self.out / 'bag'
-        self.proc = subprocess.Popen([sys.executable, '-m', 'adcs_sim.runner', str(self.scenario), '--out',
+        self.proc = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.runner', str(self.scenario), '--out',
                                       str(self.out), '--no-progress'], stdout=subprocess.PIPE,
                                      stderr=subprocess.PIPE, text=True, cwd=ROOT)
         self.seen: dict[int, str] = {}

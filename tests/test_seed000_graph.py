@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import make_scenario, run_fault_graph
 from numpy.testing import assert_allclose, assert_array_equal
 
 from adcs_msgs_py.params import ParameterError
-from conftest import make_scenario, run_fault_graph
 
 Q_OFF = [0.2236068, 0.2236068, 0.2236068, 0.9219544]  # seed 000 VI.A q(0), normalised (readings R1)
 T_FAULT = 20.0
@@ -38,9 +38,9 @@ def test_zero_momentum_reconfiguration_in_lockstep(ros_domain, tmp_path):
     (q4 within 1 ± 0.01) on all axes, and the bag is the batch engine's run."""
     from adcs_controllers.nodes.zero_momentum_controller import ZeroMomentumController
     from adcs_sim import bag as bagio
-    from adcs_sim.analysis import RunData
-    from adcs_sim.batch import BatchSimulation
-    from adcs_sim.runner import validate_scenario
+    from adcs_sim.app.analysis import RunData
+    from adcs_sim.app.batch import BatchSimulation
+    from adcs_sim.app.scenario_files import validate_scenario
 
     n = 1620
     scenario = reconfiguring_scenario(tmp_path, 'uosat12_zero_momentum.yaml', 'zero_momentum_controller', n)
@@ -82,7 +82,7 @@ def test_two_wheel_law_from_the_start(ros_domain, tmp_path):
     """The plain case: three_wheel.enabled false, the GSMN law runs from t = 0 on rw_x, rw_y with
     rw_z failed at t = 0: the phase is two_wheel throughout, z gets no torque, V decreases."""
     from adcs_controllers.nodes.snlc_gsmn_controller import SnlcGsmnController
-    from adcs_sim.analysis import RunData
+    from adcs_sim.app.analysis import RunData
 
     n = 200
     scenario = reconfiguring_scenario(tmp_path, 'uosat12_gsmn.yaml', 'snlc_gsmn_controller', n,
@@ -116,7 +116,7 @@ def test_two_wheel_law_from_the_start(ros_domain, tmp_path):
      'actuator', 'wheel speeds'),
 ])
 def test_bad_seed000_parameters_are_named(tmp_path, base, section, overrides, key, text):
-    from adcs_sim.runner import validate_scenario
+    from adcs_sim.app.scenario_files import validate_scenario
     with pytest.raises(ParameterError, match=text) as err:
         validate_scenario(make_scenario(tmp_path, {section: overrides}, base=base))
     assert f'{section}.ros__parameters.{key}' in str(err.value)

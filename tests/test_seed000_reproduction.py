@@ -17,10 +17,10 @@ import math
 
 import numpy as np
 import pytest
+from conftest import ROOT
 from numpy.testing import assert_array_equal
 
-from adcs_sim.analysis import RunData, attitude_errors, fault_metrics
-from conftest import ROOT
+from adcs_sim.app.analysis import RunData, attitude_errors, fault_metrics
 
 BAGS = ROOT / 'bags'
 LAWS = {'zero_momentum': 'uosat12_zero_momentum', 'snlc': 'uosat12_snlc', 'gsmn': 'uosat12_gsmn'}
@@ -110,8 +110,8 @@ def test_gsmn_has_zero_torque_phases(runs):
 def test_showcase_bag_is_what_the_code_computes():
     """bags/uosat12_gsmn is the batch engine's run of its scenario, bit for bit (same plant, law,
     allocation and fault schedule): the recording is current."""
-    from adcs_sim.batch import BatchSimulation
-    from adcs_sim.runner import validate_scenario
+    from adcs_sim.app.batch import BatchSimulation
+    from adcs_sim.app.scenario_files import validate_scenario
     bag = load('uosat12_gsmn')
     batch = BatchSimulation.from_runs([validate_scenario(BAGS / 'uosat12_gsmn' / 'scenario.yaml')]).run()
     run = batch.run_data(0)

@@ -13,10 +13,10 @@ import math
 
 import numpy as np
 import pytest
+from conftest import make_scenario, run_lockstep_graph
 from numpy.testing import assert_array_equal
 
 from adcs_msgs_py.params import ParameterError
-from conftest import make_scenario, run_lockstep_graph
 
 
 def test_m2s_in_lockstep_is_the_batch_run_and_the_law(ros_domain, tmp_path):
@@ -25,12 +25,12 @@ def test_m2s_in_lockstep_is_the_batch_run_and_the_law(ros_domain, tmp_path):
     bit; the published status (V, Ĵ, d̂, q) == the pure law replayed over the received states."""
     from adcs_controllers.laws.inertia_free import M2sLaw
     from adcs_controllers.nodes.m2s_controller import M2sController
-    from adcs_sim import bag as bagio
-    from adcs_sim.analysis import RunData
-    from adcs_sim.attitude import quat_normalize
-    from adcs_sim.batch import BatchSimulation
-    from adcs_sim.runner import validate_scenario
+    from adcs_core.attitude import quat_normalize
     from adcs_msgs_py import conversions as cv
+    from adcs_sim import bag as bagio
+    from adcs_sim.app.analysis import RunData
+    from adcs_sim.app.batch import BatchSimulation
+    from adcs_sim.app.scenario_files import validate_scenario
 
     n = 150
     expect = {'startup.expect_recorder': True}
@@ -86,7 +86,7 @@ def test_m2s_in_lockstep_is_the_batch_run_and_the_law(ros_domain, tmp_path):
 def test_seed001_parameters_are_checked(tmp_path, base, section, overrides, key, text):
     """A non-physical or inconsistent seed 001 section stops at start with the key named; M2R's
     gains are checked against the torque bound of Proposition 1 for the torquers' limit."""
-    from adcs_sim.runner import validate_scenario
+    from adcs_sim.app.scenario_files import validate_scenario
     with pytest.raises(ParameterError, match=text) as err:
         validate_scenario(make_scenario(tmp_path, {section: overrides}, base=base))
     assert f'{section}.ros__parameters.{key}' in str(err.value)
@@ -95,10 +95,11 @@ def test_seed001_parameters_are_checked(tmp_path, base, section, overrides, key,
 def test_m2s_section_with_empty_defaults_builds_the_paper_law():
     """The params file's empty lists mean the paper's defaults: K1 = D = I, Q = I6, B = I, no
     disturbance estimate; the torquers' scalar limit is the law's per-axis u_max."""
-    from adcs_controllers.laws.inertia_free import M2sLaw
-    from adcs_controllers.schemas import M2S_SCHEMA
-    from adcs_sim.runner import validate_scenario
     from conftest import CONFIG
+
+    from adcs_controllers.families import M2S_SCHEMA
+    from adcs_controllers.laws.inertia_free import M2sLaw
+    from adcs_sim.app.scenario_files import validate_scenario
     section = validate_scenario(CONFIG / 'm2s_intermediate_cutoff_10.yaml')['m2s_controller']
     law = M2sLaw(section)
     assert_array_equal(law.K1, np.eye(3)) and law.B is None and law.C_d is None

@@ -14,10 +14,10 @@ import math
 
 import numpy as np
 import pytest
+from conftest import ROOT
 from numpy.testing import assert_allclose, assert_array_equal
 
-from adcs_sim.analysis import RunData
-from conftest import ROOT
+from adcs_sim.app.analysis import RunData
 
 BAGS = ROOT / 'bags'
 J52 = np.diag([1.4947, 3.7997, 5.2056])
@@ -69,8 +69,8 @@ def test_bag_is_what_the_code_computes(name):
     batch engine's run of the same scenario file bit for bit (the graph's own code,
     tests/test_seed001_graph.py), so a bag made by older code fails here. (That every step is in
     the bag: tests/test_any_bag.py.)"""
-    from adcs_sim.batch import BatchSimulation
-    from adcs_sim.runner import validate_scenario
+    from adcs_sim.app.batch import BatchSimulation
+    from adcs_sim.app.scenario_files import validate_scenario
     run = RunData.from_bag(BAGS / name / 'bag')
     batch = BatchSimulation.from_runs([validate_scenario(BAGS / name / 'scenario.yaml', duration=10.0)]).run()
     b = batch.run_data(0)
@@ -117,6 +117,7 @@ def test_m2r_constant_disturbance_torque_balance(runs):
     calls it "approaches a spin motion")."""
     from scipy.optimize import fsolve
     from scipy.spatial.transform import Rotation
+
     from adcs_controllers.laws import inertia_free as inf
     a = np.array([1.0, 2.0, 3.0])
     Kp = 0.5 / a.sum()

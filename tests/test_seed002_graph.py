@@ -13,12 +13,12 @@ import math
 import numpy as np
 import pytest
 import yaml
+from conftest import CONFIG, InProcessGraph, make_scenario, run_lockstep_graph
 from numpy.testing import assert_allclose, assert_array_equal
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.params import ParameterError
-from conftest import CONFIG, InProcessGraph, make_scenario, run_lockstep_graph
 
 SLEW = 'eseo_backstepping_slew.yaml'
 NAMES = ['thr_1', 'thr_2', 'thr_3', 'thr_4']
@@ -29,9 +29,9 @@ def test_backstepping_pair_in_lockstep_equals_batch(ros_domain, tmp_path):
     missed step, nothing rejected, the thrusters fire, and the bag equals the batch engine's run
     of the same file (attitude, rate, applied torque, wheel speed, thruster on-times and impulses)."""
     from adcs_controllers.nodes.backstepping_controller import BacksteppingController
-    from adcs_sim.analysis import RunData
-    from adcs_sim.batch import BatchSimulation
-    from adcs_sim.runner import validate_scenario
+    from adcs_sim.app.analysis import RunData
+    from adcs_sim.app.batch import BatchSimulation
+    from adcs_sim.app.scenario_files import validate_scenario
 
     n = 80
     bag = tmp_path / 'bag'
@@ -86,10 +86,10 @@ def test_dynamics_rejects_bad_thruster_commands_and_runs_on(ros_domain, tmp_path
     """NaN, Inf, negative on-times, wrong lengths, unknown or duplicate names, a filled velocity:
     each rejected and counted, the run goes on; the good command (thr_1 on for the whole period,
     the others off) gives exactly 0.13 N x 0.1 s per step on thr_1."""
+    from nav_msgs.msg import Odometry
     from sensor_msgs.msg import JointState
 
     from adcs_sim.nodes.dynamics import DynamicsNode
-    from nav_msgs.msg import Odometry
 
     steps = 4
     scenario = make_scenario(tmp_path, {'dynamics': {'duration': steps * 0.1, 'lockstep.timeout': 10.0,
@@ -143,7 +143,7 @@ def test_dynamics_rejects_bad_thruster_commands_and_runs_on(ros_domain, tmp_path
     ('backstepping_controller', {'orbit.altitude': -1.0}, 'orbit.altitude', '> 0'),
 ])
 def test_bad_seed002_parameters_are_named(tmp_path, section, overrides, key, text):
-    from adcs_sim.runner import validate_scenario
+    from adcs_sim.app.scenario_files import validate_scenario
     with pytest.raises(ParameterError, match=text) as err:
         validate_scenario(make_scenario(tmp_path, {section: overrides}, base=SLEW))
     assert f'{section}.ros__parameters.{key}' in str(err.value)
@@ -168,9 +168,9 @@ def test_scenario_files_hold_the_papers_numbers():
     thruster layout is eq. (21) with (r_x, r_y, r_z) = (0.3, -0.3, 0.4) m; the slew file is the
     two-orbit file cut at 300 s."""
     from adcs_controllers.laws.backstepping import actuator_matrix, eseo_actuator_matrix
-    from adcs_sim.runner import validate_scenario
-    from adcs_sim.scenario import build_plant
-    from adcs_sim.thrusters import orbit_frame_attitude
+    from adcs_core.orbit import orbit_frame_attitude
+    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.truth.schema import build_plant
     full = validate_scenario(CONFIG / 'eseo_backstepping.yaml')
     slew = validate_scenario(CONFIG / SLEW)
     assert slew['dynamics'].pop('duration') == 300.0
@@ -201,8 +201,8 @@ def test_batched_geometries_and_gains_equal_single_runs():
     import copy
 
     from adcs_controllers.laws.backstepping import eseo_thruster_layout
-    from adcs_sim.batch import BatchSimulation
-    from adcs_sim.runner import validate_scenario
+    from adcs_sim.app.batch import BatchSimulation
+    from adcs_sim.app.scenario_files import validate_scenario
     base = validate_scenario(CONFIG / SLEW)
     base.pop('recorder')
     base['dynamics']['duration'] = 5.0

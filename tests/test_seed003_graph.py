@@ -12,14 +12,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import make_scenario, run_fault_graph
 from numpy.testing import assert_array_equal
 
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.analysis import RunData
-from adcs_sim.batch import BatchSimulation
-from adcs_sim.registry import NODES
-from adcs_sim.runner import validate_scenario
-from conftest import make_scenario, run_fault_graph
+from adcs_sim.app.analysis import RunData
+from adcs_sim.app.batch import BatchSimulation
+from adcs_sim.app.registry import NODES
+from adcs_sim.app.scenario_files import validate_scenario
 
 N_STEPS = 60
 
@@ -84,9 +84,10 @@ def test_pointing_needs_the_wheels_spin_inertia(tmp_path):
 
 def test_wheel_state_without_the_controllers_wheels_is_rejected(ros_domain, tmp_path):
     """Bad wheel states are counted and dropped; the pending buffers stay small."""
+    from conftest import InProcessGraph
+
     from adcs_controllers.nodes.pointing_b_controller import PointingBController
     from adcs_msgs_py import conversions as cv
-    from conftest import InProcessGraph
     scenario = _scenario(tmp_path, 'b')
     with InProcessGraph(scenario) as graph:
         ctrl = graph.add(PointingBController)
@@ -110,7 +111,7 @@ def test_registry_builds_the_pointing_laws_from_the_sections():
 def test_initial_momentum_sets_the_body_rate(tmp_path):
     """initial.momentum: H in inertial axes, wheels at their initial speed, the body carries the
     rest (J w0 = R(q0)^T H - sum a_i Js_i Omega0_i): the plant's inertial momentum is H."""
-    from adcs_sim.scenario import build_plant, initial_state
+    from adcs_sim.truth.schema import build_plant, initial_state
     secs = validate_scenario(make_scenario(tmp_path, {'dynamics': {'wheels.initial_speed': [10.0, -5.0, 0.0]}},
                                            base='pointing_controller_b.yaml'))
     d = secs['dynamics']

@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from adcs_sim.analysis import RunData, pointing_error_deg, run_metrics
-from adcs_sim.batch import BatchSimulation
-from adcs_sim.runner import validate_scenario
+from adcs_sim.app.analysis import RunData, pointing_error_deg, run_metrics
+from adcs_sim.app.batch import BatchSimulation
+from adcs_sim.app.scenario_files import validate_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 BAGS = ROOT / 'bags'
@@ -106,7 +106,7 @@ def test_table1_all_runs_converge_and_the_papers_comparison_holds():
 def test_committed_table1_results_are_not_stale(name, campaign):
     """Four runs of each campaign recomputed now with the batch engine equal the committed rows
     (run i's inputs and results do not depend on the batch it was in)."""
-    from adcs_sim.campaign import Campaign, run_chunk
+    from adcs_sim.app.campaign import Campaign, run_chunk
     c = Campaign.load(ROOT / 'config' / 'campaigns' / campaign)
     committed = results(name)
     indices = [0, 1, 500, 999]
@@ -121,7 +121,7 @@ def test_small_campaign_through_the_cli_equals_the_committed_rows(tmp_path):
     """adcs-montecarlo on the first 20 runs of the B campaign (one process): the pointing metrics,
     the series and the all-runs figure are written, and each row equals the committed 1000-run
     campaign's (a run does not depend on the campaign's size or split)."""
-    from adcs_sim.montecarlo import main
+    from adcs_sim.app.montecarlo import main
     out = tmp_path / 'mc'
     assert main([str(ROOT / 'config' / 'campaigns' / 'pointing_table1.yaml'), '--runs', '20',
                  '--out', str(out), '--scheduler', 'none', '--quiet', '--no-figures']) == 0

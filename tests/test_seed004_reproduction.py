@@ -19,9 +19,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from adcs_sim.analysis import RunData, run_metrics, settling_times
-from adcs_sim.batch import BatchSimulation
-from adcs_sim.runner import validate_scenario
+from adcs_sim.app.analysis import RunData, run_metrics, settling_times
+from adcs_sim.app.batch import BatchSimulation
+from adcs_sim.app.scenario_files import validate_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 BAGS = ROOT / 'bags'
@@ -161,7 +161,7 @@ def test_table1_control_period_is_converged():
 
 def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path, capsys):
     """docs/seed004's published-vs-ours tables come from ``adcs-analyze --compare --reference``."""
-    from adcs_sim.analyze import main as analyze
+    from adcs_sim.app.analyze import main as analyze
     bags = [str(BAGS / n / 'bag') for n in ('microsat_pd_slew', 'microsat_gsmn_slew')]
     paper = ROOT / 'docs' / 'seed004' / 'paper.yaml'
     assert analyze([*bags, '--compare', '--reference', str(paper), '--out', str(tmp_path / 'cmp')]) == 0

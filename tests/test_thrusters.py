@@ -1,4 +1,4 @@
-"""Seed 002 plant parts (adcs_sim.thrusters): on/off thrusters as a plant actuator (torque
+"""Seed 002 plant parts (adcs_sim.truth.thrusters): on/off thrusters as a plant actuator (torque
 Σ rᵢ × Fᵢ, pulses within a control period, minimum on-time, impulse states), the orbit frame
 (z nadir, x along track) and the gravity-gradient torque of eq. (19). No ROS; a few seconds."""
 from __future__ import annotations
@@ -10,11 +10,18 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 from scipy.spatial.transform import Rotation
 
-from adcs_sim.attitude import quat_kinematics, quat_multiply
-from adcs_sim.plant import CircularOrbit, Plant, rotate_to_body
-from adcs_sim.thrusters import (Thrusters, body_in_orbit, directional_cosines,
-                                gravity_gradient_principal, orbit_frame_attitude,
-                                orbit_frame_matrix, orbit_rate, step_pulsed)
+from adcs_core.attitude import quat_kinematics, quat_multiply, rotate_to_body
+from adcs_core.orbit import (
+    CircularOrbit,
+    body_in_orbit,
+    directional_cosines,
+    gravity_gradient_principal,
+    orbit_frame_attitude,
+    orbit_frame_matrix,
+    orbit_rate,
+)
+from adcs_sim.truth.plant import Plant
+from adcs_sim.truth.thrusters import Thrusters, step_pulsed
 
 J_ESEO = np.diag([4.350, 4.3370, 3.6640])
 IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from adcs_msgs_py.names import FAULT_UNUSABLE_MODES
-from adcs_sim.attitude import matvec
+from adcs_core.attitude import matvec
+from adcs_core.faults import FAULT_UNUSABLE_MODES
 
 
 def wheel_allocation_matrix(axes: np.ndarray, available: np.ndarray | None = None) -> np.ndarray:
@@ -112,8 +112,8 @@ class Actuation:
         """The wheels' angular momentum RELATIVE to the body in body axes, ``h = sum_i a_i Js_i Ω_i``
         (..., 3), for speeds ``speed`` (..., n) relative to the body (``wheels/state``'s velocity):
         the papers' ``h`` with ``H = J ω + h``, ``J`` the total inertia (wheels locked), the plant's
-        convention (:mod:`adcs_sim.plant`: its ``Js_i a_i·ω`` part is in ``J ω``). Needs
-        ``wheels.spin_inertia``. One fixed summation order (:func:`adcs_sim.attitude.matvec`), so the
+        convention (:mod:`adcs_sim.truth.plant`: its ``Js_i a_i·ω`` part is in ``J ω``). Needs
+        ``wheels.spin_inertia``. One fixed summation order (:func:`adcs_core.attitude.matvec`), so the
         node and the batch engine get the same bits."""
         if self.kind != 'wheels' or self.spin_inertia is None:
             raise ValueError('the wheel momentum needs wheels with their spin inertia '

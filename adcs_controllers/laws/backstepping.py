@@ -10,7 +10,7 @@ Error quaternion, eq. (11-12)::
     η̃ = η_d η + ε_dᵀ ε,      ε̃ = η_d ε - η ε_d - S(ε_d) ε
 
 Eq. (12) is ``q̄_d ⊗ q`` (the body relative to the desired frame, our
-:func:`adcs_sim.attitude.error_quaternion`); eq. (11) prints ``q_d ⊗ q̄``, whose vector part has
+:func:`adcs_core.attitude.error_quaternion`); eq. (11) prints ``q_d ⊗ q̄``, whose vector part has
 the opposite sign on the first two terms: eq. (12) is the one that obeys eq. (13-14) with
 ``ω̃ = ω^b_db`` (docs/seed002_readings.md R2). Rate error, eq. (15): ``ω̃ = ω^b_ib - ω^b_id``
 with ``ω^b_id = R(q̃)ᵀ ω^d_id`` and, along the motion, ``ω̇^b_id = R(q̃)ᵀ ω̇^d_id - ω̃ × ω^b_id``
@@ -28,7 +28,7 @@ Backstepping, eq. (22-35), with ``sgn(x) = 1`` for ``x >= 0`` else -1::
 ``η̃̇``, ``ε̃̇`` from eq. (13-14) with the measured ``ω̃``. ``G z1 = sgn(η̃) ε̃`` identically (so
 ``V1 = 2 (1 - |η̃|)``), and both ``q̃ = [±1, 0, 0, 0]`` are equilibria: the law turns the short
 way (< 180°) whatever the sign of ``q_d``. ``τ_g`` is the gravity-gradient torque of eq. (19)
-(:meth:`adcs_sim.plant.CircularOrbit.gravity_gradient`), compensated when given. ``K1`` (rad/s)
+(:meth:`adcs_core.orbit.CircularOrbit.gravity_gradient`), compensated when given. ``K1`` (rad/s)
 and ``K2`` (N m s) are scalars, per-run arrays (...,) or matrices (..., 3, 3) (``K = Kᵀ > 0``).
 
 Actuators, eq. (20-21). ``τ_a = B_a u + D_a ω`` with ``u = [F_1 .. F_4, ḣ_wy]``; ``B_a`` has the
@@ -54,7 +54,7 @@ the whole control period when its demand exceeds ``on_level`` (the "upper limit"
 demand falls below ``off_level`` (state with a batch axis).
 
 Every function takes arrays with an optional leading batch axis; matrix-vector products go through
-:func:`adcs_sim.attitude.matvec` and cross products through :func:`adcs_sim.attitude.cross`, so a
+:func:`adcs_core.attitude.matvec` and cross products through :func:`adcs_core.attitude.cross`, so a
 batch gives the same bits as a loop of single calls.
 """
 from __future__ import annotations
@@ -65,9 +65,8 @@ import numpy as np
 import scipy.linalg
 
 from adcs_controllers.laws.base import SectionLaw
-from adcs_sim.attitude import cross, error_quaternion, matvec, quat_multiply
-from adcs_sim.plant import CircularOrbit, rotate_to_body
-from adcs_sim.thrusters import orbit_frame_attitude, orbit_rate
+from adcs_core.attitude import cross, error_quaternion, matvec, quat_multiply, rotate_to_body
+from adcs_core.orbit import CircularOrbit, orbit_frame_attitude, orbit_rate
 
 __all__ = [
     'MODE_TRACKING', 'eseo_thruster_layout', 'eseo_actuator_matrix', 'actuator_matrix',
@@ -422,7 +421,7 @@ class ThrusterWheelAllocation:
 
 class BacksteppingLaw(SectionLaw):
     """Eq. (32) bound to a validated ``backstepping_controller`` section
-    (:data:`adcs_controllers.schemas.BACKSTEPPING_SCHEMA`): ``inertia``; ``target.attitude`` =
+    (:data:`adcs_controllers.families.BACKSTEPPING_SCHEMA`): ``inertia``; ``target.attitude`` =
     ``q_rel`` (scalar last, the desired frame relative to the orbit frame, section 4.2);
     ``K1`` (rad/s), ``K2`` (N m s); ``orbit.altitude`` (m) and optional ``orbit.inclination_deg``,
     ``orbit.raan_deg``, ``orbit.arg_latitude_deg``; ``reference.hold_time`` (s; ``inf`` = track

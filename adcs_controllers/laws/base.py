@@ -19,7 +19,7 @@ class SectionLaw:
     output: str = 'torque'
 
     def __init__(self, p: dict) -> None:
-        from adcs_sim.scenario import inertia_matrix
+        from adcs_core.inertia import inertia_matrix
         self.inertia = inertia_matrix(p['inertia'])
         q_ref = np.asarray(p['target.attitude'], dtype=float)
         self.q_ref = q_ref / np.linalg.norm(q_ref, axis=-1, keepdims=True)

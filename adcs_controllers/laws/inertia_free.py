@@ -63,8 +63,8 @@ Extremum tracking (section 7.4) of the commanded spin rate ``ω̄`` (``ω_d = ω
 
 Arrays take an optional LEADING BATCH AXIS: ``R`` (..., 3, 3), ``q`` (..., 4) scalar last,
 ``w`` (..., 3), scalar gains as scalars or (...,); matrices (``B``, ``K1``, ``Kv``) (3, 3) or
-(..., 3, 3). Matrix-vector products go through :func:`adcs_sim.attitude.matvec`, cross products
-through :func:`adcs_sim.attitude.cross`, matrix products through :func:`matmul` (built on
+(..., 3, 3). Matrix-vector products go through :func:`adcs_core.attitude.matvec`, cross products
+through :func:`adcs_core.attitude.cross`, matrix products through :func:`matmul` (built on
 ``matvec``): a run in a batch gives the same bits as alone.
 """
 from __future__ import annotations
@@ -74,7 +74,7 @@ import math
 import numpy as np
 
 from adcs_controllers.laws.base import SectionLaw
-from adcs_sim.attitude import cross, matvec
+from adcs_core.attitude import cross, matvec
 
 __all__ = [
     'rotation_from_quaternion', 'quaternion_from_rotation', 'hat', 'matmul', 'rotation_exp',

@@ -63,7 +63,7 @@ Saturation is not part of these laws (the actuator layer clips per wheel,
 :func:`adcs_controllers.laws.allocation.saturate`). Every function takes ``q`` (..., 4) scalar last,
 ``w`` (..., 3) rad/s, ``inertia`` (3, 3) or (..., 3, 3), gains as scalars or arrays broadcasting over
 the batch axes, and returns ``u`` (..., 3); all matrix-vector products use
-:func:`adcs_sim.attitude.matvec` so that a batch gives the same bits as a loop of single calls.
+:func:`adcs_core.attitude.matvec` so that a batch gives the same bits as a loop of single calls.
 :class:`MinNormLaw`, :class:`GsmnLaw` and :class:`KtLaw` bind them to validated controller sections
 (``control(t, q, w) -> (torque, status)``, as :class:`adcs_controllers.laws.pd.PdLaw`).
 """
@@ -73,7 +73,7 @@ import numpy as np
 
 from adcs_controllers.laws.base import SectionLaw
 from adcs_controllers.laws.pd import pd_torque
-from adcs_sim.attitude import cross, error_quaternion, matvec
+from adcs_core.attitude import cross, error_quaternion, matvec
 
 __all__ = [
     'MODE_LOW_GAIN', 'MODE_ZERO_TORQUE', 'MODE_HIGH_GAIN', 'MODE_MIN_NORM', 'MODE_CONTINUOUS',

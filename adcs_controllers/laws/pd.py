@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from adcs_controllers.laws.base import SectionLaw
-from adcs_sim.attitude import error_quaternion, matvec
+from adcs_core.attitude import error_quaternion, matvec
 
 
 def pd_torque(q: np.ndarray, w: np.ndarray, inertia: np.ndarray, kp, kd,

@@ -3,7 +3,7 @@
 geometry of the admissible final attitudes and the paper's two control laws. Pure numpy, no rclpy.
 
 Model (eq. 1-5). Body axes are principal axes; wheels on ê1 and ê2 work, the wheel on ê3 (b̂)
-failed. ``J`` is the total inertia (wheels locked, as :class:`adcs_sim.plant.Plant`'s
+failed. ``J`` is the total inertia (wheels locked, as :class:`adcs_sim.truth.plant.Plant`'s
 ``inertia``), ``h`` the wheels' angular momentum RELATIVE to the body (``h_i = J_w Ω_i``, Ω the
 wheel speed relative to the body), ``u = -dh/dt`` the virtual body torque::
 
@@ -77,8 +77,8 @@ Pointing error: the angle between ``σ̂`` and ``τ̂`` (atan2 of |σ̂ x τ̂| 
 
 Batch: every function takes ``q`` (..., 4) scalar last (body in the inertial frame in which
 ``τ̂`` and ``H`` are given), ``w`` (..., 3), ``h`` (..., 3), gains scalar or (...,); matrix-vector
-products through :func:`adcs_sim.attitude.matvec` and cross products through
-:func:`adcs_sim.attitude.cross`, so a run in a batch gives the same bits as alone. The LQR gain is
+products through :func:`adcs_core.attitude.matvec` and cross products through
+:func:`adcs_core.attitude.cross`, so a run in a batch gives the same bits as alone. The LQR gain is
 solved per run (a (..., 2, 5) array).
 """
 from __future__ import annotations
@@ -88,7 +88,7 @@ import scipy.linalg
 from scipy.spatial.transform import Rotation
 
 from adcs_controllers.laws.base import SectionLaw
-from adcs_sim.attitude import cross, eigenaxis_angle, error_quaternion, matvec
+from adcs_core.attitude import cross, eigenaxis_angle, error_quaternion, matvec
 
 __all__ = [
     'STAGE_MOMENTUM', 'STAGE_LQR', 'STAGE_B', 'MODE_NAMES', 'Q_PAPER', 'R_PAPER',

@@ -4,7 +4,7 @@ wheels on body X and Y only (the Z wheel failed). Pure numpy, no rclpy.
 
 Model (seed 000 eq. 3, 5): ``I dw/dt = -w x (I w + h) + u``, ``u = -dh/dt = [N1, N2, 0]`` (no Z
 torque), quaternion kinematics ``dq/dt = -1/2 w x q + 1/2 q4 w``, ``dq4/dt = -1/2 wᵀq`` (the same
-as :func:`adcs_sim.attitude.quat_kinematics`). Quaternions are scalar last ``[x, y, z, w]`` =
+as :func:`adcs_core.attitude.quat_kinematics`). Quaternions are scalar last ``[x, y, z, w]`` =
 the paper's ``[q1 q2 q3 q4]``; rates in rad/s; ``u`` is the BODY torque (the motor torque of a
 wheel along +x / +y is ``-u_x`` / ``-u_y``). Regulation is to ``q = [0 0 0 1]``, ``w = 0``; with
 ``q_ref``/``w_ref`` the laws act on the error quaternion ``q_ref* ⊗ q`` and ``w - w_ref`` as the
@@ -60,7 +60,7 @@ seed 004 eq. 14; eq. 30 has no minus). Gain-scheduled min-norm law, GSMN (eq. 30
 
 Every function takes ``q`` (..., 4), ``w`` (..., 3), ``inertia`` (3, 3) or (..., 3, 3), gains as
 scalars or arrays broadcasting over the batch axes; all matrix-vector products use
-:func:`adcs_sim.attitude.matvec` and cross products :func:`adcs_sim.attitude.cross`, so a batch gives
+:func:`adcs_core.attitude.matvec` and cross products :func:`adcs_core.attitude.cross`, so a batch gives
 the same bits as a loop of single calls. Torque laws return ``(u (..., 3), status)`` with
 ``u[..., 2] == 0`` exactly.
 """
@@ -70,7 +70,7 @@ import numpy as np
 
 from adcs_controllers.laws.base import SectionLaw
 from adcs_controllers.laws.inverse_optimal import error_state, inertia_inverse
-from adcs_sim.attitude import cross, matvec, quat_kinematics
+from adcs_core.attitude import cross, matvec, quat_kinematics
 
 __all__ = [
     'MODE_LOW_GAIN', 'MODE_ZERO_TORQUE', 'MODE_HIGH_GAIN', 'MODE_MIN_NORM', 'MODE_SNLC',

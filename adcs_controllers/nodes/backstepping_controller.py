@@ -3,8 +3,8 @@
 The law (:class:`adcs_controllers.laws.backstepping.BacksteppingLaw`, eq. 22-35, with the section
 4.2 reference: the target relative to the orbit frame at t = 0, then held inertially) and the
 actuation (:class:`~adcs_controllers.laws.backstepping.ThrusterActuation`: eq. 20-21 pseudo-inverse
-allocation over four thrusters and the pitch wheel, bang-bang firing with a deadzone) are the
-registry's, the objects the batch engine runs.
+allocation over four thrusters and the pitch wheel, bang-bang firing with a deadzone) are its
+family's (:data:`adcs_controllers.families.BACKSTEPPING`), the objects the batch engine runs.
 
 Per step ``t_k`` the allocation needs the state (``state``) and the wheel speed
 (``wheels/state``): the node pairs the two messages by stamp, whichever arrives first, then
@@ -19,25 +19,24 @@ import math
 
 import numpy as np
 
+from adcs_controllers.families import BACKSTEPPING
+from adcs_controllers.laws.base import LawOutputRejected, checked_control
+from adcs_controllers.nodes.base import StampPairs
+from adcs_core.faults import FaultTracker
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import RejectCounter
-from adcs_controllers.laws.base import LawOutputRejected, checked_control
-from adcs_controllers.nodes.base import StampPairs
-from adcs_controllers.schemas import BACKSTEPPING_SCHEMA
-from adcs_sim.faults import FaultTracker
-from adcs_sim.nodes.base import AdcsNode, entry_point
+from adcs_msgs_py.node import AdcsNode, entry_point
+
 
 class BacksteppingController(AdcsNode):
-    schema = BACKSTEPPING_SCHEMA  # law: BacksteppingLaw, actuation: ThrusterActuation (adcs_sim.registry)
+    family = BACKSTEPPING  # law: BacksteppingLaw, actuation: ThrusterActuation
+    schema = BACKSTEPPING.schema
 
     def __init__(self, context) -> None:
         super().__init__(context)
-        from adcs_sim.registry import NODES
-        info = NODES[self.schema.node]
         p = self.params
-        self.law = info.law(p)
-        self.actuation = info.actuation(p)
+        self.law, self.actuation = self.family.build(p)
         self.rejects = RejectCounter(self.get_logger())
         self.thruster_names = self.actuation.thruster_names
         self.wheel_names = self.actuation.wheel_names

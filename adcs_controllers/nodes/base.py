@@ -1,8 +1,8 @@
 """The controller-node template: state in, law out, command stamped with the state's stamp.
 
-A concrete controller is its schema and its law: a pure object with ``control(t, q, w) ->
-(torque, status)`` (``adcs_controllers/laws``), registered with the schema in
-:data:`adcs_sim.registry.NODES` so the batch engine runs the very same object. The base class
+A concrete controller is its family (:mod:`adcs_controllers.families`): a schema and a law, a pure
+object with ``control(t, q, w) -> (torque, status)`` (``adcs_controllers/laws``), which the batch
+engine builds from the same family, so it runs the very same object. The base class
 
 * validates parameters (schema), builds the law and the actuation (allocation over the
   available wheels, saturation: :class:`~adcs_controllers.laws.allocation.Actuation`);
@@ -13,7 +13,7 @@ A concrete controller is its schema and its law: a pure object with ``control(t,
   node (and the recorder, when one is expected) — so by the time the dynamics node sees this
   controller subscribed, every command it sends will be delivered and recorded;
 * rejects, counts and warns about bad messages, and publishes ``controller/status`` each step;
-* follows the latched ``faults`` topic (:mod:`adcs_sim.faults`): at the state stamped ``t_k`` it
+* follows the latched ``faults`` topic (:mod:`adcs_core.faults`): at the state stamped ``t_k`` it
   applies the latest fault state stamped ``<= t_k`` (the dynamics node's rule), re-allocating
   over the wheels that can still produce a commanded torque (not ``failed``, not ``stuck``;
   :meth:`~adcs_controllers.laws.allocation.Actuation.set_available`) and restoring a wheel on
@@ -31,16 +31,15 @@ A concrete controller is its schema and its law: a pure object with ``control(t,
 """
 from __future__ import annotations
 
-
 import numpy as np
 
+from adcs_controllers.families import ControllerFamily
+from adcs_controllers.laws.base import LawOutputRejected, checked_control
+from adcs_core.faults import FaultTracker
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import RejectCounter
-from adcs_controllers.laws.allocation import Actuation
-from adcs_controllers.laws.base import LawOutputRejected, checked_control
-from adcs_sim.faults import FaultTracker
-from adcs_sim.nodes.base import AdcsNode
+from adcs_msgs_py.node import AdcsNode
 
 
 class StampPairs:
@@ -67,15 +66,20 @@ class StampPairs:
 
 
 class ControllerNode(AdcsNode):
-    """Base class of the controller nodes. Subclasses set ``schema``; the law is the registry's
-    (:data:`adcs_sim.registry.NODES`) for the schema's section, the object the batch engine uses."""
+    """Base class of the controller nodes. Subclasses set ``family``
+    (:class:`~adcs_controllers.families.ControllerFamily`): its schema validates the section, its law
+    and actuation are built from it, the objects the batch engine builds too."""
+
+    family: ControllerFamily
+
+    def __init_subclass__(cls, **kwargs) -> None:
+        super().__init_subclass__(**kwargs)
+        cls.schema = cls.family.schema
 
     def __init__(self, context) -> None:
         super().__init__(context)
-        from adcs_sim.registry import NODES
         p = self.params
-        self.law = NODES[self.schema.node].law(p)
-        self.actuation = Actuation(p)
+        self.law, self.actuation = self.family.build(p)
         self.actuator = p['actuator']
         self.rejects = RejectCounter(self.get_logger())
         if self.actuator == 'wheels':

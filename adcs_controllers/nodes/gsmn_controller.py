@@ -3,13 +3,13 @@
 The law: laws/inverse_optimal.py."""
 from __future__ import annotations
 
+from adcs_controllers.families import GSMN
 from adcs_controllers.nodes.base import ControllerNode
-from adcs_controllers.schemas import GSMN_SCHEMA
-from adcs_sim.nodes.base import entry_point
+from adcs_msgs_py.node import entry_point
 
 
 class GsmnController(ControllerNode):
-    schema = GSMN_SCHEMA  # law: adcs_controllers.laws.inverse_optimal.GsmnLaw (adcs_sim.registry)
+    family = GSMN
 
 
 main = entry_point(GsmnController)

@@ -3,13 +3,13 @@
 The law: laws/inverse_optimal.py."""
 from __future__ import annotations
 
+from adcs_controllers.families import KT
 from adcs_controllers.nodes.base import ControllerNode
-from adcs_controllers.schemas import KT_SCHEMA
-from adcs_sim.nodes.base import entry_point
+from adcs_msgs_py.node import entry_point
 
 
 class KtController(ControllerNode):
-    schema = KT_SCHEMA  # law: adcs_controllers.laws.inverse_optimal.KtLaw (adcs_sim.registry)
+    family = KT
 
 
 main = entry_point(KtController)

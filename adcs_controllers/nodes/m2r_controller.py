@@ -4,13 +4,13 @@ Commands the external torquers (``torque_cmd``); the gains are checked at start 
 bound of Proposition 1 or 2 for the torquer limit. The law: laws/inertia_free.py."""
 from __future__ import annotations
 
+from adcs_controllers.families import M2R
 from adcs_controllers.nodes.base import ControllerNode
-from adcs_controllers.schemas import M2R_SCHEMA
-from adcs_sim.nodes.base import entry_point
+from adcs_msgs_py.node import entry_point
 
 
 class M2rController(ControllerNode):
-    schema = M2R_SCHEMA  # law: adcs_controllers.laws.inertia_free.M2rLaw (adcs_sim.registry)
+    family = M2R
 
 
 main = entry_point(M2rController)

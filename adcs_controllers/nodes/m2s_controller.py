@@ -6,13 +6,13 @@ the law object and are integrated between state messages (continuous time). The 
 laws/inertia_free.py."""
 from __future__ import annotations
 
+from adcs_controllers.families import M2S
 from adcs_controllers.nodes.base import ControllerNode
-from adcs_controllers.schemas import M2S_SCHEMA
-from adcs_sim.nodes.base import entry_point
+from adcs_msgs_py.node import entry_point
 
 
 class M2sController(ControllerNode):
-    schema = M2S_SCHEMA  # law: adcs_controllers.laws.inertia_free.M2sLaw (adcs_sim.registry)
+    family = M2S
 
 
 main = entry_point(M2sController)

@@ -3,13 +3,13 @@
 The law: laws/inverse_optimal.py."""
 from __future__ import annotations
 
+from adcs_controllers.families import MINNORM
 from adcs_controllers.nodes.base import ControllerNode
-from adcs_controllers.schemas import MINNORM_SCHEMA
-from adcs_sim.nodes.base import entry_point
+from adcs_msgs_py.node import entry_point
 
 
 class MinNormController(ControllerNode):
-    schema = MINNORM_SCHEMA  # law: adcs_controllers.laws.inverse_optimal.MinNormLaw (adcs_sim.registry)
+    family = MINNORM
 
 
 main = entry_point(MinNormController)

@@ -3,13 +3,13 @@ non-zero angular momentum) on the graph. The law: laws/single_axis.py (PointingB
 the wheels' momentum of the same step, which the base class pairs by stamp (nodes/base.py)."""
 from __future__ import annotations
 
+from adcs_controllers.families import POINTING_B
 from adcs_controllers.nodes.base import ControllerNode
-from adcs_controllers.schemas import POINTING_B_SCHEMA
-from adcs_sim.nodes.base import entry_point
+from adcs_msgs_py.node import entry_point
 
 
 class PointingBController(ControllerNode):
-    schema = POINTING_B_SCHEMA  # law: single_axis.PointingBLaw (adcs_sim.registry)
+    family = POINTING_B
 
 
 main = entry_point(PointingBController)

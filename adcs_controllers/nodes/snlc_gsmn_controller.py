@@ -5,13 +5,13 @@ reports a wheel lost, then the two-wheel law. The laws: laws/underactuated.py; t
 laws/reconfiguration.py."""
 from __future__ import annotations
 
+from adcs_controllers.families import SNLC_GSMN
 from adcs_controllers.nodes.base import ControllerNode
-from adcs_controllers.schemas import SNLC_GSMN_SCHEMA
-from adcs_sim.nodes.base import entry_point
+from adcs_msgs_py.node import entry_point
 
 
 class SnlcGsmnController(ControllerNode):
-    schema = SNLC_GSMN_SCHEMA  # law: TwoWheelReconfiguration around underactuated.SnlcGsmnLaw (adcs_sim.registry)
+    family = SNLC_GSMN
 
 
 main = entry_point(SnlcGsmnController)

@@ -5,13 +5,13 @@ reports a wheel lost, then the two-wheel law. The laws: laws/underactuated.py; t
 laws/reconfiguration.py."""
 from __future__ import annotations
 
+from adcs_controllers.families import ZERO_MOMENTUM
 from adcs_controllers.nodes.base import ControllerNode
-from adcs_controllers.schemas import ZERO_MOMENTUM_SCHEMA
-from adcs_sim.nodes.base import entry_point
+from adcs_msgs_py.node import entry_point
 
 
 class ZeroMomentumController(ControllerNode):
-    schema = ZERO_MOMENTUM_SCHEMA  # law: TwoWheelReconfiguration around underactuated.ZeroMomentumLaw (adcs_sim.registry)
+    family = ZERO_MOMENTUM
 
 
 main = entry_point(ZeroMomentumController)

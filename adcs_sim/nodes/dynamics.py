@@ -8,12 +8,12 @@ commands do not arrive within ``lockstep.timeout`` wall seconds is a *missed ste
 policy (hold the last command, or zero) applies and the miss is counted on ``dynamics/status``.
 Commands stamped for another step are counted as stale and ignored. ``link_faults.drop`` /
 ``link_faults.delay`` make a seeded fraction of the steps lose their commands or get them late
-(:mod:`adcs_sim.link_faults`): missed steps under the same policy, deterministic.
+(:mod:`adcs_sim.truth.link_faults`): missed steps under the same policy, deterministic.
 
 Thrusters (seed 002): a ``thrusters/cmd`` stamped ``t_k`` gives each thruster's on-time from
 ``t_k``; the node builds the valve command for ``[t_k, t_k+1]`` from it
-(:meth:`adcs_sim.thrusters.Thrusters.command`: clipped to the period, minimum on-time rule) and
-integrates with :func:`adcs_sim.thrusters.step_pulsed` (RK4 split at the pulse edges; exactly
+(:meth:`adcs_sim.truth.thrusters.Thrusters.command`: clipped to the period, minimum on-time rule) and
+integrates with :func:`adcs_sim.truth.thrusters.step_pulsed` (RK4 split at the pulse edges; exactly
 :meth:`Plant.step` when no edge falls inside the period). After each step it publishes
 ``thrusters/state`` stamped ``t_k``: thrust at ``t_k``, the on-time applied, and the cumulated
 impulse at ``t_k+1``. On a missed step the policy holds the last on-times or fires none.
@@ -22,10 +22,10 @@ Realtime mode paces the same loop against the wall clock (``real_time_factor``) 
 each step uses the latest commands received.
 
 Faults: the node subscribes to the latched ``faults`` topic (the fault injector publishes its
-whole schedule at start, each array stamped with its due time; :mod:`adcs_sim.faults`). With
+whole schedule at start, each array stamped with its due time; :mod:`adcs_core.faults`). With
 ``startup.expect_faults`` it waits before t = 0 until it holds the complete schedule; at each
 step ``t_k`` it applies the latest fault state stamped ``<= t_k`` to the wheels
-(:meth:`~adcs_sim.plant.ReactionWheels.apply_fault`) *before* publishing the step's state and
+(:meth:`~adcs_sim.truth.plant.ReactionWheels.apply_fault`) *before* publishing the step's state and
 integrating ``[t_k, t_k+1]``, so a fault stamped ``t_k`` shows in ``wheels/state`` at ``t_k``
 and acts over exactly that interval. A fault state received after its step is applied at the
 next step and counted as ``late_faults`` on ``dynamics/status``.
@@ -39,16 +39,16 @@ import time
 
 import numpy as np
 
+from adcs_core.faults import FaultTracker
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import RejectCounter
-from adcs_sim.faults import FaultTracker
-from adcs_sim.link_faults import DELAY, FATE_NAMES, OK, LinkFaults
-from adcs_sim.nodes.base import AdcsNode, main_for
-from adcs_sim.plant import ReactionWheels, WheelCommand
-from adcs_sim.scenario import DYNAMICS_SCHEMA, build_plant, command_topics, initial_state, step_timing
-from adcs_sim.sensors import MeasurementModel
-from adcs_sim.thrusters import Thrusters, step_pulsed
+from adcs_msgs_py.node import AdcsNode, main_for
+from adcs_sim.truth.link_faults import DELAY, FATE_NAMES, OK, LinkFaults
+from adcs_sim.truth.plant import ReactionWheels, WheelCommand
+from adcs_sim.truth.schema import DYNAMICS_SCHEMA, build_plant, command_topics, initial_state, step_timing
+from adcs_sim.truth.sensors import MeasurementModel
+from adcs_sim.truth.thrusters import Thrusters, step_pulsed
 
 
 class DynamicsNode(AdcsNode):
@@ -326,7 +326,7 @@ class DynamicsNode(AdcsNode):
                 self.commands[key] = zero[key]
         self.publish_status()
 
-    # --- simulated link faults (adcs_sim.link_faults) ----------------------------------------
+    # --- simulated link faults (adcs_sim.truth.link_faults) ----------------------------------------
 
     def _link_before(self, k: int) -> dict | None:
         """Before waiting for step k's commands: count last step's late ones as stale (they

@@ -5,18 +5,18 @@ At start it publishes the **whole schedule** on the latched (transient local, de
 distinct event time, stamped with that (simulated) time, holding one status per wheel (name =
 wheel, level ERROR for failed / degraded / bias / stuck and OK for nominal / recovered, message =
 mode, key/values ``mode``, ``value``, ``time``, ``event``, ``events``). The nodes that act on
-faults apply each array when their step time reaches its stamp (:mod:`adcs_sim.faults`), so a
+faults apply each array when their step time reaches its stamp (:mod:`adcs_core.faults`), so a
 fault stamped ``t_k`` holds over exactly ``[t_k, t_k+1]`` however fast the lockstep loop runs:
 publishing "when the time comes" would race the loop. The node then follows ``/clock`` only to
 log each event when it becomes due, and spins until it is stopped.
 """
 from __future__ import annotations
 
+from adcs_core.faults import FAULT_OK_MODES
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
-from adcs_msgs_py.names import FAULT_OK_MODES
-from adcs_sim.nodes.base import AdcsNode, entry_point
-from adcs_sim.scenario import FAULT_SCHEMA, fault_schedule
+from adcs_msgs_py.node import AdcsNode, entry_point
+from adcs_sim.truth.fault_schedule import FAULT_SCHEMA, fault_schedule
 
 
 class FaultInjectorNode(AdcsNode):

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import importlib
 import signal
-import threading
 import sys
+import threading
 import time
 from datetime import datetime
 from pathlib import Path
@@ -22,9 +22,9 @@ from pathlib import Path
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from adcs_msgs_py import topics
+from adcs_msgs_py.node import AdcsNode, main_for
 from adcs_sim.bag import BagWriter, qos_dicts
-from adcs_sim.nodes.base import AdcsNode, main_for
-from adcs_sim.scenario import RECORDER_SCHEMA
+from adcs_sim.bag.schema import RECORDER_SCHEMA
 
 IGNORED_TOPICS = ('/rosout', '/parameter_events')
 STOP_REQUESTED = threading.Event()  # set by SIGINT / SIGTERM in the recorder process

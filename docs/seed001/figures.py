@@ -21,6 +21,7 @@ import sys
 from pathlib import Path
 
 import matplotlib
+
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
@@ -30,10 +31,10 @@ ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT))
 
 from adcs_controllers.laws import inertia_free as inf  # noqa: E402
-from adcs_sim.analysis import RunData  # noqa: E402
-from adcs_sim.batch import BatchSimulation  # noqa: E402
-from adcs_sim.registry import NODES  # noqa: E402
-from adcs_sim.runner import validate_scenario  # noqa: E402
+from adcs_sim.app.analysis import RunData  # noqa: E402
+from adcs_sim.app.batch import BatchSimulation  # noqa: E402
+from adcs_sim.app.registry import NODES  # noqa: E402
+from adcs_sim.app.scenario_files import validate_scenario  # noqa: E402
 
 BAGS = ROOT / 'bags'
 CONFIG = ROOT / 'config'

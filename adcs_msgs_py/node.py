@@ -20,8 +20,8 @@ from pathlib import Path
 import rclpy
 from rclpy.context import Context
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
@@ -37,7 +37,7 @@ class GraphTimeout(RuntimeError):
     """The graph did not connect within the startup timeout."""
 
 
-FASTDDS_PROFILE = Path(__file__).resolve().parents[1] / 'fastdds_profile.xml'
+FASTDDS_PROFILE = Path(__file__).resolve().parent / 'fastdds_profile.xml'
 
 
 def network_hygiene_defaults() -> None:

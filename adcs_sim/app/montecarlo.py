@@ -1,8 +1,8 @@
 """``adcs-montecarlo <campaign.yaml> [--runs N] [--out DIR] [--scheduler ADDR]``: a Monte Carlo
 campaign on the batch engine, scaled out with Dask.
 
-The campaign (:mod:`adcs_sim.campaign`) is checked whole before anything runs, split into chunks
-of ``chunk_size`` runs, and each chunk is simulated as one batch (:mod:`adcs_sim.batch`) by a Dask
+The campaign (:mod:`adcs_sim.app.campaign`) is checked whole before anything runs, split into chunks
+of ``chunk_size`` runs, and each chunk is simulated as one batch (:mod:`adcs_sim.app.batch`) by a Dask
 worker: a ``LocalCluster`` on loopback using every core by default, any running Dask scheduler
 with ``--scheduler tcp://host:port``, or no Dask at all with ``--scheduler none`` (in this
 process). The results do not depend on the split nor on the scheduler.
@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from adcs_sim.campaign import Campaign, CampaignError, run_chunk
+from adcs_sim.app.campaign import Campaign, CampaignError, run_chunk
 
 PERCENTILES = (5, 50, 95)
 
@@ -177,7 +177,8 @@ def summary_markdown(summary: dict) -> str:
 
 def write_histograms(campaign: Campaign, rows: list[dict], out: Path) -> list[Path]:
     from matplotlib.figure import Figure
-    from adcs_sim.report import save_figure
+
+    from adcs_sim.app.report import save_figure
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     for m in campaign.metrics:
@@ -235,7 +236,8 @@ def write_series(rows: list[dict], out: Path, figure: bool = True) -> list[Path]
     if not figure:
         return []
     from matplotlib.figure import Figure
-    from adcs_sim.report import DPI
+
+    from adcs_sim.app.report import DPI
     kind = longest['kind']
     fig = Figure(figsize=(6.4, 4.0), layout='constrained')
     ax = fig.subplots()

@@ -1,7 +1,7 @@
 """Reports of recorded runs: one run -> ``report.md`` with figures; several runs -> a comparison.
 
-Pure module (no rclpy): the time series come from :meth:`adcs_sim.analysis.RunData.from_bag` (one
-streaming pass over the bag) and the numbers from :mod:`adcs_sim.analysis`. Figures are drawn with
+Pure module (no rclpy): the time series come from :meth:`adcs_sim.app.analysis.RunData.from_bag` (one
+streaming pass over the bag) and the numbers from :mod:`adcs_sim.app.analysis`. Figures are drawn with
 :class:`matplotlib.figure.Figure` (no pyplot, no GUI backend) and saved as PNG and SVG.
 
 One run (:func:`write_report`) writes into ``out``:
@@ -33,7 +33,7 @@ from matplotlib.ticker import MaxNLocator
 
 from adcs_msgs_py import names as topics
 from adcs_sim import bag as bagio
-from adcs_sim.analysis import RunData, attitude_errors, run_metrics, settling_times
+from adcs_sim.app.analysis import RunData, attitude_errors, run_metrics, settling_times
 
 ERROR_LEVEL = 2  # diagnostic_msgs/DiagnosticStatus.ERROR
 DPI = 110
@@ -589,7 +589,7 @@ def write_report(run: Run, out, tol_deg: float = 0.5, eigen_tol_deg: float | Non
     else:
         lines += ['The bag carries no scenario (no MCAP metadata record `scenario`).', '']
 
-    lines += ['## Metrics', '', 'Definitions: `adcs_sim/analysis.py`.', '',
+    lines += ['## Metrics', '', 'Definitions: `adcs_sim/app/analysis.py`.', '',
               '| metric | value | meaning |', '| --- | --- | --- |']
     lines += [f'| `{k}` | {fmt(v)} | {_md_escape(_note(k))} |' for k, v in metrics.items()]
     lines.append('')
@@ -733,7 +733,7 @@ def write_comparison(runs: list[Run], out, tol_deg: float = 0.5,
         miss = missing_topics(r.data)
         how += f'; missing topics: {", ".join(miss)}' if miss else ''
         lines.append(f'| {_md_escape(name)} | `{r.path}` | {how} |')
-    lines += ['', f'## Metrics', '', 'Values as in `comparison.csv`; inf: not settled by the end of the run; '
+    lines += ['', '## Metrics', '', 'Values as in `comparison.csv`; inf: not settled by the end of the run; '
               'n/a: not available in that run.', '',
               '| metric | ' + ' | '.join(_md_escape(n) for n in names) + ' | meaning |',
               '| --- | ' + ' | '.join('---' for _ in names) + ' | --- |']

@@ -107,3 +107,15 @@ def euler_213(q: np.ndarray) -> np.ndarray:
     if good.any():
         out[good] = Rotation.from_quat(flat[good]).as_euler(EULER_213)
     return out.reshape(q.shape[:-1] + (3,))
+
+
+def rotate_to_body(q: np.ndarray, v_inertial: np.ndarray) -> np.ndarray:
+    """``R(q)^T v``: an inertial vector in body axes (``q`` body-in-inertial, scalar last)."""
+    qv, q4 = q[..., :3], q[..., 3:4]
+    t = 2.0 * cross(v_inertial, qv)
+    return v_inertial + q4 * t + cross(t, qv)
+
+
+def rotate_to_inertial(q: np.ndarray, v_body: np.ndarray) -> np.ndarray:
+    """``R(q) v``: a body vector in inertial axes."""
+    return rotate_to_body(np.concatenate([-q[..., :3], q[..., 3:4]], axis=-1), v_body)

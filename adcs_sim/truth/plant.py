@@ -30,8 +30,8 @@ so new actuator models (thrusters, magnetorquers) are added as new classes, not 
 Every array function accepts a leading batch axis: ``x`` of shape ``(..., n_states)``. So do the
 physical parameters a Monte Carlo campaign disperses (inertia ``(..., 3, 3)``, wheel spin
 inertia and limits ``(..., n)``, torquer limits, initial state): one :class:`Plant` then holds a
-whole batch of different spacecraft (:mod:`adcs_sim.batch`). Matrix-vector products are
-:func:`~adcs_sim.attitude.matvec` (fixed summation order), so a run's numbers do not depend on
+whole batch of different spacecraft (:mod:`adcs_sim.app.batch`). Matrix-vector products are
+:func:`~adcs_core.attitude.matvec` (fixed summation order), so a run's numbers do not depend on
 the other runs of its batch.
 """
 from __future__ import annotations
@@ -42,19 +42,10 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from adcs_msgs_py.names import FAULT_ERROR_MODES, FAULT_OK_MODES
-from adcs_sim.attitude import cross, matvec, quat_kinematics
-
-MU_EARTH = 3.986004418e14  # m^3/s^2
-R_EARTH = 6378137.0  # m
-
-
-def rotate_to_body(q: np.ndarray, v_inertial: np.ndarray) -> np.ndarray:
-    """``R(q)^T v``: an inertial vector in body axes (``q`` body-in-inertial, scalar last)."""
-    qv, q4 = q[..., :3], q[..., 3:4]
-    t = 2.0 * cross(v_inertial, qv)
-    return v_inertial + q4 * t + cross(t, qv)
-
+from adcs_core.attitude import cross, matvec, quat_kinematics, rotate_to_inertial
+from adcs_core.faults import FAULT_ERROR_MODES, FAULT_OK_MODES
+from adcs_core.inertia import check_inertias
+from adcs_core.orbit import CircularOrbit
 
 # --- actuators -------------------------------------------------------------------------------
 
@@ -210,7 +201,7 @@ class ReactionWheels(Actuator):
 
     def apply_faults(self, snapshot) -> None:
         """Apply a fault snapshot ``{wheel name: (mode, value, ...)}`` (a ``faults`` message's or a
-        schedule's, :func:`adcs_sim.scenario.fault_schedule`) with :meth:`apply_fault`."""
+        schedule's, :func:`adcs_sim.truth.fault_schedule.fault_schedule`) with :meth:`apply_fault`."""
         for name, (mode, value, *_) in snapshot.items():
             self.apply_fault(self.names.index(name), mode, value)
 
@@ -296,55 +287,7 @@ class Disturbance:
         return self.constant + self.amplitude * np.sin(self.frequency * t + self.phase)
 
 
-@dataclass
-class CircularOrbit:
-    """Circular orbit; angles in rad. Position at time t: argument of latitude ``u0 + n t``."""
-
-    altitude: float
-    inclination: float = 0.0
-    raan: float = 0.0
-    arg_latitude0: float = 0.0
-    mu: float = MU_EARTH
-
-    @property
-    def radius(self) -> float:
-        return R_EARTH + self.altitude
-
-    @property
-    def mean_motion(self) -> float:
-        return math.sqrt(self.mu / self.radius ** 3)
-
-    def position_unit(self, t: float) -> np.ndarray:
-        """Unit position vector in the inertial frame (equatorial axes)."""
-        u = self.arg_latitude0 + self.mean_motion * t
-        cO, sO = math.cos(self.raan), math.sin(self.raan)
-        ci, si = math.cos(self.inclination), math.sin(self.inclination)
-        cu, su = math.cos(u), math.sin(u)
-        return np.array([cO * cu - sO * ci * su, sO * cu + cO * ci * su, si * su])
-
-    def gravity_gradient(self, t: float, q: np.ndarray, inertia: np.ndarray) -> np.ndarray:
-        """Gravity-gradient torque ``3 n^2 c x (J c)``, c = nadir unit vector in body axes."""
-        c = rotate_to_body(q, -self.position_unit(t))
-        return 3.0 * self.mean_motion ** 2 * cross(c, matvec(inertia, c))
-
-
 # --- the plant --------------------------------------------------------------------------------
-
-def check_inertia(J: np.ndarray, what: str = 'inertia') -> str | None:
-    """Why ``J`` is not a physical inertia matrix, or None (symmetric, PD, triangle inequality)."""
-    J = np.asarray(J, dtype=float)
-    if J.shape != (3, 3) or not np.all(np.isfinite(J)):
-        return f'{what} must be a finite 3x3 matrix'
-    if not np.allclose(J, J.T, rtol=0, atol=1e-12 * max(1.0, np.abs(J).max())):
-        return f'{what} must be symmetric'
-    eig = np.linalg.eigvalsh(J)
-    if eig[0] <= 0:
-        return f'{what} must be positive definite (principal moments {eig.tolist()})'
-    a, b, c = eig
-    if a + b < c * (1 - 1e-12):
-        return (f'{what} violates the triangle inequality of principal moments '
-                f'({a:g} + {b:g} < {c:g}): no rigid body has it')
-    return None
 
 
 class Plant:
@@ -357,7 +300,7 @@ class Plant:
     def __init__(self, inertia, actuators: list[Actuator] = (), disturbance: Disturbance | None = None,
                  orbit: CircularOrbit | None = None, gravity_gradient: bool = False) -> None:
         self.inertia = np.asarray(inertia, dtype=float)
-        _check_inertias(self.inertia, 'inertia')
+        check_inertias(self.inertia, 'inertia')
         self.actuators = list(actuators)
         names = [a.name for a in self.actuators]
         if len(set(names)) != len(names):
@@ -369,7 +312,7 @@ class Plant:
         self.gravity_gradient = gravity_gradient
         spin = sum((a.spin_inertia_matrix() for a in self.actuators), np.zeros((3, 3)))
         self.inertia_struct = self.inertia - spin
-        _check_inertias(self.inertia_struct, 'inertia minus wheel spin inertia')
+        check_inertias(self.inertia_struct, 'inertia minus wheel spin inertia')
         self.inertia_struct_inv = np.linalg.inv(self.inertia_struct)
         self.slices: dict[str, slice] = {}
         start = 7
@@ -505,16 +448,3 @@ def _per_wheel(value, default: float, n: int) -> np.ndarray:
     return arr
 
 
-def _check_inertias(J: np.ndarray, what: str) -> None:
-    """Raise ValueError unless ``J`` (3, 3) or each of a batch (..., 3, 3) is a physical inertia."""
-    if J.shape[-2:] != (3, 3):
-        raise ValueError(f'{what} must be 3x3 (or a batch of 3x3), got shape {J.shape}')
-    for i, Ji in enumerate(J.reshape(-1, 3, 3)):
-        problem = check_inertia(Ji, what)
-        if problem:
-            raise ValueError(problem if J.ndim == 2 else f'run {i}: {problem}')
-
-
-def rotate_to_inertial(q: np.ndarray, v_body: np.ndarray) -> np.ndarray:
-    """``R(q) v``: a body vector in inertial axes."""
-    return rotate_to_body(np.concatenate([-q[..., :3], q[..., 3:4]], axis=-1), v_body)

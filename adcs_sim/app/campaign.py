@@ -27,7 +27,7 @@ Distributions (``shape`` is the nominal value's: a scalar or a list):
 * ``run_index`` (integers, e.g. ``dynamics.noise.seed``): ``offset`` + the run's index.
 
 A scenario whose controller points a body axis (seed 003: ``sigma``, ``tau`` in its section) adds
-the pointing metrics of :func:`adcs_sim.analysis.pointing_metrics` (first entry and settling at
+the pointing metrics of :func:`adcs_sim.app.analysis.pointing_metrics` (first entry and settling at
 1°, 0.1°, 0.01°). ``series_every: k`` keeps each run's error time series (the pointing error for
 such a scenario, the eigenaxis error otherwise) every ``k`` control steps, for the figure of all
 runs (``adcs-montecarlo`` writes ``series.npz`` and ``figures/error_all_runs``).
@@ -54,9 +54,9 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
+from adcs_core.attitude import EULER_213
 from adcs_msgs_py.params import ParameterError, load_params_file, unflatten
-from adcs_sim.analysis import RunData, run_metrics
-from adcs_sim.attitude import EULER_213
+from adcs_sim.app.analysis import RunData, run_metrics
 
 DISTRIBUTIONS = {
     'normal': ({'std'}, {'mean', 'link'}),
@@ -155,7 +155,7 @@ class Campaign:
     @classmethod
     def load(cls, path, runs: int | None = None) -> 'Campaign':
         """Read and check a campaign file (``runs`` overrides its run count). Raises CampaignError."""
-        from adcs_sim.runner import RunError, resolve_scenario, validate_scenario
+        from adcs_sim.app.scenario_files import RunError, resolve_scenario, validate_scenario
         path = _resolve_campaign(Path(path))
         try:
             tree = yaml.safe_load(path.read_text(encoding='utf-8'))
@@ -226,7 +226,7 @@ class Campaign:
     # --- dispersions ---------------------------------------------------------------------------
 
     def _target(self, where: str, target: str) -> tuple[str, str, Any]:
-        from adcs_sim.registry import NODES
+        from adcs_sim.app.registry import NODES
         section, _, key = str(target).partition('.')
         if section not in self.nominal or section not in NODES:
             raise CampaignError(f'{where}: no section {section!r} in {self.scenario_path.name} '
@@ -318,7 +318,7 @@ class Campaign:
     def run_sections(self, index: int, inputs: dict[str, Any] | None = None) -> dict[str, dict[str, Any]]:
         """Validated sections of run ``index``; CampaignError naming the run and the key if the
         draw is impossible (e.g. a negative inertia). ``inputs`` as for :meth:`run_given`."""
-        from adcs_sim.registry import NODES
+        from adcs_sim.app.registry import NODES
         inputs = self.draw(index) if inputs is None else inputs
         out = {}
         for section, given in self.run_given(index, inputs).items():
@@ -363,7 +363,7 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
 
     A pure function of its arguments (what a Dask worker executes).
     """
-    from adcs_sim.batch import BatchSimulation
+    from adcs_sim.app.batch import BatchSimulation
     inputs = [campaign.draw(i) for i in indices]
     result = BatchSimulation.from_runs([campaign.run_sections(i, d) for i, d in zip(indices, inputs)]).run()
     rows = []
@@ -386,7 +386,7 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
 def error_series(result, j: int, every: int) -> dict:
     """Run ``j``'s error every ``every`` samples (deg, float32): the pointing error of a pointing
     run, else the eigenaxis attitude error; with its times (s)."""
-    from adcs_sim.analysis import attitude_errors_deg, pointing_error_deg
+    from adcs_sim.app.analysis import attitude_errors_deg, pointing_error_deg
     run = result.run_data(j)
     with np.errstate(all='ignore'):
         error = pointing_error_deg(run) if run.pointing is not None else attitude_errors_deg(run)[0]
@@ -403,7 +403,7 @@ def _resolve_campaign(path: Path) -> Path:
     """A campaign path, or a bare file name found in the ``campaigns`` folder of the configs."""
     if path.exists() or path.is_absolute() or len(path.parts) != 1:
         return path
-    from adcs_sim.runner import config_dirs
+    from adcs_sim.app.scenario_files import config_dirs
     for d in config_dirs():
         if (d / 'campaigns' / path.name).exists():
             return d / 'campaigns' / path.name

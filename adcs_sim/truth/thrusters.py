@@ -1,4 +1,4 @@
-"""On/off attitude thrusters as a plant actuator, and the orbit frame of seed 002 (no ROS).
+"""On/off attitude thrusters as a plant actuator (seed 002; no ROS).
 
 Thrusters (seed 002 section 2.5)
 --------------------------------
@@ -24,7 +24,7 @@ body so it is part of the state vector and recorded; fuel use is ``sum_i I_i / (
 
 Pulse edges inside an RK4 step
 ------------------------------
-The force is a step function of time, so a fixed RK4 step (:meth:`adcs_sim.plant.Plant.step`) that
+The force is a step function of time, so a fixed RK4 step (:meth:`adcs_sim.truth.plant.Plant.step`) that
 contains a pulse edge samples it at ``t_k``, ``t_k + h/2`` and ``t_k + h`` with weights 1/6, 4/6,
 1/6 (Simpson): the impulse of that step is off by up to ``F h / 3`` (edge just beside the
 midpoint). For an exact pulse use :func:`step_pulsed`: it splits the period at every pulse edge
@@ -35,17 +35,7 @@ attitude is integrated to RK4 accuracy on smooth segments. Bang-bang firing over
 was rejected: RK4 sees the pulse at three instants, so an average only matches the impulse if the
 whole step is averaged, and the actuator does not know the steps.
 
-Orbit frame (seed 002 section 2.1)
-----------------------------------
-``z_o`` to nadir, ``x_o`` along the velocity (tangential for a circular orbit), ``y_o = z_o x x_o``
-(the negative orbit normal). The frame turns at ``ω_o = sqrt(μ / r_c³)`` (eq. 1) about ``-y_o``:
-``ω_io`` in orbit axes is ``[0, -ω_o, 0]``, which with eq. (17) gives ``ω_ob = ω_ib + ω_o c_2``
-(``c_2`` = ``y_o`` in body axes). :func:`orbit_frame_attitude` gives the quaternion of the orbit
-frame in the inertial frame (scalar last; ``R(q_io)`` maps orbit axes to inertial ones);
-:func:`directional_cosines` gives ``c_1, c_2, c_3`` of eq. (3) (the columns of ``R^b_o``).
-Gravity gradient, eq. (19): ``τ_g = 3 ω_o² c_3 x (J c_3)`` is exactly
-:meth:`adcs_sim.plant.CircularOrbit.gravity_gradient` (``c_3`` = nadir in body axes);
-:func:`gravity_gradient_principal` is its closed form for a principal-axes inertia.
+The orbit frame and the gravity gradient of seed 002 are kernel geometry: :mod:`adcs_core.orbit`.
 """
 from __future__ import annotations
 
@@ -54,14 +44,11 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from adcs_sim.attitude import cross, matvec, quat_multiply
-from adcs_sim.plant import Actuator, CircularOrbit, Plant, rotate_to_body
+from adcs_core.attitude import cross, matvec
+from adcs_sim.truth.plant import Actuator, Plant
 
-__all__ = ['ThrusterCommand', 'Thrusters', 'step_pulsed', 'orbit_frame_matrix',
-           'orbit_frame_attitude', 'orbit_rate', 'directional_cosines',
-           'gravity_gradient_principal', 'body_in_orbit']
+__all__ = ['ThrusterCommand', 'Thrusters', 'step_pulsed']
 
 
 class ThrusterCommand(NamedTuple):
@@ -214,55 +201,4 @@ def step_pulsed(plant: Plant, t: float, x: np.ndarray, commands: dict, period: f
 
 # --- orbit frame ---------------------------------------------------------------------------------
 
-def orbit_frame_matrix(orbit: CircularOrbit, t: float) -> np.ndarray:
-    """``R^i_o`` (3, 3): columns ``x_o`` (along track), ``y_o`` (negative orbit normal) and ``z_o``
-    (nadir) in inertial axes at time ``t`` (section 2.1)."""
-    u = orbit.arg_latitude0 + orbit.mean_motion * t
-    cO, sO = math.cos(orbit.raan), math.sin(orbit.raan)
-    ci, si = math.cos(orbit.inclination), math.sin(orbit.inclination)
-    cu, su = math.cos(u), math.sin(u)
-    r = np.array([cO * cu - sO * ci * su, sO * cu + cO * ci * su, si * su])
-    v = np.array([-cO * su - sO * ci * cu, -sO * su + cO * ci * cu, si * cu])  # dr/du
-    z = -r
-    x = v
-    y = np.cross(z, x)
-    return np.stack([x, y, z], axis=-1)
 
-
-def orbit_frame_attitude(orbit: CircularOrbit, t: float) -> np.ndarray:
-    """Quaternion (scalar last) of the orbit frame in the inertial frame at time ``t``."""
-    q = Rotation.from_matrix(orbit_frame_matrix(orbit, t)).as_quat()
-    return q if q[3] >= 0 else -q
-
-
-def orbit_rate(orbit: CircularOrbit) -> tuple[float, np.ndarray]:
-    """``(ω_o, ω_io^o)``: the orbit rate of eq. (1) (rad/s) and the orbit frame's angular velocity
-    relative to the inertial frame in orbit axes, ``[0, -ω_o, 0]``."""
-    n = orbit.mean_motion
-    return n, np.array([0.0, -n, 0.0])
-
-
-def directional_cosines(orbit: CircularOrbit, t: float, q: np.ndarray) -> np.ndarray:
-    """``R^b_o = [c_1 c_2 c_3]`` of eq. (3) for body attitude ``q`` (..., 4) (body in inertial):
-    (..., 3, 3), column ``k`` the orbit axis ``k`` in body axes."""
-    R = orbit_frame_matrix(orbit, t)
-    cols = [rotate_to_body(np.asarray(q, dtype=float), R[:, k]) for k in range(3)]
-    return np.stack(cols, axis=-1)
-
-
-def gravity_gradient_principal(omega_o: float, c3: np.ndarray, moments: np.ndarray) -> np.ndarray:
-    """Eq. (19) written out for principal axes ``J = diag(Jx, Jy, Jz)``::
-
-        τ_g = 3 ω_o² [(Jz - Jy) c3y c3z, (Jx - Jz) c3z c3x, (Jy - Jx) c3x c3y]
-    """
-    c3 = np.asarray(c3, dtype=float)
-    Jx, Jy, Jz = np.asarray(moments, dtype=float)
-    x, y, z = c3[..., 0], c3[..., 1], c3[..., 2]
-    k = 3.0 * omega_o ** 2
-    return k * np.stack([(Jz - Jy) * y * z, (Jx - Jz) * z * x, (Jy - Jx) * x * y], axis=-1)
-
-
-def body_in_orbit(orbit: CircularOrbit, t: float, q: np.ndarray) -> np.ndarray:
-    """Quaternion of the body relative to the orbit frame (``q_io* ⊗ q``), scalar last."""
-    qo = orbit_frame_attitude(orbit, t)
-    return quat_multiply(np.concatenate([-qo[:3], qo[3:]]), np.asarray(q, dtype=float))

@@ -47,9 +47,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import yaml
 
+from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213
 from adcs_msgs_py import names as topics
 from adcs_sim import bag as bagio
-from adcs_sim.attitude import eigenaxis_angle, error_quaternion, euler_213
 
 NS = 1e-9
 

@@ -1,9 +1,9 @@
 """``adcs-analyze <bag> [<bag> ...]``: the run metrics of recorded bags, and their reports.
 
 The same numbers ``adcs-run`` prints at the end of a run; definitions in
-:mod:`adcs_sim.analysis`. ``--json`` prints machine-readable output.
+:mod:`adcs_sim.app.analysis`. ``--json`` prints machine-readable output.
 
-Each bag also gets a report (:mod:`adcs_sim.report`): ``report.md`` with the scenario, the
+Each bag also gets a report (:mod:`adcs_sim.app.report`): ``report.md`` with the scenario, the
 metrics and figures (PNG + SVG), written to ``<bag>/../report/`` (a ``report`` folder beside the
 bag folder) or ``--out DIR``. ``--compare`` writes one comparison of all the bags instead
 (``comparison.csv``, ``comparison.md``, overlaid figures) to ``--out DIR`` or ``comparison/`` in
@@ -21,11 +21,11 @@ import json
 import sys
 from pathlib import Path
 
-from adcs_sim.analysis import format_metrics, jsonable_metrics, run_metrics
+from adcs_sim.app.analysis import format_metrics, jsonable_metrics, run_metrics
 
 
 def _report_dir(out: Path | None, path: str, name: str, several: bool) -> Path:
-    from adcs_sim.report import default_report_dir
+    from adcs_sim.app.report import default_report_dir
     if out is None:
         return default_report_dir(path)
     return out / name if several else out
@@ -49,7 +49,7 @@ def main(argv=None) -> int:
                              'added to the comparison with the relative differences')
     parser.add_argument('--no-report', action='store_true', help='only print the metrics')
     args = parser.parse_args(argv)
-    from adcs_sim.report import BagError, load_run  # matplotlib only after the arguments are parsed
+    from adcs_sim.app.report import BagError, load_run  # matplotlib only after the arguments are parsed
     runs = {}
     status = 0
     for path in args.bags:
@@ -69,7 +69,7 @@ def main(argv=None) -> int:
         return status
     # Where the reports are goes to stdout with the table, to stderr with --json (stdout stays JSON).
     info = sys.stderr if args.json else sys.stdout
-    from adcs_sim import report
+    from adcs_sim.app import report
     if args.compare:
         if len(runs) < 2:
             print('adcs-analyze: --compare needs at least two readable bags', file=sys.stderr)

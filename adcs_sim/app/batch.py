@@ -1,18 +1,18 @@
 """Batch engine: N runs of one scenario advanced together, no ROS in the loop (numpy only).
 
-The graph is the faithful one-run-at-a-time path; campaigns (:mod:`adcs_sim.campaign`) need
+The graph is the faithful one-run-at-a-time path; campaigns (:mod:`adcs_sim.app.campaign`) need
 thousands of runs. This engine runs the *same* code as the graph with a leading batch axis:
 
-* the plant (:class:`adcs_sim.plant.Plant`, built by :func:`adcs_sim.scenario.build_plant` from
+* the plant (:class:`adcs_sim.truth.plant.Plant`, built by :func:`adcs_sim.truth.schema.build_plant` from
   the ``dynamics`` section) with the same fixed-step RK4 and zero-order hold over each control
-  period, on the same time grid (:func:`adcs_sim.scenario.step_timing`);
-* the same measurement model (:class:`adcs_sim.sensors.MeasurementModel`);
-* the controller section's law object (:data:`adcs_sim.registry.NODES` ``[section].law``, the
+  period, on the same time grid (:func:`adcs_sim.truth.schema.step_timing`);
+* the same measurement model (:class:`adcs_sim.truth.sensors.MeasurementModel`);
+* the controller section's law object (:data:`adcs_sim.app.registry.NODES` ``[section].law``, the
   one its node builds) and the same actuation (:class:`adcs_controllers.laws.allocation.Actuation`:
   minimum-norm allocation and saturation, or wheel speed commands for a law whose ``output`` is
   the wheel momentum; or the registry's own ``actuation`` of the section, e.g. seed 002's
   thrusters + pitch wheel, :class:`adcs_controllers.laws.backstepping.ThrusterActuation`, with
-  the plant stepped by :func:`adcs_sim.thrusters.step_pulsed` as the dynamics node does).
+  the plant stepped by :func:`adcs_sim.truth.thrusters.step_pulsed` as the dynamics node does).
 
 Each step mirrors the lockstep graph: the state at ``t_k`` is measured, the law computes a torque,
 the actuation turns it into commands, the applied body torque is recorded (``actuators/torque``)
@@ -25,7 +25,7 @@ duration, noise seed...); :meth:`adcs_msgs_py.params.Schema.stack` checks that.
 Runs that end early (a shorter ``duration``) or diverge (a non-finite state) are *masked*: they
 keep being carried through the array operations but their state is frozen and nothing more is
 recorded for them; the loop ends when no run is active. Every matrix product goes through
-:func:`adcs_sim.attitude.matvec`, so a run's numbers are the same bit for bit whichever runs share
+:func:`adcs_core.attitude.matvec`, so a run's numbers are the same bit for bit whichever runs share
 its batch.
 """
 from __future__ import annotations
@@ -35,14 +35,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from adcs_msgs_py.names import FAULT_ERROR_MODES
+from adcs_core.attitude import quat_normalize
+from adcs_core.faults import FAULT_ERROR_MODES
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.analysis import RunData, run_metrics
-from adcs_sim.attitude import quat_normalize
-from adcs_sim.plant import ReactionWheels, WheelCommand
-from adcs_sim.scenario import build_plant, fault_schedule, initial_state, step_timing
-from adcs_sim.sensors import MeasurementModel
-from adcs_sim.thrusters import Thrusters, step_pulsed
+from adcs_sim.app.analysis import RunData, run_metrics
+from adcs_sim.app.registry import NODES
+from adcs_sim.truth.fault_schedule import fault_schedule
+from adcs_sim.truth.plant import ReactionWheels, WheelCommand
+from adcs_sim.truth.schema import build_plant, initial_state, step_timing
+from adcs_sim.truth.sensors import MeasurementModel
+from adcs_sim.truth.thrusters import Thrusters, step_pulsed
 
 NS_PER_S = 1_000_000_000
 
@@ -71,7 +73,7 @@ class BatchResult:
         return self.q.shape[0]
 
     def run_data(self, i: int) -> RunData:
-        """Run ``i`` as the analysis library's :class:`~adcs_sim.analysis.RunData` (what a bag of
+        """Run ``i`` as the analysis library's :class:`~adcs_sim.app.analysis.RunData` (what a bag of
         the same run would give), so batch metrics are computed by the very same functions."""
         k = int(self.n_steps[i])
         q_ref = self.q_ref[i] if self.q_ref.ndim == 2 else self.q_ref
@@ -84,7 +86,7 @@ class BatchResult:
         return run
 
     def metrics(self, i: int, tol_deg: float = 0.5) -> dict:
-        """:func:`adcs_sim.analysis.run_metrics` of run ``i``."""
+        """:func:`adcs_sim.app.analysis.run_metrics` of run ``i``."""
         return run_metrics(self.run_data(i), tol_deg)
 
 
@@ -99,16 +101,13 @@ class BatchSimulation:
     @classmethod
     def from_runs(cls, runs: list[dict[str, dict]]) -> 'BatchSimulation':
         """A batch of N runs, each given as its validated sections (``{section: params}``, as
-        :func:`adcs_sim.runner.validate_scenario` returns them); the ``recorder`` section is left
+        :func:`adcs_sim.app.runner.validate_scenario` returns them); the ``recorder`` section is left
         out. Raises ParameterError for a parameter that differs but cannot (:meth:`Schema.stack`)."""
-        from adcs_sim.registry import NODES
         sections = {name: NODES[name].schema.stack([r[name] for r in runs]) for name in runs[0]
                     if NODES[name].role != 'recorder'}
         return cls(sections, len(runs))
 
     def __init__(self, sections: dict[str, dict], n_runs: int) -> None:
-        from adcs_controllers.laws.allocation import Actuation
-        from adcs_sim.registry import NODES
         if n_runs < 1:
             raise ValueError(f'a batch needs at least one run, got {n_runs}')
         if 'dynamics' not in sections:
@@ -137,8 +136,7 @@ class BatchSimulation:
         self.law = self.actuation = None
         if self.controller is not None:
             p = sections[self.controller]
-            self.law = NODES[self.controller].law(p)
-            self.actuation = (NODES[self.controller].actuation or Actuation)(p)
+            self.law, self.actuation = NODES[self.controller].family.build(p)
             if self.actuation.kind == 'wheels':
                 self.law.on_wheels(self.actuation.axes, self.actuation.available)
             if self.actuation.kind not in self.plant.slices:
@@ -166,7 +164,7 @@ class BatchSimulation:
 
     def _apply_faults(self, t_ns: int, applied: int) -> int:
         """Apply the latest fault snapshot stamped ``<= t_ns`` if newer than snapshot ``applied``
-        (the dynamics node's and the controller's rule, :mod:`adcs_sim.faults`): to the plant's
+        (the dynamics node's and the controller's rule, :mod:`adcs_core.faults`): to the plant's
         wheels, the allocation and the law. Returns the index of the snapshot in force."""
         due = max((i for i, (ts, _) in enumerate(self.fault_schedule) if ts <= t_ns), default=-1)
         if due <= applied:

@@ -51,3 +51,15 @@ class FaultTracker:
             self.late += sum(1 for t_ns in newly if t_ns <= self._previous)
         self.applied = latest
         return self.snapshots[latest][1]
+
+
+# Wheel states carried on FAULTS (one status per actuator): the faults (level ERROR) and the
+# nominal states (level OK). The plant, the fault schedule and the message conversions share them.
+FAULT_ERROR_MODES = ('failed', 'degraded', 'bias', 'stuck')
+
+
+FAULT_OK_MODES = ('nominal', 'recovered')
+
+
+# Faults under which a wheel produces no commanded torque: controllers allocate around it.
+FAULT_UNUSABLE_MODES = ('failed', 'stuck')

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from adcs_sim.attitude import quat_multiply, quat_normalize
+from adcs_core.attitude import quat_multiply, quat_normalize
 
 
 class MeasurementModel:

@@ -1,9 +1,39 @@
-"""Parameter schemas of the controller nodes (pure; the runner validates files with them)."""
+"""The controller families: for each controller node, its parameter schema, its law and its
+actuation, declared once (pure; no rclpy).
+
+A family (:class:`ControllerFamily`) is what a controller node executable is: the node
+(:mod:`adcs_controllers.nodes`) builds ``family.law(section)`` and ``family.actuation(section)``
+from its validated section, and the batch engine (:mod:`adcs_sim.app.batch`) builds the very same
+objects, so a graph run and its batch run execute the same code. The application's registry
+(:mod:`adcs_sim.app.registry`) lists :data:`FAMILIES` beside the simulator's own nodes.
+
+A new control law: its module in :mod:`adcs_controllers.laws`, its schema and family here, a
+three-line node module in :mod:`adcs_controllers.nodes` and its executable in ``setup.py``.
+"""
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from adcs_controllers.laws.allocation import Actuation
+from adcs_controllers.laws.backstepping import BacksteppingLaw, ThrusterActuation
+from adcs_controllers.laws.inertia_free import M2rLaw, M2sLaw
+from adcs_controllers.laws.inverse_optimal import GsmnLaw, KtLaw, MinNormLaw
+from adcs_controllers.laws.pd import PdLaw
+from adcs_controllers.laws.reconfiguration import TwoWheelReconfiguration
+from adcs_controllers.laws.single_axis import PointingALaw, PointingBLaw
+from adcs_controllers.laws.underactuated import SnlcGsmnLaw, SnlcLaw, SnlcMinNormLaw, ZeroMomentumLaw
+from adcs_msgs_py.blocks import (
+    check_per_wheel,
+    check_unit_quaternion,
+    check_wheels,
+    expect_faults_param,
+    inertia_param,
+    startup_params,
+    thruster_params,
+    wheel_params,
+)
 from adcs_msgs_py.params import Param, Schema, all_positive, non_negative, positive
-from adcs_sim.scenario import (check_per_wheel, check_unit_quaternion, check_wheels, expect_faults_param,
-                               inertia_param, startup_params, thruster_params, wheel_params)
 
 
 def _actuator_check(v: dict) -> None:
@@ -200,6 +230,7 @@ def _inertia_free_check(v: dict) -> None:
         raise ParameterError('actuator', "the seed 001 laws command external torques: set actuator "
                              "'torquers' (and torquers.enabled in the dynamics section)")
     import numpy as np
+
     from adcs_controllers.laws.inertia_free import actuation_matrix
     B = actuation_matrix(v)
     if B is not None and np.linalg.matrix_rank(B) != 3:
@@ -207,8 +238,8 @@ def _inertia_free_check(v: dict) -> None:
 
 
 def _m2r_check(v: dict) -> None:
-    from adcs_msgs_py.params import ParameterError
     from adcs_controllers.laws.inertia_free import actuation_matrix, check_m2r_gains
+    from adcs_msgs_py.params import ParameterError
     _inertia_free_check(v)
     if any(v['target.rate']):
         raise ParameterError('target.rate', f'M2R brings the body to rest: must be [0, 0, 0], got {v["target.rate"]!r}')
@@ -296,8 +327,9 @@ def _pointing_check(v: dict) -> None:
     """Wheels with their spin inertia (the node forms h = sum a_i Js_i Omega_i from wheels/state),
     and the pointing request feasible: eq. (14), |alpha| <= pi/2 - |lambda|."""
     import numpy as np
-    from adcs_msgs_py.params import ParameterError
+
     from adcs_controllers.laws.single_axis import body_axis_angles, elevation
+    from adcs_msgs_py.params import ParameterError
     _actuator_check(v)
     if v['actuator'] != 'wheels':
         raise ParameterError('actuator', "the pointing laws need the wheels' momentum: actuator 'wheels'")
@@ -359,8 +391,8 @@ POINTING_B_SCHEMA = Schema('pointing_b_controller', [
 # --- seed 002: quaternion integrator backstepping, four thrusters and one pitch wheel -----------
 
 def _backstepping_check(v: dict) -> None:
+    from adcs_msgs_py.blocks import check_thrusters
     from adcs_msgs_py.params import ParameterError
-    from adcs_sim.scenario import check_thrusters
     check_wheels(v, with_physics=False)
     if len(v['wheels.names']) != 1:
         raise ParameterError('wheels.names', 'the backstepping allocation (eq. 20-21) has exactly one '
@@ -374,6 +406,7 @@ def _backstepping_check(v: dict) -> None:
         raise ParameterError('firing.off_level', f'must not exceed firing.on_level '
                              f'({v["firing.on_level"]} N), got {v["firing.off_level"]}')
     import numpy as np
+
     from adcs_controllers.laws.backstepping import actuator_matrix, positive_null_vector
     n = len(v['thrusters.names'])
     B = actuator_matrix(np.reshape(v['thrusters.positions'], (n, 3)),
@@ -425,3 +458,63 @@ BACKSTEPPING_SCHEMA = Schema('backstepping_controller', [
     expect_faults_param(),
 ], cross_check=_backstepping_check,
     doc='quaternion integrator backstepping, seed 002 eq. (22-35), thrusters + pitch wheel (eq. 20-21)')
+
+
+# --- the families: schema, law and actuation of each controller node ---------------------------
+
+@dataclass(frozen=True)
+class ControllerFamily:
+    """One controller node: its section's ``schema``, its ``law`` (a class or builder called with the
+    validated section) and, for a law with actuators of its own (seed 002's thrusters), its
+    ``actuation`` builder (default: :class:`~adcs_controllers.laws.allocation.Actuation`, wheel
+    allocation and saturation, or the ideal torquers)."""
+
+    schema: Schema
+    law: Callable[[dict], Any]
+    actuation: Callable[[dict], Any] | None = None
+
+    @property
+    def node(self) -> str:
+        """The section, executable and node name."""
+        return self.schema.node
+
+    @property
+    def module(self) -> str:
+        """The node's module (``python -m`` target, ``setup.py`` entry point)."""
+        return f'adcs_controllers.nodes.{self.schema.node}'
+
+    def build(self, p: dict) -> tuple[Any, Any]:
+        """``(law, actuation)`` from a validated section: what the node and the batch engine run."""
+        return self.law(p), (self.actuation or Actuation)(p)
+
+
+def _pointing(law_class):
+    """Seed 003's laws from a validated section: the section's ``momentum`` is the law's ``H``."""
+    def build(p: dict):
+        return law_class({**p, 'H': p['momentum']})
+    build.__name__ = f'{law_class.__name__}_from_section'
+    return build
+
+
+# seed 004: PD benchmark, min-norm, gain-scheduled min-norm, Krstic-Tsiotras
+PD = ControllerFamily(PD_SCHEMA, PdLaw)
+MINNORM = ControllerFamily(MINNORM_SCHEMA, MinNormLaw)
+GSMN = ControllerFamily(GSMN_SCHEMA, GsmnLaw)
+KT = ControllerFamily(KT_SCHEMA, KtLaw)
+# seed 000: two wheels (optionally after a three-wheel PD phase, switching on a wheel fault)
+ZERO_MOMENTUM = ControllerFamily(ZERO_MOMENTUM_SCHEMA, TwoWheelReconfiguration.factory(ZeroMomentumLaw))
+SNLC = ControllerFamily(SNLC_SCHEMA, TwoWheelReconfiguration.factory(SnlcLaw))
+SNLC_MINNORM = ControllerFamily(SNLC_MINNORM_SCHEMA, TwoWheelReconfiguration.factory(SnlcMinNormLaw))
+SNLC_GSMN = ControllerFamily(SNLC_GSMN_SCHEMA, TwoWheelReconfiguration.factory(SnlcGsmnLaw))
+# seed 001: inertia-free laws on ideal external torquers
+M2R = ControllerFamily(M2R_SCHEMA, M2rLaw)
+M2S = ControllerFamily(M2S_SCHEMA, M2sLaw)
+# seed 003: single-axis pointing, two wheels, non-zero momentum (laws need the wheel momentum)
+POINTING_A = ControllerFamily(POINTING_A_SCHEMA, _pointing(PointingALaw))
+POINTING_B = ControllerFamily(POINTING_B_SCHEMA, _pointing(PointingBLaw))
+# seed 002: thrusters + pitch wheel, backstepping tracking
+BACKSTEPPING = ControllerFamily(BACKSTEPPING_SCHEMA, BacksteppingLaw, ThrusterActuation)
+
+FAMILIES: dict[str, ControllerFamily] = {f.node: f for f in (
+    PD, MINNORM, GSMN, KT, ZERO_MOMENTUM, SNLC, SNLC_MINNORM, SNLC_GSMN, M2R, M2S, POINTING_A, POINTING_B,
+    BACKSTEPPING)}

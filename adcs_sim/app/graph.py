@@ -1,0 +1,182 @@
+"""The node processes of one run: started, watched and stopped in order; the run's progress bar on
+``/clock``; the run's environment and domain lease."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from adcs_msgs_py.node import network_hygiene_defaults
+from adcs_sim import bag as bagio
+from adcs_sim.app.domains import DomainLease
+from adcs_sim.app.scenario_files import RunError
+
+STOP_TIMEOUT_S = 20.0
+
+
+class Graph:
+    """The node processes of one run, started and stopped in order."""
+
+    def __init__(self, env: dict, log_dir: Path) -> None:
+        self.env = env
+        self.log_dir = log_dir
+        self.procs: dict[str, subprocess.Popen] = {}
+        self.logs: dict[str, Path] = {}
+        self.commands: dict[str, tuple[str, list[str]]] = {}   # name -> (module, args), for restarts
+        self.signals: list[int] = []   # SIGINT / SIGTERM received by the runner
+        self.stopping = False          # shutdown under way: a signal no longer interrupts it
+
+    def on_signal(self, signum, frame) -> None:  # noqa: ARG002
+        """The runner's SIGINT/SIGTERM handler: only records the signal. The run loop notices it
+        at its next safe point (:meth:`check`), never between starting a process and recording
+        it, and never in the middle of stopping the graph (a second Ctrl-C does not abort the
+        shutdown and leave processes behind)."""
+        self.signals.append(signum)
+
+    def check(self) -> None:
+        """Raise KeyboardInterrupt if a signal came and the graph is not already stopping."""
+        if self.signals and not self.stopping:
+            raise KeyboardInterrupt
+
+    def start(self, name: str, module: str, args: list[str]) -> subprocess.Popen:
+        log = self.log_dir / f'{name}.log'
+        self.logs[name] = log
+        self.commands[name] = (module, args)
+        with open(log, 'wb') as f:
+            proc = subprocess.Popen([sys.executable, '-m', module, '--ros-args', *args],
+                                    stdout=f, stderr=subprocess.STDOUT, env=self.env,
+                                    stdin=subprocess.DEVNULL, start_new_session=True)
+        self.procs[name] = proc
+        return proc
+
+    def log_tail(self, name: str, lines: int = 15) -> str:
+        try:
+            text = self.logs[name].read_text(errors='replace').strip().splitlines()
+        except OSError:
+            return ''
+        return '\n'.join(text[-lines:])
+
+    def wait_for_line(self, name: str, line: str, timeout: float) -> None:
+        """Wait until process ``name`` prints ``line`` (it is alive and ready)."""
+        deadline = time.monotonic() + timeout
+        proc = self.procs[name]
+        while line not in self.logs[name].read_text(errors='replace'):
+            self.check()
+            if proc.poll() is not None:
+                raise RunError(f'{name} exited with status {proc.returncode} at start:\n{self.log_tail(name)}')
+            if time.monotonic() > deadline:
+                raise RunError(f'{name} not ready after {timeout:g} s:\n{self.log_tail(name)}')
+            time.sleep(0.02)
+
+    def restart(self, name: str, attempt: int) -> subprocess.Popen:
+        """Start a dead node again with the same command line; its old log is kept as
+        ``<name>.<attempt>.log``."""
+        self.logs[name].rename(self.log_dir / f'{name}.{attempt}.log')
+        return self.start(name, *self.commands[name])
+
+    def describe_exit(self, name: str) -> str:
+        """``'<name> exited with status N'`` or ``'<name> was killed by SIGKILL'``."""
+        code = self.procs[name].returncode
+        if code is not None and code < 0:
+            try:
+                return f'{name} was killed by {signal.Signals(-code).name}'
+            except ValueError:
+                pass
+        return f'{name} exited with status {code}'
+
+    def failed(self, names) -> tuple[str, int] | None:
+        """The first of ``names`` that has exited (name, status), or None."""
+        for name in names:
+            code = self.procs[name].poll()
+            if code is not None:
+                return name, code
+        return None
+
+    def stop(self, name: str, timeout: float = STOP_TIMEOUT_S) -> int | None:
+        """SIGINT, then SIGKILL after ``timeout``; returns the exit status."""
+        proc = self.procs.get(name)
+        if proc is None:
+            return None
+        if proc.poll() is None:
+            try:
+                os.killpg(proc.pid, signal.SIGINT)
+            except ProcessLookupError:
+                pass
+            try:
+                proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+        return proc.returncode
+
+    def stop_all(self, recorder_last: str | None = 'recorder') -> None:
+        self.stopping = True
+        for name in list(self.procs):
+            if name != recorder_last:
+                self.stop(name)
+        if recorder_last in self.procs:
+            self.stop(recorder_last)
+
+
+class Progress:
+    """/clock subscriber driving a tqdm bar in simulated seconds."""
+
+    def __init__(self, duration: float, enabled: bool) -> None:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+        from rosgraph_msgs.msg import Clock
+        from tqdm import tqdm
+        self.rclpy = rclpy
+        self.context = Context()
+        rclpy.init(context=self.context, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+        self.node = rclpy.create_node('adcs_run_progress', context=self.context)
+        self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.sim_time = 0.0
+        self.bar = tqdm(total=duration, unit='sim s', disable=not enabled, dynamic_ncols=True,
+                        bar_format='{l_bar}{bar}| {n:.0f}/{total:.0f} sim s [{elapsed}<{remaining}]')
+        qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+        self.node.create_subscription(Clock, '/clock', self._on_clock, qos)
+
+    def _on_clock(self, msg) -> None:
+        t = msg.clock.sec + msg.clock.nanosec * 1e-9
+        if t > self.sim_time:
+            self.bar.update(t - self.sim_time)
+            self.sim_time = t
+
+    def spin(self, seconds: float) -> None:
+        self.executor.spin_once(timeout_sec=seconds)
+
+    def close(self) -> None:
+        self.bar.close()
+        self.node.destroy_node()
+        self.rclpy.try_shutdown(context=self.context)
+
+
+def graph_env(lease: DomainLease, allow_network: bool = False) -> dict:
+    """The environment of every process of a run: the leased domain, loopback-only discovery
+    unless ``allow_network``, our Fast DDS profile unless the user gave one."""
+    network_hygiene_defaults()
+    return lease.env(allow_network=allow_network)
+
+
+def recorded_state(bag_dir: Path) -> bool:
+    """Whether the bag (complete, or as flushed so far) holds at least one state message."""
+    try:
+        return any(topic.endswith('/state') for topic, *_ in bagio.read_raw(bag_dir))
+    except (OSError, ValueError):
+        return False
+
+
+def lease_domain(domain_id: int | None = None) -> DomainLease:
+    """A fresh domain id in 1..99, or exactly ``domain_id`` (refused if a run here holds it)."""
+    if domain_id is None:
+        return DomainLease(1, 99)
+    try:
+        return DomainLease(domain_id, domain_id)
+    except (RuntimeError, ValueError) as exc:
+        raise RunError(f'--domain-id {domain_id}: {exc}') from None

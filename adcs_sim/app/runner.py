@@ -1,0 +1,225 @@
+"""``adcs-run [scenario.yaml] [--out DIR] [--duration S]``: one scenario, end to end.
+
+1. Validates every section of the scenario file with its node's schema (nothing starts if one
+   is wrong; the message names the key). An unknown section is an error.
+2. Leases a fresh ``ROS_DOMAIN_ID`` (1..99) and sets ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``
+   for every process it starts. Only ``--allow-network`` (discovery on the local subnet, for a
+   graph spread over several hosts; give every host the same ``--domain-id``) widens that.
+3. Starts the recorder first (always: a run of the runner is always recorded; a ``recorder``
+   section only tunes it), waits until it is subscribed, then every other node of the file as
+   its own process, each told to wait for the recorder before its first message.
+4. Shows a progress bar in simulated time (from ``/clock``) until the dynamics node finishes.
+5. Stops the controllers, then the recorder (which closes the bag), and prints the metrics
+   (:mod:`adcs_sim.app.analysis`), also written to ``<out>/metrics.json``.
+
+A node that fails at start stops the whole graph; the runner exits non-zero with that node's
+error and removes the output folder (no partial bag claims to be a run). A node that dies
+mid-run stops the graph too, but the bag of what was recorded is kept (a folder holding a
+recorded state is never removed) and the error names the node and how it died. Ctrl-C /
+SIGTERM at any moment — start-up, mid-run, shutdown, twice — stop everything cleanly (recorder
+last, so the bag is complete) and leave no process behind: the handler only records the signal,
+the run loop acts on it at safe points, and once stopping has begun nothing interrupts it.
+
+Output folder layout: ``<out>/bag`` (the rosbag2 MCAP bag), ``<out>/logs/<node>.log``,
+``<out>/metrics.json``, ``<out>/scenario.yaml`` (a copy).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import signal
+import sys
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+
+from adcs_msgs_py.params import ParameterError
+from adcs_sim.app.analysis import RunData, format_metrics, jsonable_metrics, run_metrics
+from adcs_sim.app.graph import Graph, Progress, graph_env, lease_domain, recorded_state
+from adcs_sim.app.registry import NODES
+from adcs_sim.app.scenario_files import DEFAULT_SCENARIO, RunError, config_dirs, resolve_scenario, validate_scenario
+from adcs_sim.nodes.recorder import READY_LINE
+
+__all__ = ['DEFAULT_SCENARIO', 'RunError', 'config_dirs', 'resolve_scenario', 'validate_scenario',
+           'graph_env', 'lease_domain', 'run_scenario', 'main']
+
+READY_TIMEOUT_S = 60.0
+
+
+@dataclass
+class _Run:
+    """One run under way: its validated sections, files, graph and what has happened so far."""
+
+    scenario: Path
+    validated: dict
+    bag_dir: Path
+    graph: Graph
+    duration: float | None
+    restarts: int
+    others: list[str] = field(default_factory=list)   # nodes other than the recorder and dynamics
+    started: bool = False      # a state was published (the bag holds recorded data)
+    restarts_done: int = 0
+    progress: Progress | None = None
+
+
+def _start_graph(run: _Run, show_progress: bool):
+    """Start the recorder (and wait until it is ready), the other nodes, then the dynamics node,
+    which starts the clock once every expected subscriber is matched. Returns the dynamics process."""
+    graph, validated = run.graph, run.validated
+    common = ['--params-file', str(run.scenario)]
+    graph.start('recorder', NODES['recorder'].module,
+                [*common, '-p', f'output:={run.bag_dir}', '-p', f'scenario_file:={run.scenario}'])
+    graph.wait_for_line('recorder', READY_LINE, READY_TIMEOUT_S)
+    run.others = [s for s in validated if s not in ('recorder', 'dynamics')]
+    n_state_subscribers = sum(NODES[s].role == 'controller' for s in run.others) + 1
+    # With a fault injector, the nodes that act on faults first collect its whole schedule.
+    expect_faults = ['-p', 'startup.expect_faults:=true'] if 'fault_injector' in validated else []
+    for name in run.others:
+        graph.check()
+        extra = expect_faults if NODES[name].role == 'controller' else []
+        graph.start(name, NODES[name].module, [*common, '-p', 'startup.expect_recorder:=true', *extra])
+    dyn_args = [*common, '-p', 'startup.expect_recorder:=true', *expect_faults,
+                '-p', f'startup.state_subscribers:={n_state_subscribers}']
+    if run.duration is not None:
+        dyn_args += ['-p', f'duration:={float(run.duration)!r}']
+    graph.check()
+    dynamics = graph.start('dynamics', NODES['dynamics'].module, dyn_args)
+    run.progress = Progress(validated['dynamics']['duration'], show_progress)
+    return dynamics
+
+
+def _supervise(run: _Run, dynamics) -> None:
+    """Follow the run until the dynamics node exits: restart a dead controller (``--restart``) or
+    stop with a RunError naming the node that died and how."""
+    graph, prog = run.graph, run.progress
+    watched = ['recorder', *run.others]
+    while dynamics.poll() is None:
+        graph.check()
+        prog.spin(0.2)
+        if prog.sim_time > 0:
+            run.started = True
+        dead = graph.failed(watched)
+        if not dead:
+            continue
+        name, _ = dead
+        run.started = run.started or recorded_state(run.bag_dir)   # /clock may not have reached us yet
+        if run.started and NODES[name].role == 'controller' and run.restarts_done < run.restarts:
+            run.restarts_done += 1
+            print(f'adcs-run: {graph.describe_exit(name)} at t = {prog.sim_time:g} s; '
+                  f'restarting it ({run.restarts_done} of {run.restarts})', file=sys.stderr, flush=True)
+            graph.restart(name, run.restarts_done)
+            continue
+        raise RunError(f'{graph.describe_exit(name)} {"during" if run.started else "before"} the run; '
+                       f'graph stopped{f", bag kept in {run.bag_dir}" if run.started else ""}:\n'
+                       f'{graph.log_tail(name)}')
+    if dynamics.returncode != 0:
+        run.started = run.started or (run.bag_dir / 'metadata.yaml').exists() or prog.sim_time > 0
+        raise RunError(f'{graph.describe_exit("dynamics")}:\n{graph.log_tail("dynamics")}')
+    run.started = True
+
+
+def _stop_graph(run: _Run) -> None:
+    """The run completed: stop the other nodes, then the recorder (which closes the bag)."""
+    graph = run.graph
+    run.progress.close()
+    run.progress = None
+    graph.stopping = True   # from here a signal cannot cut the shutdown short
+    for name in run.others:
+        graph.stop(name)
+    code = graph.stop('recorder')
+    if code != 0:
+        raise RunError(f'{graph.describe_exit("recorder")}:\n{graph.log_tail("recorder")}')
+    if graph.signals:
+        raise RunError(f'interrupted by {signal.Signals(graph.signals[0]).name} during shutdown; '
+                       f'the run had completed, bag kept in {run.bag_dir}')
+
+
+def run_scenario(scenario: Path, out: Path, duration: float | None = None, progress: bool = True,
+                 tol_deg: float = 0.5, allow_network: bool = False, domain_id: int | None = None,
+                 restarts: int = 0) -> dict:
+    """Run one scenario end to end; return its metrics. Raises RunError / ParameterError.
+
+    ``restarts``: how many times a controller that dies mid-run is started again (it rejoins
+    the lockstep loop at the next state; the steps without it are missed steps under the
+    dynamics node's timeout policy). 0: a dead node stops the graph."""
+    validated = validate_scenario(scenario, duration)
+    if out.exists() and any(out.iterdir()):
+        raise RunError(f'output folder {out} exists and is not empty')
+    lease = lease_domain(domain_id)   # before anything is written: a refused id leaves no folder
+    log_dir = out / 'logs'
+    log_dir.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(scenario, out / 'scenario.yaml')
+    graph = Graph(graph_env(lease, allow_network), log_dir)
+    run = _Run(scenario, validated, out / 'bag', graph, duration, restarts)
+    print(f'adcs-run: ROS_DOMAIN_ID={lease.domain_id}, discovery '
+          f'{graph.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]}', flush=True)
+    old_handlers = {s: signal.signal(s, graph.on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        _supervise(run, _start_graph(run, progress))
+        _stop_graph(run)
+    except KeyboardInterrupt:
+        graph.stop_all()
+        sig = signal.Signals(graph.signals[0]).name if graph.signals else 'SIGINT'
+        kept = f'bag kept in {run.bag_dir}' if run.bag_dir.exists() else 'no bag was recorded yet'
+        raise RunError(f'interrupted by {sig} ({"during" if run.started else "before"} the run); {kept}') from None
+    except BaseException:
+        graph.stop_all()
+        if not (run.started or recorded_state(run.bag_dir)):   # never delete recorded data
+            shutil.rmtree(out, ignore_errors=True)
+        raise
+    finally:
+        if run.progress is not None:
+            run.progress.close()
+        graph.stop_all()
+        lease.release()
+        for s, h in old_handlers.items():
+            signal.signal(s, h)
+    metrics = run_metrics(RunData.from_bag(run.bag_dir), tol_deg)
+    (out / 'metrics.json').write_text(json.dumps(jsonable_metrics(metrics), indent=2))
+    return metrics
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog='adcs-run', description=__doc__.splitlines()[0])
+    parser.add_argument('scenario', nargs='?', default=None,
+                        help=f'scenario params file, or the name of one in config/ (default {DEFAULT_SCENARIO})')
+    parser.add_argument('--out', type=Path, default=None, help='output folder (default runs/<scenario>-<time>)')
+    parser.add_argument('--duration', type=float, default=None, help='override the simulated duration (s)')
+    parser.add_argument('--tolerance-deg', type=float, default=0.5,
+                        help='settling band for the printed metrics (deg; default 0.5)')
+    parser.add_argument('--no-progress', action='store_true', help='no progress bar')
+    parser.add_argument('--report', action='store_true',
+                        help='also write the report (adcs-analyze: report.md + figures) to <out>/report')
+    parser.add_argument('--allow-network', action='store_true',
+                        help='let DDS discover nodes on the local subnet (multi-host graphs); by '
+                             'default discovery is limited to this machine (localhost)')
+    parser.add_argument('--domain-id', type=int, default=None,
+                        help='use this ROS_DOMAIN_ID (0..232; e.g. the same on every host with '
+                             '--allow-network) instead of a fresh free one')
+    parser.add_argument('--restart', type=int, default=0, metavar='N',
+                        help='start a controller that dies mid-run again, up to N times (it rejoins '
+                             'the lockstep loop; the steps without it are missed steps); default 0: '
+                             'a node that dies stops the run')
+    args = parser.parse_args(argv)
+    try:
+        scenario = resolve_scenario(args.scenario)
+        out = args.out or Path('runs') / f'{scenario.stem}-{datetime.now():%Y%m%d-%H%M%S}'
+        print(f'adcs-run: {scenario} -> {out}', flush=True)
+        metrics = run_scenario(scenario, out, args.duration, not args.no_progress and sys.stderr.isatty(),
+                               args.tolerance_deg, args.allow_network, args.domain_id, args.restart)
+    except (ParameterError, RunError) as exc:
+        print(f'adcs-run: error: {exc}', file=sys.stderr)
+        return 1 if isinstance(exc, RunError) else 2
+    print(f'bag: {out / "bag"}')
+    print('metrics:')
+    print(format_metrics(metrics))
+    if args.report:
+        from adcs_sim.app import report
+        run = report.load_run(out / 'bag')
+        print(f'report: {report.write_report(run, out / "report", args.tolerance_deg)}')
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
