@@ -341,8 +341,8 @@ def test_wheel_declares_console_scripts_and_ros_data_files(wheel):
         assert wheel.data_prefix + data_file in wheel.names, (
             f'{data_file} not among the wheel data files '
             f'({sorted(n for n in wheel.names if ".data/" in n)})')
-    # The nodes' Fast DDS profile (package data, located next to adcs_sim/nodes at run time).
-    assert f'{PACKAGE}/fastdds_profile.xml' in wheel.names
+    # The nodes' Fast DDS profile (package data beside the node base class, adcs_msgs_py/node.py).
+    assert 'adcs_msgs_py/fastdds_profile.xml' in wheel.names
 
 
 @pytest.mark.parametrize('script', sorted(CONSOLE_SCRIPTS))

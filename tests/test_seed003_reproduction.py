@@ -96,9 +96,21 @@ def test_table1_all_runs_converge_and_the_papers_comparison_holds():
     # B faster to large errors, A faster to fine ones (section 5.3)
     assert column(b, 'pointing_first_1deg_s').mean() < column(a, 'pointing_first_1deg_s').mean()
     assert column(a, 'pointing_settling_0.01deg_s').mean() < column(b, 'pointing_settling_0.01deg_s').mean()
-    # B's spread barely depends on the precision (the paper's remark on Table 1): within 30 %
+
+
+PINNED_B_SPREAD_RATIO = 1.290865412931518  # ours, from docs/montecarlo/pointing_table1/results.csv
+
+
+def test_disagreement_b_spread_grows_with_the_precision():
+    """DISAGREEMENT with the paper's remark on Table 1, pinned: its B spread is "apparently
+    unaffected by the required level of pointing precision" (98 / 100 / 101 s: max/min 1.03);
+    ours grows from 42 to 54 s (staying below; max/min 1.29) while the mean doubles (282 -> 599 s).
+    The ratio is pinned to 1e-9 (the campaign's rows are deterministic)."""
+    b = results('pointing_table1')
     std = [column(b, f'pointing_settling_{x}deg_s').std() for x in ('1', '0.1', '0.01')]
-    assert max(std) < 1.3 * min(std)
+    assert 101 / 98 < 1.05
+    assert max(std) / min(std) > 1.05
+    assert max(std) / min(std) == pytest.approx(PINNED_B_SPREAD_RATIO, rel=1e-9)
 
 
 @pytest.mark.parametrize('name, campaign', [('pointing_table1', 'pointing_table1.yaml'),
@@ -131,7 +143,15 @@ def test_small_campaign_through_the_cli_equals_the_committed_rows(tmp_path):
     assert len(small) == 20
     for row in small:
         old = committed[int(row['run'])]
-        assert row == old
+        assert row.keys() == old.keys()
+        for key, value in row.items():
+            # Bit for bit on the machine that made the rows; across CPUs numpy's SIMD paths for
+            # sin/cos/arctan2 (AVX-512 vs AVX2) may differ by an ulp, which the settling of a
+            # 1e-4 deg error turns into ~1e-9 relative: the sibling test's tolerance.
+            try:
+                assert float(value) == pytest.approx(float(old[key]), rel=1e-9, abs=1e-12), (row['run'], key)
+            except ValueError:
+                assert value == old[key], (row['run'], key)
     series = np.load(out / 'series.npz')
     assert series['error_deg'].shape == (20, 151) and series['t'][-1] == 1500.0
     assert np.all(series['error_deg'][:, -1] < 0.01)

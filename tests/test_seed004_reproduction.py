@@ -114,14 +114,23 @@ def test_kt_integrated_torque_table1():
 
 
 def test_gsmn_saves_integrated_torque_over_kt_table1():
-    """Paper: GSMN 26.95 vs KT 35.66 N m s, a 24.4 % saving. Ours: 27.67 vs 35.80, 22.7 %.
-    GSMN's own figure is 2.7 % above the paper's (not within 2 %: docs/seed004.md); the saving
-    is tested, to within 2.5 percentage points."""
+    """Paper (Table I): GSMN needs less integrated torque than KT (26.95 vs 35.66 N m s, a 24.4 %
+    saving). Ours: 27.66 vs 35.80 (22.7 %). The claim tested is the saving's sign; its size and
+    GSMN's own figure disagree with the paper (next test)."""
     g = metrics('table1_gsmn')['integrated_torque_Nms']
     k = metrics('table1_krstic_tsiotras')['integrated_torque_Nms']
-    saving = 1 - g / k
-    assert abs(saving - (1 - 26.95 / 35.66)) < 0.025, saving
-    assert rel(g, 26.95) < 0.03, g
+    assert g < k, (g, k)
+
+
+def test_disagreement_table1_gsmn_integrated_torque_above_the_paper():
+    """DISAGREEMENT with Table I, pinned: GSMN's ∫‖u‖dt is 27.66 N m s against the paper's 26.95
+    (+2.6 %, outside the paper's four-digit precision and the 2 % the issue asks; the reading of
+    eq. 17 is in docs/seed004_readings.md). The recorded value is pinned to 0.1 % (the bag is
+    deterministic; 0.1 % leaves room for a re-recording on another machine's libm, not for a
+    change of the law)."""
+    g = metrics('table1_gsmn')['integrated_torque_Nms']
+    assert rel(g, 27.66) < 1e-3, g
+    assert rel(g, 26.95) > 0.02, g
 
 
 def test_gsmn_faster_than_kt_on_every_axis_table1():
@@ -133,11 +142,12 @@ def test_gsmn_faster_than_kt_on_every_axis_table1():
 
 
 def test_gsmn_peak_torque_below_kt_table1():
-    """Paper: GSMN "tuned to deliver a lower maximum instantaneous torque" (69.98 vs 139 N m).
-    Ours: 55.6 vs 133.5 N m. The paper's per-axis GSMN peaks (X -40.4, Y -16.77, Z -69.98) are not
-    reproduced: eq. 17's first torque already has X = -53.06 N m (docs/seed004.md)."""
+    """Paper: GSMN "tuned to deliver a lower maximum instantaneous torque" (69.98 vs 139 N m: the
+    claim is "lower", the paper's own ratio 0.503). Ours: 55.6 vs 133.5 N m. The paper's per-axis
+    GSMN peaks (X -40.4, Y -16.77, Z -69.98) are not reproduced: eq. 17's first torque already has
+    X = -53.06 N m (docs/seed004.md)."""
     g, k = np.abs(peak_signed('table1_gsmn')), np.abs(peak_signed('table1_krstic_tsiotras'))
-    assert g.max() < 0.5 * k.max()
+    assert g.max() < k.max()
     assert np.all(peak_signed('table1_gsmn') < 0) and np.all(peak_signed('table1_krstic_tsiotras') < 0)
 
 
