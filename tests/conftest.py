@@ -188,3 +188,19 @@ def plain_message(value):
     if isinstance(value, (list, tuple)):
         return tuple(plain_message(v) for v in value)
     return value
+
+
+# A committed bag recorded on one CPU, compared with the batch engine on another: numpy dispatches
+# sin, cos, arccos, arctan2 ... to SIMD kernels chosen for the CPU (AVX-512 vs AVX2 vs baseline),
+# which may differ by an ulp; a closed-loop run carries that to ~1e-11 relative (seen: 3.2e-11 on
+# the seed 002 slew). On one machine the graph and the batch engine are equal bit for bit (the
+# node-pair tests check that in the same run); across machines, to this tolerance.
+CROSS_CPU_RTOL = 1e-9
+
+
+def assert_recorded_run_equal(actual, recorded) -> None:
+    """``actual`` (computed here) equals ``recorded`` (a committed bag's): bit for bit on the CPU
+    that recorded it, to :data:`CROSS_CPU_RTOL` on another (see there)."""
+    actual, recorded = np.asarray(actual), np.asarray(recorded)
+    if not np.array_equal(actual, recorded):
+        np.testing.assert_allclose(actual, recorded, rtol=CROSS_CPU_RTOL, atol=1e-15)

@@ -21,8 +21,8 @@ import math
 
 import numpy as np
 import pytest
-from conftest import ROOT
-from numpy.testing import assert_allclose, assert_array_equal
+from conftest import ROOT, assert_recorded_run_equal
+from numpy.testing import assert_allclose
 
 from adcs_sim.app.analysis import RunData, attitude_errors_deg, settling_time, thruster_metrics
 
@@ -81,9 +81,9 @@ def test_bag_is_the_batch_run(run):
     sections = validate_scenario(BAG / 'scenario.yaml')
     batch = BatchSimulation.from_runs([sections]).run()
     b = batch.run_data(0)
-    assert_array_equal(b.q, run.q)
-    assert_array_equal(b.u, run.u)
-    assert_array_equal(batch.thruster_impulse[0, 1:], run.thruster_impulse)
+    assert_recorded_run_equal(b.q, run.q)
+    assert_recorded_run_equal(b.u, run.u)
+    assert_recorded_run_equal(batch.thruster_impulse[0, 1:], run.thruster_impulse)
 
 
 def _batch(duration: float, initial_attitude=None, initial_rate=None):
