@@ -49,7 +49,8 @@ import yaml
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213
 from adcs_msgs_py import names as topics
-from adcs_sim import bag as bagio
+from adcs_sim.bag.batches import ColumnReader
+from adcs_sim.bag.columns import decode_batch, decode_diagnostics
 
 NS = 1e-9
 
@@ -176,7 +177,7 @@ class RunData:
         prefix of a ``state`` topic with the most of the graph's topics beside it. Only ``state``
         (``nav_msgs/Odometry``) is required; other topics are read when present and their absence
         listed in ``missing_topics``. One streaming pass; fixed-layout messages are decoded with
-        numpy from their CDR bytes (:func:`adcs_sim.bag.decode_batch`).
+        numpy from their CDR bytes (:func:`adcs_sim.bag.columns.decode_batch`).
 
         Raises ValueError (not a bag, no ``state`` messages) or OSError (no such path), each with
         a one-line message.
@@ -201,15 +202,15 @@ class RunData:
             return any(READ_TYPES[rel] == type_name and (topic == '/' + rel or topic.endswith('/' + rel))
                        for rel in READ_TYPES)
 
-        reader = bagio.ColumnReader(path, select)
+        reader = ColumnReader(path, select)
         columns: dict[str, list] = defaultdict(list)     # topic -> [(first row number, Columns)]
         diagnostics: dict[str, list] = defaultdict(list)  # topic -> [(stamps, statuses)]
         seen: dict[str, int] = defaultdict(int)
         for batch in reader:
             if batch.type_name == DIAGNOSTIC_ARRAY:
-                diagnostics[batch.topic].append(bagio.decode_diagnostics(batch))
+                diagnostics[batch.topic].append(decode_diagnostics(batch))
             else:
-                columns[batch.topic].extend((seen[batch.topic], c) for c in bagio.decode_batch(batch))
+                columns[batch.topic].extend((seen[batch.topic], c) for c in decode_batch(batch))
             seen[batch.topic] += len(batch)
         counts = {name: n for name, n in reader.topic_counts.items() if n}
         ns = fixed if fixed is not None else _namespace(counts, reader.topics)

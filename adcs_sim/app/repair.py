@@ -3,7 +3,7 @@
 A recorder killed with SIGKILL leaves an MCAP file without summary or index and no
 ``metadata.yaml``; ``adcs-analyze`` reads it as it is, but other tools (rosbags' ``AnyReader``,
 ``ros2 bag info``) need a complete bag. This rewrites every whole record of the truncated file
-into a complete one in place (:func:`adcs_sim.bag.repair`) and keeps the original beside it as
+into a complete one in place (:func:`adcs_sim.bag.repair.repair`) and keeps the original beside it as
 ``<name>.mcap.truncated``. A complete bag is left alone (``--force`` rewrites it anyway).
 Exit status 0 when every bag is complete afterwards, 1 otherwise (one line per failure on stderr).
 """
@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from adcs_sim import bag as bagio
+from adcs_sim.bag.repair import repair
 
 
 def main(argv=None) -> int:
@@ -23,7 +23,7 @@ def main(argv=None) -> int:
     status = 0
     for path in args.bags:
         try:
-            result = bagio.repair(path, force=args.force)
+            result = repair(path, force=args.force)
         except (OSError, ValueError) as exc:
             print(f'adcs-bag-repair: {path}: {exc}', file=sys.stderr)
             status = 1

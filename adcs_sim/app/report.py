@@ -32,8 +32,8 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from adcs_msgs_py import names as topics
-from adcs_sim import bag as bagio
 from adcs_sim.app.analysis import RunData, attitude_errors, run_metrics, settling_times
+from adcs_sim.bag.reader import read_metadata
 
 ERROR_LEVEL = 2  # diagnostic_msgs/DiagnosticStatus.ERROR
 DPI = 110
@@ -581,7 +581,7 @@ def write_report(run: Run, out, tol_deg: float = 0.5, eigen_tol_deg: float | Non
         lines += [f'No fault events (no ERROR status on `{topics.FAULTS}`).', '']
 
     lines += ['## Scenario', '']
-    scenario_text = bagio.read_metadata(run.path).get('scenario') if data.scenario is not None else None
+    scenario_text = read_metadata(run.path).get('scenario') if data.scenario is not None else None
     if scenario_text:
         fence = '~~~~' if '```' in scenario_text else '```'
         lines += ['As embedded in the bag (MCAP metadata `scenario`):', '', fence + 'yaml', scenario_text.rstrip('\n'),
