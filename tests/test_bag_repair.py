@@ -100,7 +100,7 @@ def test_kill_at_random_moment_loses_nothing_flushed_and_repairs(tmp_path, seed,
 
     # a complete bag is left alone
     assert repair_main([str(bag)]) == 0
-    assert 'already complete' in capsys.readouterr().out
+    assert 'complete, nothing to repair' in capsys.readouterr().out
 
 
 def test_repair_refuses_what_is_not_a_bag(tmp_path, capsys):

@@ -159,6 +159,8 @@ class RunData:
     topic_counts: dict = field(default_factory=dict)  # messages per topic (relative to the namespace)
     # How the bag was read:
     truncated: bool = False            # no MCAP summary/footer (writer killed): data up to the last whole chunk
+    problem: str | None = None         # one line: damage (byte offset, reason), truncation or damaged summary
+    damaged: bool = False              # a fault was found: the data is every record before it
     message_count: int = 0             # messages read from the bag, all topics
     missing_topics: list = field(default_factory=list)  # of REPORTED_TOPICS, those with no message
     pointing: tuple | None = None      # (σ̂ body axis, τ̂ inertial direction) of a pointing run (seed 003)
@@ -219,6 +221,9 @@ class RunData:
             what = f'{state_topic} ({ODOMETRY})'
             if state_topic in reader.topics and reader.topics[state_topic] != ODOMETRY:
                 what = f'{state_topic} of type {ODOMETRY} (it is {reader.topics[state_topic]})'
+            if reader.problem is not None:
+                raise ValueError(f'{path}: {reader.problem}: no {what} message before it '
+                                 f'({reader.message_count} messages salvaged): nothing to analyse')
             raise ValueError(f'{path}: no {what} messages: not a run of the graph')
         truth = _merged(columns.get(ns + topics.TRUTH_STATE, []))
         t, cols = truth if truth[0].size else _merged(columns[state_topic])
@@ -243,6 +248,7 @@ class RunData:
                       _merged_statuses(diagnostics.get(ns + topics.FAULTS, [])) for s in statuses]
         run.topic_counts = {_relative(name, ns): n for name, n in counts.items()}
         run.truncated = reader.truncated
+        run.problem, run.damaged = reader.problem, reader.damaged
         run.message_count = reader.message_count
         run.missing_topics = [rel for rel in REPORTED_TOPICS if not counts.get(ns + rel)]
         run.namespace = ns

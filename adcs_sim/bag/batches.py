@@ -14,16 +14,29 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-import lz4.frame
 import numpy as np
-import zstandard
 
-from adcs_sim.bag.storage import MCAP_MAGIC, any_reader, bag_files
+from adcs_sim.bag.records import (
+    CHANNEL,
+    CHUNK,
+    MESSAGE,
+    MESSAGE_HEAD,
+    MESSAGE_INDEX,
+    METADATA,
+    SCHEMA,
+    BadRecord,
+    BagDamaged,
+    McapRecords,
+    inner_records,
+    parse_channel,
+    parse_metadata,
+    parse_schema,
+)
+from adcs_sim.bag.storage import any_reader, bag_files
 
 _U16 = struct.Struct('<H')
 _U32 = struct.Struct('<I')
-_U64 = struct.Struct('<Q')
-_CHUNK_HEAD = struct.Struct('<QQQI')
+_RECORD_HEAD = struct.Struct('<BQ')
 MESSAGE_DATA_OFFSET = 31   # opcode, record length, channel id, sequence, log time, publish time
 BATCH_BYTES = 16 << 20
 
@@ -45,21 +58,6 @@ class TopicBatch:
         return self.buf[self.starts[i]:self.starts[i] + self.sizes[i]].tobytes()
 
 
-def _string(data, pos: int) -> tuple[str, int]:
-    n = _U32.unpack_from(data, pos)[0]
-    return bytes(data[pos + 4:pos + 4 + n]).decode('utf-8', 'replace'), pos + 4 + n
-
-
-def _string_map(data, pos: int) -> dict[str, str]:
-    end = pos + 4 + _U32.unpack_from(data, pos)[0]
-    pos += 4
-    out = {}
-    while pos < end:
-        key, pos = _string(data, pos)
-        out[key], pos = _string(data, pos)
-    return out
-
-
 class ColumnReader:
     """One streaming pass over a bag: the raw CDR bytes of the selected topics, in batches.
 
@@ -72,6 +70,10 @@ class ColumnReader:
     * ``message_count`` — their sum;
     * ``truncated`` — an MCAP file did not end with its summary and footer (the writer did not
       close it): what was read is everything up to its last complete chunk;
+    * ``problem`` — one line naming the first damage (byte offset, reason), truncation or damaged
+      summary, else None; ``damaged`` — a fault was found (not a plain truncation): what was read
+      is every record before it. A fault that a section CRC reveals without locating it raises
+      :class:`~adcs_sim.bag.records.BagDamaged` at the end of the iteration;
     * ``metadata`` — MCAP metadata records ``{name: {key: value}}`` (e.g. ``scenario``).
 
     MCAP files are parsed here: each chunk is decompressed once and its messages located from the
@@ -88,6 +90,8 @@ class ColumnReader:
         self.topics: dict[str, str] = {}
         self.topic_counts: dict[str, int] = defaultdict(int)
         self.truncated = False
+        self.problem: str | None = None    # the first file's damage or truncation, one line
+        self.damaged = False               # a located damage: what was read is the part before it
         self.metadata: dict[str, dict[str, str]] = {}
 
     @property
@@ -99,7 +103,18 @@ class ColumnReader:
             yield from self._rosbags()
             return
         for path in self.files:
-            yield from _McapScan(self, path).batches()
+            scan = _McapScan(self, path)
+            yield from scan.batches()
+            records = scan.records
+            self.truncated = self.truncated or not records.complete
+            problem = records.problem()
+            if problem is not None and self.problem is None:
+                self.problem = f'{path.name}: {problem}' if len(self.files) > 1 else problem
+            if records.damage is not None and not records.damage.located:
+                raise BagDamaged(f'{path}: {records.damage}; refused: which messages are intact is unknown')
+            if records.damage is not None:
+                self.damaged = True
+                break                          # what follows the damage is not read (not even other files)
 
     def _rosbags(self) -> Iterator[TopicBatch]:
         with any_reader(self.bag, self.files[0]) as reader:
@@ -131,75 +146,65 @@ class ColumnReader:
 
 
 class _McapScan:
-    """The record-level parse of one MCAP file for :class:`ColumnReader`."""
+    """The record-level parse of one MCAP file for :class:`ColumnReader` (checked by :class:`McapRecords`)."""
 
     def __init__(self, owner: ColumnReader, path: Path) -> None:
         self.owner = owner
-        self.path = path
+        self.records = McapRecords(path)
         self.channels: dict[int, tuple[str, str]] = {}    # id -> (topic, type name)
         self.schemas: dict[int, str] = {}
         self.wanted: dict[int, bool] = {}
         self.pending: list[tuple[np.ndarray, dict[int, np.ndarray]]] = []
         self.pending_bytes = 0
         self.loose = bytearray()                          # top-level (unchunked) message records
-        self._zstd = None
+        self.counted = 0
 
     # records ---------------------------------------------------------------------------------
-    def _schema(self, data, pos: int) -> None:
-        sid = _U16.unpack_from(data, pos)[0]
-        self.schemas[sid], _ = _string(data, pos + 2)
+    def _schema(self, body) -> None:
+        sid, name, _, _ = parse_schema(body)
+        self.schemas[sid] = name
 
-    def _channel(self, data, pos: int) -> None:
-        cid, sid = struct.unpack_from('<HH', data, pos)
-        topic, _ = _string(data, pos + 4)
+    def _channel(self, body) -> None:
+        cid, sid, topic, _, _ = parse_channel(body)
         type_name = self.schemas.get(sid, '')
         self.channels[cid] = (topic, type_name)
         self.owner.topics.setdefault(topic, type_name)
         self.owner.topic_counts.setdefault(topic, 0)
         self.wanted[cid] = bool(self.owner.select(topic, type_name))
 
-    def _decompress(self, compression: str, data, size: int) -> bytes:
-        if compression == '':
-            return bytes(data)
-        if compression == 'zstd':
-            if self._zstd is None:
-                self._zstd = zstandard.ZstdDecompressor()
-            return self._zstd.decompress(data, max_output_size=size)
-        if compression == 'lz4':
-            return lz4.frame.decompress(data)
-        raise ValueError(f'{self.path}: unsupported MCAP chunk compression {compression!r}')
-
     def _walk(self, buf) -> dict[int, list[int]]:
-        """Message record offsets per channel of a record sequence; registers schemas/channels."""
+        """Message record offsets per channel of a chunk's records; registers schemas/channels.
+        Raises BadRecord if the records do not tile the chunk."""
         offsets: dict[int, list[int]] = defaultdict(list)
-        pos, end = 0, len(buf)
-        while pos + 9 <= end:
-            op = buf[pos]
-            length = _U64.unpack_from(buf, pos + 1)[0]
-            if pos + 9 + length > end:
-                break
-            if op == 0x05:
+        view = memoryview(buf)
+        for pos, op, length in inner_records(buf):
+            if op == MESSAGE:
                 offsets[_U16.unpack_from(buf, pos + 9)[0]].append(pos)
-            elif op == 0x03:
-                self._schema(buf, pos + 9)
-            elif op == 0x04:
-                self._channel(buf, pos + 9)
-            pos += 9 + length
+            elif op == SCHEMA:
+                self._schema(view[pos + 9:pos + 9 + length])
+            else:
+                self._channel(view[pos + 9:pos + 9 + length])
         return offsets
 
     def _indexed(self, buf: bytes, index: dict[int, np.ndarray]) -> dict[int, np.ndarray] | None:
-        """Offsets per channel from a chunk's message index, if they tile the chunk exactly."""
-        if not index:
+        """Offsets per channel from a chunk's message index, if they tile the chunk exactly with
+        message records of the channel each index entry names."""
+        if not index or any(cid not in self.channels for cid in index):
             return None
-        offs = np.sort(np.concatenate(list(index.values())))
+        offs = np.concatenate(list(index.values()))
+        cids = np.concatenate([np.full(v.size, cid) for cid, v in index.items()])
+        order = np.argsort(offs, kind='stable')
+        offs, cids = offs[order], cids[order]
         arr = np.frombuffer(buf, np.uint8)
-        if offs.size == 0 or offs[0] != 0 or offs[-1] + 9 > arr.size:
+        if offs.size == 0 or offs[0] != 0 or offs[-1] + 9 + MESSAGE_HEAD > arr.size:
             return None
         lengths = arr[(offs + 1)[:, None] + np.arange(8)].view('<u8')[:, 0]
-        ends = offs + 9 + lengths
-        if ends[-1] != arr.size or np.any(ends[:-1] != offs[1:]) or np.any(arr[offs] != 0x05):
+        if np.any(lengths < MESSAGE_HEAD) or np.any(lengths > arr.size):
             return None
-        if any(cid not in self.channels for cid in index):
+        ends = offs + 9 + lengths.astype(np.int64)
+        if ends[-1] != arr.size or np.any(ends[:-1] != offs[1:]) or np.any(arr[offs] != MESSAGE):
+            return None
+        if np.any(arr[offs + 9] + 256 * arr[offs + 10].astype(np.int64) != cids):
             return None
         return index
 
@@ -209,6 +214,7 @@ class _McapScan:
         for cid, offs in offsets.items():
             topic = self.channels.get(cid, (f'<channel {cid}>', ''))[0]
             counts[topic] += len(offs)
+            self.counted += len(offs)
             if self.wanted.get(cid) and len(offs):
                 keep[cid] = np.sort(np.asarray(offs, dtype=np.int64))
         if keep:
@@ -230,7 +236,7 @@ class _McapScan:
         for topic, parts in per_topic.items():
             rec = np.concatenate(parts)
             lengths = buf[(rec + 1)[:, None] + np.arange(8)].view('<u8')[:, 0].astype(np.int64)
-            yield TopicBatch(topic, self.owner.topics[topic], buf, rec + MESSAGE_DATA_OFFSET, lengths - 22)
+            yield TopicBatch(topic, self.owner.topics[topic], buf, rec + MESSAGE_DATA_OFFSET, lengths - MESSAGE_HEAD)
 
     def _take_loose(self) -> None:
         if self.loose:
@@ -240,63 +246,69 @@ class _McapScan:
 
     # the pass --------------------------------------------------------------------------------
     def batches(self) -> Iterator[TopicBatch]:
-        owner = self.owner
-        complete = False
-        with open(self.path, 'rb') as f:
-            if f.read(8) != MCAP_MAGIC:
-                raise ValueError(f'{self.path}: not a bag: no MCAP magic at its start (empty or not MCAP)')
-            chunk = None                       # (decompressed bytes, message index) awaiting its index
-            while True:
-                head = f.read(9)
-                if len(head) < 9:
-                    break
-                op, length = head[0], _U64.unpack_from(head, 1)[0]
-                body = f.read(length) if length < (1 << 40) else b''
-                if len(body) < length:
-                    break                      # truncated record: the writer was killed
-                if op == 0x07 and chunk is not None:
-                    cid = _U16.unpack_from(body, 0)[0]
-                    n = _U32.unpack_from(body, 2)[0] // 16
-                    chunk[1][cid] = np.frombuffer(body, '<u8', 2 * n, 6)[1::2].astype(np.int64)
-                    continue
+        """The batches of the intact part of the file; the file's state is left in ``records``."""
+        chunk = None                       # (offset, decompressed bytes, message index) awaiting its index
+        for offset, op, body in self.records:
+            if op == MESSAGE_INDEX:
                 if chunk is not None:
-                    self._finish_chunk(*chunk)
-                    chunk = None
-                if op != 0x05:
-                    self._take_loose()
-                if self.pending_bytes >= owner.batch_bytes:
-                    yield from self._flush()
-                if op == 0x06:
-                    _, _, usize, _ = _CHUNK_HEAD.unpack_from(body, 0)
-                    compression, pos = _string(body, 28)
-                    rlen = _U64.unpack_from(body, pos)[0]
-                    data = memoryview(body)[pos + 8:pos + 8 + rlen]
-                    chunk = (self._decompress(compression, data, usize), {})
-                elif op == 0x05:
-                    self.loose += head + body
-                    if len(self.loose) >= owner.batch_bytes:
-                        self._take_loose()
-                elif op == 0x03:
-                    self._schema(body, 0)
-                elif op == 0x04:
-                    self._channel(body, 0)
-                elif op == 0x0C:
-                    name, pos = _string(body, 0)
-                    owner.metadata[name] = _string_map(body, pos)
-                elif op == 0x0F:                   # data end: the summary repeats what we have
-                    f.seek(0, os.SEEK_END)
-                    if f.tell() >= 16:
-                        f.seek(-8, os.SEEK_END)
-                        complete = f.read(8) == MCAP_MAGIC
-                    break
-            if chunk is not None:
-                self._finish_chunk(*chunk)
-            self._take_loose()
-        owner.truncated = owner.truncated or not complete
+                    _message_index(body, chunk[2])
+                continue
+            if chunk is not None and not self._finish_chunk(*chunk):
+                chunk = None
+                break
+            chunk = None
+            if op != MESSAGE:
+                self._take_loose()
+            if self.pending_bytes >= self.owner.batch_bytes:
+                yield from self._flush()
+            try:
+                chunk = self._record(offset, op, body)
+            except (BadRecord, struct.error) as exc:
+                self.records.fail(offset, f'record 0x{op:02x}: {exc}')
+                break
+        if chunk is not None:
+            self._finish_chunk(*chunk)
+        self._take_loose()
+        self.records.check_count(self.counted)
         yield from self._flush()
 
-    def _finish_chunk(self, buf: bytes, index: dict[int, np.ndarray]) -> None:
+    def _record(self, offset: int, op: int, body: bytes):
+        """Handle one top-level record; a chunk is returned to wait for its message index."""
+        if op == CHUNK:
+            return offset, body, {}
+        if op == MESSAGE:
+            self.loose += _RECORD_HEAD.pack(MESSAGE, len(body)) + body
+            if len(self.loose) >= self.owner.batch_bytes:
+                self._take_loose()
+        elif op == SCHEMA:
+            self._schema(body)
+        elif op == CHANNEL:
+            self._channel(body)
+        elif op == METADATA:
+            name, values = parse_metadata(body)
+            self.owner.metadata[name] = values
+        return None
+
+    def _finish_chunk(self, offset: int, buf: bytes, index: dict[int, np.ndarray]) -> bool:
         offsets = self._indexed(buf, index)
-        self._add_chunk(buf, offsets if offsets is not None else self._walk(buf))
+        if offsets is None:
+            try:
+                offsets = self._walk(buf)
+            except (BadRecord, struct.error) as exc:
+                self.records.fail(offset, f'chunk: {exc}')
+                return False
+        self._add_chunk(buf, offsets)
+        return True
 
 
+def _message_index(body: bytes, index: dict[int, np.ndarray]) -> None:
+    """Add a MessageIndex record's offsets to ``index`` (a malformed one is left out: the chunk is
+    then walked record by record, so an index never decides which bytes are a message)."""
+    if len(body) < 6:
+        return
+    cid = _U16.unpack_from(body, 0)[0]
+    nbytes = _U32.unpack_from(body, 2)[0]
+    if nbytes % 16 or 6 + nbytes != len(body):
+        index[cid] = np.array([-1], dtype=np.int64)      # poisons the index: walk the chunk
+        return
+    index[cid] = np.frombuffer(body, '<u8', nbytes // 8, 6)[1::2].astype(np.int64)

@@ -1,4 +1,11 @@
-"""Repairing a bag whose writer was killed: :func:`repair` rewrites it into a complete bag."""
+"""Repairing a bag whose writer was killed, or whose file is damaged: :func:`repair`.
+
+The intact part of the MCAP file (every record before the first fault that
+:class:`~adcs_sim.bag.records.McapRecords` finds, or before the truncation) is rewritten into a
+complete bag; :class:`RepairResult` says exactly what was kept and what was dropped. A bag that
+is closed and passes every check is left alone; one with no intact message, or whose fault no
+CRC locates, is refused (:class:`~adcs_sim.bag.records.BagDamaged`) and left as it is.
+"""
 from __future__ import annotations
 
 import os
@@ -7,54 +14,48 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
-from mcap.records import Channel, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
 
-from adcs_sim.bag.reader import is_complete
+from adcs_sim.bag.reader import McapContents, is_complete, mcap_contents
+from adcs_sim.bag.records import BagDamaged
 from adcs_sim.bag.storage import bag_files
 from adcs_sim.bag.writer import BagWriter
 
-TRUNCATED_SUFFIX = '.truncated'
+TRUNCATED_SUFFIX = '.truncated'   # the original of a truncated file, kept beside the repaired one
+ORIGINAL_SUFFIX = '.original'     # the original of a damaged file (or one rewritten for another reason)
 
 
 @dataclass
 class RepairResult:
     bag: Path
     status: str                 # 'repaired' or 'complete' (nothing to do)
-    messages: int = 0
-    kept: Path | None = None    # the original truncated file, kept beside the repaired one
+    messages: int = 0           # messages in the bag now (all of them for 'complete')
+    kept: Path | None = None    # the original file, kept beside the repaired one
+    problem: str = ''           # what was wrong (truncation / damage with its byte offset, ...)
+    intact_bytes: int = 0       # the original's records before this byte were kept
+    dropped_bytes: int = 0      # bytes of the original after them (the truncated or damaged tail)
+    dropped_messages: int = 0   # intact messages left out (channel without a schema)
 
-
-def _salvage(path: Path):
-    """Every whole record of an MCAP file, in file order, up to its first damaged or missing byte:
-    (schemas {id: Schema}, channels {id: Channel} in order, metadata [Metadata], messages
-    [Message]). A killed writer's file ends mid-chunk; the records before it are intact."""
-    schemas, channels, metadata, messages = {}, {}, [], []
-    with open(path, 'rb') as f:
-        try:
-            for record in StreamReader(f, skip_magic=False, emit_chunks=False, validate_crcs=True).records:
-                if isinstance(record, Schema):
-                    schemas[record.id] = record
-                elif isinstance(record, Channel):
-                    channels[record.id] = record
-                elif isinstance(record, Metadata):
-                    metadata.append(record)
-                elif isinstance(record, Message):
-                    messages.append(record)
-        except Exception:  # noqa: BLE001 - the truncated tail (EOF, short record, bad CRC)
-            pass
-    return schemas, channels, metadata, messages
+    def summary(self) -> str:
+        """One line for the user."""
+        if self.status == 'complete':
+            return f'{self.bag}: complete, nothing to repair ({self.messages} messages)'
+        left = f', {self.dropped_messages} messages of channels without schema left out' \
+            if self.dropped_messages else ''
+        return (f'{self.bag}: repaired ({self.problem}): kept {self.messages} messages, every record before '
+                f'byte {self.intact_bytes}; dropped the {self.dropped_bytes} bytes after it{left} '
+                f'(original kept as {self.kept.name})')
 
 
 def repair(bag: str | os.PathLike, force: bool = False) -> RepairResult:
-    """Rewrite the MCAP file of a bag whose writer was killed into a complete rosbag2 bag, in place.
+    """Rewrite the intact part of a bag's MCAP file into a complete rosbag2 bag, in place.
 
-    Every whole record of the truncated file is kept (schemas, channels with their offered QoS,
-    the embedded metadata such as the scenario, every message with its log time); the new file
-    has a summary and index, and ``metadata.yaml`` is written (format 9, ``custom_data`` notes the
-    repair). The original is kept beside it as ``<name>.mcap.truncated`` (so nothing is lost if
-    the repair itself is interrupted). A bag that is already complete is left alone unless
-    ``force``. Raises FileNotFoundError / ValueError for what is not an MCAP bag.
+    Every intact record is kept (schemas, channels with their offered QoS, the embedded metadata
+    such as the scenario, every message with its log time); the new file has a summary and
+    index, and ``metadata.yaml`` is written (format 9, ``custom_data`` notes the repair). The
+    original is kept beside it (``<name>.mcap.truncated``, or ``.original`` for a damaged file)
+    so nothing is lost if the repair itself is interrupted. A complete, intact bag is left alone
+    unless ``force``. Raises FileNotFoundError / ValueError for what is not an MCAP bag, and
+    :class:`BagDamaged` (a ValueError) when nothing can be salvaged truthfully.
     """
     path = Path(bag)
     kind, files = bag_files(path)
@@ -62,39 +63,56 @@ def repair(bag: str | os.PathLike, force: bool = False) -> RepairResult:
         raise ValueError(f'{path}: repair handles a one-file MCAP bag (found {kind}, {len(files)} file(s))')
     src = files[0]
     folder = path if path.is_dir() else path.parent
-    if not force and is_complete(folder):
-        return RepairResult(folder, 'complete')
-    schemas, channels, metadata, messages = _salvage(src)
+    contents = mcap_contents(src)
+    records = contents.records
+    if not force and records.complete and is_complete(folder):
+        return RepairResult(folder, 'complete', contents.count)
+    damage = records.damage
+    if damage is not None and not damage.located:
+        raise BagDamaged(f'{src}: {damage}: which records are intact is unknown; nothing repaired')
+    problem = records.problem() or ('metadata.yaml missing or unreadable' if not is_complete(folder)
+                                    else 'rewritten on request (--force)')
     tmp = folder.parent / f'.{folder.name}.repair-{os.getpid()}'
     if tmp.exists():
         shutil.rmtree(tmp)
-    writer = BagWriter(tmp, metadata={m.name: m.metadata.get('text', '') for m in metadata
-                                      if m.name != 'rosbag2' and 'text' in m.metadata},
-                       file_name=src.name)
-    names = {}
-    for cid, ch in channels.items():
-        schema = schemas.get(ch.schema_id)
-        if schema is None:
-            continue
-        try:
-            qos = yaml.safe_load(ch.metadata.get('offered_qos_profiles', '')) or []
-        except yaml.YAMLError:
-            qos = []
-        writer.add_topic(ch.topic, schema.name, qos, (schema.encoding, schema.data))
-        names[cid] = ch.topic
-    written = 0
-    for m in messages:
-        if m.channel_id in names:
-            writer.write(names[m.channel_id], m.data, log_time_ns=m.log_time)
-            written += 1
-    writer.close({'repaired_by': 'adcs-bag-repair',
-                  'repaired_from': src.name + TRUNCATED_SUFFIX,
-                  'repaired_messages': str(written)})
-    kept = src.with_name(src.name + TRUNCATED_SUFFIX)
+    written = _rewrite(contents, tmp, src.name, problem)
+    if written == 0:
+        shutil.rmtree(tmp)
+        raise BagDamaged(f'{src}: {problem}: no intact message to salvage ({records.end} bytes intact); '
+                         f'nothing repaired')
+    suffix = TRUNCATED_SUFFIX if records.truncated else ORIGINAL_SUFFIX
+    kept, n = src.with_name(src.name + suffix), 1
+    while kept.exists():                                    # an earlier original is never overwritten
+        kept, n = src.with_name(f'{src.name}{suffix}.{n}'), n + 1
     os.replace(src, kept)                                   # the original, kept
     os.replace(tmp / src.name, src)                         # the complete file
     os.replace(tmp / 'metadata.yaml', folder / 'metadata.yaml')
     tmp.rmdir()
-    return RepairResult(folder, 'repaired', written, kept)
+    return RepairResult(folder, 'repaired', written, kept, problem, records.end,
+                        records.size - records.end, contents.count - written)
 
 
+def _rewrite(contents: McapContents, tmp: Path, file_name: str, problem: str) -> int:
+    """Write the intact records into a new bag folder ``tmp``; the number of messages written."""
+    writer = BagWriter(tmp, metadata={name: values.get('text', '') for name, values in contents.metadata
+                                      if name != 'rosbag2' and 'text' in values},
+                       file_name=file_name)
+    names = {}
+    for cid, (sid, topic, meta) in contents.channels.items():
+        schema = contents.schemas.get(sid)
+        if schema is None:
+            continue
+        try:
+            qos = yaml.safe_load(meta.get('offered_qos_profiles', '')) or []
+        except yaml.YAMLError:
+            qos = []
+        writer.add_topic(topic, schema[0], qos, (schema[1], schema[2]))
+        names[cid] = topic
+    written = 0
+    for cid, log_time, data in contents.messages:
+        if cid in names:
+            writer.write(names[cid], data, log_time_ns=log_time)
+            written += 1
+    writer.close({'repaired_by': 'adcs-bag-repair', 'repaired_from': file_name, 'repaired_problem': problem,
+                  'repaired_messages': str(written)})
+    return written

@@ -86,7 +86,10 @@ class BagWriter:
         self.path.mkdir(parents=True, exist_ok=True)
         self.mcap_path = self.path / (self.file_name or f'{self.path.name}_0.mcap')
         self._file = open(self.mcap_path, 'wb')
-        self._writer = Writer(self._file, chunk_size=self.chunk_size, compression=CompressionType.ZSTD)
+        # Data-section CRC on (the mcap default is off): with the chunk and summary CRCs, every byte
+        # of a closed file is covered, so a reader detects any flipped bit.
+        self._writer = Writer(self._file, chunk_size=self.chunk_size, compression=CompressionType.ZSTD,
+                              enable_data_crcs=True)
         self._writer.start(profile='ros2', library='adcs_sim')
         self._schemas: dict[str, int] = {}
         self.topics: dict[str, _Topic] = {}
