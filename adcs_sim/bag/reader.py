@@ -107,16 +107,18 @@ def mcap_contents(path: str | os.PathLike, keep_messages: bool = True) -> McapCo
 
 def is_complete(bag: str | os.PathLike) -> bool:
     """Whether a bag folder's MCAP file is closed (summary, footer) and passes every check, and
-    the folder has a readable ``metadata.yaml``."""
+    the folder's ``metadata.yaml`` describes it (lists the file, counts its messages)."""
     path = Path(bag)
     folder = path if path.is_dir() else path.parent
-    if not mcap_contents(mcap_file(bag), keep_messages=False).records.complete:
+    mcap = mcap_file(bag)
+    contents = mcap_contents(mcap, keep_messages=False)
+    if not contents.records.complete:
         return False
     try:
-        info = yaml.safe_load((folder / 'metadata.yaml').read_text())
-    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        info = yaml.safe_load((folder / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+        return mcap.name in info['relative_file_paths'] and info['message_count'] == contents.count
+    except (OSError, UnicodeDecodeError, yaml.YAMLError, KeyError, TypeError):
         return False
-    return isinstance(info, dict) and isinstance(info.get('rosbag2_bagfile_information'), dict)
 
 
 def read_raw(bag: str | os.PathLike) -> Iterator[tuple[str, str, int, bytes]]:

@@ -232,7 +232,7 @@ class McapRecords:
                     self.truncated = True
                 return
             body = f.read(length)
-            reason = _framing_problem(pos, op, length) or (_header_problem(body) if op == HEADER else None)
+            reason = _framing_problem(pos, op, length) or _body_problem(op, body)
             if reason:
                 self.fail(pos, reason)
                 return
@@ -343,7 +343,15 @@ def _framing_problem(pos: int, op: int, length: int) -> str | None:
     return None
 
 
-def _header_problem(body: bytes) -> str | None:
+def _body_problem(op: int, body: bytes) -> str | None:
+    """Records whose fields give their own length: the record must end where they do (a corrupt
+    length is found at its record, not later where the framing it broke ends up)."""
+    if op == MESSAGE_INDEX:
+        if len(body) < 6 or _U32.unpack_from(body, 2)[0] + 6 != len(body) or (len(body) - 6) % 16:
+            return 'a message index record whose entries do not fill it'
+        return None
+    if op != HEADER:
+        return None
     try:
         _, pos = string(body, 0)                    # profile
         _, pos = string(body, pos)                  # library
