@@ -21,13 +21,15 @@ import struct
 from pathlib import Path
 
 import pytest
+import zstandard
 from conftest import ROOT
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
-from mcap.records import Message
+from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader
+from mcap.writer import CompressionType, Writer
 
 from adcs_sim.app.analyze import main as analyze_main
 from adcs_sim.app.repair import main as repair_main
@@ -199,16 +201,53 @@ def chunk_spans(data: bytes) -> list[tuple[int, int]]:
     return [(c.chunk_start_offset, c.chunk_start_offset + c.chunk_length) for c in summary.chunk_indexes]
 
 
-def test_flip_inside_a_chunk_is_a_crc_mismatch_at_that_chunk(small, full_metrics, tmp_path):
+def test_flip_inside_a_zstd_chunk_is_found_at_that_chunk(small, full_metrics, tmp_path):
     start, end = chunk_spans(small)[2]
     damaged = bytearray(small)
     damaged[end - 20] ^= 0x10                       # in the compressed records of the third chunk
     assert check_outcome(tmp_path, bytes(damaged), small, full_metrics) == 'prefix'
     code, _, err = analyze(write_bag(tmp_path, bytes(damaged), 'again'))
-    assert f'damaged at byte {start}' in err[0]
-    with pytest.raises((CRCValidationError, McapError, Exception)):   # the mcap library agrees
+    assert f'damaged at byte {start}: zstd chunk does not decompress' in err[0]
+    with pytest.raises(zstandard.ZstdError):        # the mcap library agrees
         list(StreamReader(io.BytesIO(bytes(damaged)), validate_crcs=True).records)
     check_repair(tmp_path, bytes(damaged))
+
+
+def test_chunk_crc_mismatch(small, full_metrics, tmp_path):
+    """A chunk whose records differ from its CRC: the stored CRC corrupted (our writer's zstd
+    bag), and a flipped bit in the records of an uncompressed chunk (the mcap library's writer)."""
+    start, _ = chunk_spans(small)[1]
+    damaged = bytearray(small)
+    damaged[start + 9 + 24] ^= 0x01                 # uncompressed_crc of the second chunk
+    assert check_outcome(tmp_path / 'crc', bytes(damaged), small, full_metrics) == 'prefix'
+    assert f'damaged at byte {start}: chunk CRC mismatch' in analyze(tmp_path / 'crc' / 'damaged')[2][0]
+
+    plain = io.BytesIO()
+    writer = Writer(plain, chunk_size=8192, compression=CompressionType.NONE, enable_data_crcs=True)
+    writer.start(profile='ros2', library='test')
+    schemas, channels = {}, {}
+    for record in StreamReader(io.BytesIO(small)).records:      # (the summary repeats schemas, channels)
+        if isinstance(record, Schema) and record.id not in schemas:
+            schemas[record.id] = writer.register_schema(record.name, record.encoding, record.data)
+        elif isinstance(record, Channel) and record.id not in channels:
+            channels[record.id] = writer.register_channel(record.topic, record.message_encoding,
+                                                          schemas[record.schema_id], record.metadata)
+        elif isinstance(record, Metadata) and record.name == 'scenario':
+            writer.add_metadata(record.name, record.metadata)
+        elif isinstance(record, Message):
+            writer.add_message(channels[record.channel_id], record.log_time, record.data, record.publish_time,
+                               record.sequence)
+    writer.finish()
+    plain = plain.getvalue()
+    assert analyze(write_bag(tmp_path / 'plain', plain))[1] == full_metrics
+    start, end = chunk_spans(plain)[2]
+    damaged = bytearray(plain)
+    damaged[end - 3] ^= 0x08                        # a float of the last message of the third chunk
+    assert check_outcome(tmp_path / 'plain', bytes(damaged), plain, full_metrics) == 'prefix'
+    assert f'damaged at byte {start}: chunk CRC mismatch' in analyze(tmp_path / 'plain' / 'damaged')[2][0]
+    with pytest.raises(CRCValidationError):         # the mcap library agrees
+        list(StreamReader(io.BytesIO(bytes(damaged)), validate_crcs=True).records)
+    check_repair(tmp_path / 'plain', bytes(damaged))
 
 
 def test_committed_bag_chunk_flips_are_detected(tmp_path):

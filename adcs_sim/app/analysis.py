@@ -218,13 +218,7 @@ class RunData:
         ns = fixed if fixed is not None else _namespace(counts, reader.topics)
         state_topic = ns + topics.STATE
         if not any(c.rows.size for _, c in columns.get(state_topic, [])):
-            what = f'{state_topic} ({ODOMETRY})'
-            if state_topic in reader.topics and reader.topics[state_topic] != ODOMETRY:
-                what = f'{state_topic} of type {ODOMETRY} (it is {reader.topics[state_topic]})'
-            if reader.problem is not None:
-                raise ValueError(f'{path}: {reader.problem}: no {what} message before it '
-                                 f'({reader.message_count} messages salvaged): nothing to analyse')
-            raise ValueError(f'{path}: no {what} messages: not a run of the graph')
+            raise _no_state(path, reader, state_topic)
         truth = _merged(columns.get(ns + topics.TRUTH_STATE, []))
         t, cols = truth if truth[0].size else _merged(columns[state_topic])
         run = cls(t=t, q=cols['orientation'], w=cols['angular'])
@@ -258,6 +252,17 @@ class RunData:
             run.q_ref = target_attitude(run.scenario)
             run.pointing = pointing_request(run.scenario)
         return run
+
+
+def _no_state(path, reader: ColumnReader, state_topic: str) -> ValueError:
+    """The one-line error for a bag without a state message (saying so when it is damaged)."""
+    what = f'{state_topic} ({ODOMETRY})'
+    if state_topic in reader.topics and reader.topics[state_topic] != ODOMETRY:
+        what = f'{state_topic} of type {ODOMETRY} (it is {reader.topics[state_topic]})'
+    if reader.problem is not None:
+        return ValueError(f'{path}: {reader.problem}: no {what} message before it '
+                          f'({reader.message_count} messages salvaged): nothing to analyse')
+    return ValueError(f'{path}: no {what} messages: not a run of the graph')
 
 
 def _relative(topic: str, ns: str) -> str:
