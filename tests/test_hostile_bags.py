@@ -39,8 +39,9 @@ from adcs_sim.bag.writer import BagWriter
 
 SOURCE = ROOT / 'bags' / 'microsat_pd_slew' / 'bag'
 SECONDS = 30
-FUZZ = settings(derandomize=True, max_examples=20, deadline=None, database=None,
+FUZZ = settings(derandomize=True, max_examples=40, deadline=None, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+FLIPS = settings(FUZZ, max_examples=150)
 
 
 @pytest.fixture(scope='module')
@@ -182,7 +183,7 @@ def test_truncation_anywhere(small, full_metrics, tmp_path_factory, fraction):
 
 # --- bit flips and corrupted fields -----------------------------------------------------------
 
-@FUZZ
+@FLIPS
 @given(data=st.data())
 def test_single_bit_flip_anywhere_is_detected(small, full_metrics, tmp_path_factory, data):
     offset = data.draw(st.integers(0, len(small) - 1), label='offset')
@@ -319,3 +320,27 @@ def test_metadata_yaml_alone_is_a_one_line_error(tmp_path):
     (bag / 'metadata.yaml').write_text('rosbag2_bagfile_information: {version: 9, storage_identifier: mcap}\n')
     code, metrics, err = analyze(bag)
     assert code == 1 and metrics is None and len(err) == 1
+
+
+def test_repair_is_truthful(small, tmp_path):
+    """Nothing intact: exit 1, named, file untouched. A truncated bag: exactly the intact messages
+    kept, the cut named. Repairing twice never overwrites the kept original."""
+    first_chunk = chunk_spans(small)[0][0]
+    for name, data in (('no_chunk', small[:first_chunk]), ('first_chunk_cut', small[:first_chunk + 100])):
+        bag = write_bag(tmp_path / name, data)
+        code, out, err = repair(bag)
+        assert code == 1 and out == [] and len(err) == 1 and 'no intact message to salvage' in err[0]
+        assert (bag / 'bag_0.mcap').read_bytes() == data and sorted(p.name for p in bag.iterdir()) == ['bag_0.mcap']
+    cut = chunk_spans(small)[3][0] + 50
+    bag = write_bag(tmp_path / 'cut', small[:cut])
+    n = library_messages(small[:cut])
+    code, out, err = repair(bag)
+    assert code == 0 and err == [] and len(out) == 1
+    assert f'truncated at byte {chunk_spans(small)[3][0]} of {cut}' in out[0] and f'kept {n} messages' in out[0]
+    assert f'dropped the {cut - chunk_spans(small)[3][0]} bytes after it' in out[0]
+    assert (bag / 'bag_0.mcap.truncated').read_bytes() == small[:cut] and is_complete(bag)
+    out2 = io.StringIO()
+    with contextlib.redirect_stdout(out2):
+        assert repair_main([str(bag), '--force']) == 0
+    assert (bag / 'bag_0.mcap.truncated').read_bytes() == small[:cut]       # the first original, kept
+    assert (bag / 'bag_0.mcap.original').is_file() and f'kept {n} messages' in out2.getvalue()
