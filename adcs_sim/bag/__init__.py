@@ -11,7 +11,11 @@ One module per job (import what you need from the module that has it):
   selected topics in large ``TopicBatch`` es (the fast path of ``adcs-analyze``).
 * :mod:`adcs_sim.bag.columns` — ``decode_batch`` / ``decode_diagnostics``: a batch's CDR bytes to
   numpy columns, without deserialising message by message.
-* :mod:`adcs_sim.bag.repair`  — ``repair``: rewrite the bag of a killed writer into a complete one.
+* :mod:`adcs_sim.bag.records` — ``McapRecords``: the checked record-by-record walk of one MCAP file
+  every reader above uses (chunk, data-section and summary CRCs, framing, bounded lengths); where
+  a damaged file's intact part ends (``Damage``) and ``BagDamaged``, the readers' error.
+* :mod:`adcs_sim.bag.repair`  — ``repair``: rewrite the intact part of a killed writer's or a
+  damaged bag into a complete one, saying what was kept and dropped.
 * :mod:`adcs_sim.bag.storage` — ``bag_files`` (which files hold a bag, MCAP or other rosbag2
   storage), ``mcap_file``, ``typestore`` (the ROS 2 Jazzy type store).
 * :mod:`adcs_sim.bag.schema`  — the recorder's parameter schema.

@@ -1,7 +1,9 @@
 """Streaming the raw CDR bytes of selected topics of a bag, in large batches: :class:`ColumnReader`.
 
-One pass over the file: MCAP files are parsed here record by record (each chunk decompressed
-once, its messages located from its message index); other storage (sqlite3) is read with
+One pass over the file: MCAP files are walked through the checked
+:class:`~adcs_sim.bag.records.McapRecords` (each chunk decompressed and CRC-checked once, its
+messages located from its message index, which is verified against the chunk's own records
+before it is trusted); other storage (sqlite3) is read with
 rosbags' ``AnyReader``. Each :class:`TopicBatch` holds the CDR bytes of many messages of one
 topic in one numpy buffer, for :mod:`adcs_sim.bag.columns` to decode into numpy columns.
 """
