@@ -2,7 +2,7 @@
 """How long does the analysis of a long run take, next to just reading its bag with rosbags?
 
 Writes a synthetic 24-hour run at 10 Hz (864 000 control steps) into a temporary bag with
-:class:`adcs_sim.bag.BagWriter` (MCAP, zstd chunks of 64 KiB like the recorder), every message
+:class:`adcs_sim.bag.writer.BagWriter` (MCAP, zstd chunks of 64 KiB like the recorder), every message
 serialised by rosbags from a message object. Per step, the topics and types of a run of the graph:
 ``/clock``, ``/state`` (nav_msgs/Odometry), ``/wheels/state`` and ``/wheels/cmd``
 (sensor_msgs/JointState), ``/actuators/torque`` (geometry_msgs/Vector3Stamped) and
@@ -37,8 +37,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from adcs_sim import bag as bagio  # noqa: E402
 from adcs_sim.app.analysis import RunData, run_metrics  # noqa: E402
+from adcs_sim.bag.storage import typestore  # noqa: E402
+from adcs_sim.bag.writer import BagWriter  # noqa: E402
 
 TAU = 3600.0          # s, time constant of the synthetic attitude error
 ANGLE0 = math.radians(30.0)
@@ -61,7 +62,7 @@ def synthetic(n: int, period: float):
 
 
 def write_bag(path: Path, hours: float, rate: float) -> tuple[int, tuple]:
-    store = bagio.typestore()
+    store = typestore()
     T = store.types
     Time, Header = T['builtin_interfaces/msg/Time'], T['std_msgs/msg/Header']
     period = 1.0 / rate
@@ -94,7 +95,7 @@ def write_bag(path: Path, hours: float, rate: float) -> tuple[int, tuple]:
             level=0, name=name, message='', hardware_id='',
             values=[KV(key=k, value=v) for k, v in values.items()])])
 
-    writer = bagio.BagWriter(path, chunk_size=65536)
+    writer = BagWriter(path, chunk_size=65536)
     types = {'/clock': 'rosgraph_msgs/msg/Clock', '/state': 'nav_msgs/msg/Odometry',
              '/wheels/state': 'sensor_msgs/msg/JointState', '/wheels/cmd': 'sensor_msgs/msg/JointState',
              '/actuators/torque': 'geometry_msgs/msg/Vector3Stamped',
@@ -156,7 +157,7 @@ def time_rosbags(bag: Path):
     from rosbags.highlevel import AnyReader
     t0 = time.perf_counter()
     n = 0
-    with AnyReader([bag], default_typestore=bagio.typestore()) as reader:
+    with AnyReader([bag], default_typestore=typestore()) as reader:
         for conn, _, raw in reader.messages():
             reader.deserialize(raw, conn.msgtype)
             n += 1

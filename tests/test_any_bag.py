@@ -1,7 +1,7 @@
 """RunData.from_bag on any rosbag2 bag with the graph's message types, not only our recorder's.
 
 Bags are written here by independent writers (rosbags' rosbag2 Writer, MCAP and sqlite3; the mcap
-library with other chunking/compression/index choices) and by adcs_sim.bag.BagWriter, from
+library with other chunking/compression/index choices) and by adcs_sim.bag.writer.BagWriter, from
 synthetic messages serialised by rosbags, with answers known in closed form. The reference
 recording in bags/ stands for a real run (and, cut short, for a recorder that was killed). No ROS.
 """
@@ -20,8 +20,13 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 from scipy.spatial.transform import Rotation
 
-from adcs_sim import bag as bagio
 from adcs_sim.app.analysis import REPORTED_TOPICS, RunData, jsonable_metrics, run_metrics
+from adcs_sim.bag import columns
+from adcs_sim.bag.batches import TopicBatch
+from adcs_sim.bag.columns import _diagnostic_array, decode_batch, decode_diagnostics
+from adcs_sim.bag.reader import read_messages, read_metadata, read_raw
+from adcs_sim.bag.storage import MCAP_MAGIC
+from adcs_sim.bag.writer import BagWriter
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 T = STORE.types
@@ -141,7 +146,7 @@ def write_rosbags(path: Path, messages, storage) -> Path:
 
 
 def write_ours(path: Path, messages, close=True, chunk_size=4096) -> Path:
-    writer = bagio.BagWriter(path, chunk_size=chunk_size)
+    writer = BagWriter(path, chunk_size=chunk_size)
     for topic, type_name, t_ns, data in messages:
         writer.add_topic(topic, type_name, QOS)
         writer.write(topic, data, t_ns)
@@ -234,9 +239,9 @@ def test_independent_writers_give_the_synthetic_run(tmp_path, kind):
 def test_sqlite3_bag_through_read_raw_and_by_its_db3_file(tmp_path):
     messages = SYN.messages(('state', 'torque'))
     bag = write_rosbags(tmp_path / 'bag', messages, StoragePlugin.SQLITE3)
-    raw = list(bagio.read_raw(bag))
+    raw = list(read_raw(bag))
     assert sorted((t, ty, ts, d) for t, ty, ts, d in raw) == sorted(messages)
-    assert bagio.read_metadata(bag) == {}
+    assert read_metadata(bag) == {}
     db3 = next(bag.glob('*.db3'))
     np.testing.assert_array_equal(RunData.from_bag(db3).u, SYN.u)
 
@@ -280,7 +285,7 @@ def test_fast_reader_equals_rosbags_deserialisation_on_recorded_bag():
     """The numpy CDR decoding against rosbags' deserialiser (read through the mcap library)."""
     run = RunData.from_bag(REFERENCE)
     msgs: dict[str, list] = {}
-    for topic, _, msg in bagio.read_messages(REFERENCE):
+    for topic, _, msg in read_messages(REFERENCE):
         msgs.setdefault(topic, []).append(msg)
     stamp = lambda m: m.header.stamp.sec + m.header.stamp.nanosec * 1e-9  # noqa: E731
     state = msgs['/state']
@@ -322,7 +327,7 @@ def test_truncated_recording_loads_what_was_recovered(tmp_path):
     np.testing.assert_array_equal(run.q, full.q[:n])
     np.testing.assert_array_equal(run.u, full.u[:run.u.shape[0]])
     # The count agrees with the mcap library's own streaming reader (read_raw) on the same file.
-    assert run.message_count == sum(1 for _ in bagio.read_raw(bag)) < full.message_count
+    assert run.message_count == sum(1 for _ in read_raw(bag)) < full.message_count
     assert run.scenario == full.scenario                      # the metadata record comes first
     m = run_metrics(run)
     assert m['duration_s'] == run.t[-1] < full.t_end
@@ -389,7 +394,7 @@ def test_things_that_are_not_bags(tmp_path):
     empty = tmp_path / 'empty.mcap'
     empty.write_bytes(b'')
     junk = tmp_path / 'junk.mcap'
-    junk.write_bytes(bagio.MCAP_MAGIC + bytes(range(256)) * 10)
+    junk.write_bytes(MCAP_MAGIC + bytes(range(256)) * 10)
     bad_meta = tmp_path / 'bad_meta'
     bad_meta.mkdir()
     (bad_meta / 'metadata.yaml').write_text('rosbag2_bagfile_information: [1, 2\n')
@@ -458,9 +463,9 @@ def test_decoder_layout_templates_and_many_distinct_layouts():
     datas = [ser(odom(i, q[i], [i, -i, 0.5 * i], 'x' * i, 'y' * (i % 7)), ODOM, little_endian=bool(rng.integers(2)))
              for i in range(n)]
     sizes = np.array([len(d) for d in datas])
-    batch = bagio.TopicBatch('/state', ODOM, np.frombuffer(b''.join(datas), np.uint8),
+    batch = TopicBatch('/state', ODOM, np.frombuffer(b''.join(datas), np.uint8),
                              np.r_[0, np.cumsum(sizes)[:-1]], sizes)
-    groups = bagio.decode_batch(batch)
+    groups = decode_batch(batch)
     rows = np.concatenate([g.rows for g in groups])
     assert sorted(rows.tolist()) == list(range(n))
     order = np.argsort(rows)
@@ -469,9 +474,9 @@ def test_decoder_layout_templates_and_many_distinct_layouts():
     np.testing.assert_array_equal(got_q, q)
     np.testing.assert_array_equal(got_ns, np.arange(n))
     # A message cut short parses as nothing, not as garbage.
-    short = bagio.TopicBatch('/state', ODOM, np.frombuffer(datas[5][:-8], np.uint8), np.array([0]),
+    short = TopicBatch('/state', ODOM, np.frombuffer(datas[5][:-8], np.uint8), np.array([0]),
                              np.array([len(datas[5]) - 8]))
-    assert sum(g.rows.size for g in bagio.decode_batch(short)) == 0
+    assert sum(g.rows.size for g in decode_batch(short)) == 0
 
 
 def test_diagnostics_decoder_against_rosbags(monkeypatch):
@@ -503,12 +508,12 @@ def test_diagnostics_decoder_against_rosbags(monkeypatch):
         messages.append(msg)
         datas.append(data)
     sizes = np.array([len(d) for d in datas])
-    batch = bagio.TopicBatch('/s', DIAG, np.frombuffer(b''.join(datas), np.uint8), np.r_[0, np.cumsum(sizes)[:-1]],
+    batch = TopicBatch('/s', DIAG, np.frombuffer(b''.join(datas), np.uint8), np.r_[0, np.cumsum(sizes)[:-1]],
                              sizes)
     scalar = []
-    parse_one = bagio._diagnostic_array
-    monkeypatch.setattr(bagio, '_diagnostic_array', lambda *a: scalar.append(1) or parse_one(*a))
-    stamps, statuses = bagio.decode_diagnostics(batch)
+    parse_one = _diagnostic_array
+    monkeypatch.setattr(columns, '_diagnostic_array', lambda *a: scalar.append(1) or parse_one(*a))
+    stamps, statuses = decode_diagnostics(batch)
     # Only the first message of each structure and byte order (and the odd ones) is parsed alone.
     assert len(scalar) <= odd + 2 * len(common)
     intact = [m for m in messages if m is not None]

@@ -1,7 +1,7 @@
 """Recorder crash: a bag writer SIGKILLed at random (seeded) moments loses nothing it had flushed,
 ``adcs-analyze`` reads what was written, and ``adcs-bag-repair`` rewrites the truncated file into
 a complete bag (summary, index, metadata.yaml) that rosbags' AnyReader opens. No ROS graph: the
-child process runs :class:`adcs_sim.bag.BagWriter`, the recorder's own writer, in the recorder's
+child process runs :class:`adcs_sim.bag.writer.BagWriter`, the recorder's own writer, in the recorder's
 write/flush pattern (the recorder node itself is killed the same way in
 tests/test_recorder.py::test_sigkill_keeps_everything_flushed)."""
 from __future__ import annotations
@@ -18,9 +18,10 @@ from conftest import ROOT
 from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 
-from adcs_sim import bag as bagio
 from adcs_sim.app.analyze import main as analyze_main
 from adcs_sim.app.repair import main as repair_main
+from adcs_sim.bag.reader import is_complete, read_metadata, read_raw
+from adcs_sim.bag.storage import typestore
 
 CHILD = ROOT / 'tests' / 'helpers' / 'bag_writer_child.py'
 SCENARIO = ROOT / 'config' / 'microsat_pd_slew.yaml'
@@ -69,11 +70,11 @@ def killed_bag(tmp_path, seed):
 @pytest.mark.parametrize('seed', SEEDS)
 def test_kill_at_random_moment_loses_nothing_flushed_and_repairs(tmp_path, seed, capsys):
     bag, flushed = killed_bag(tmp_path, seed)
-    assert not (bag / 'metadata.yaml').exists() and not bagio.is_complete(bag)
-    store = bagio.typestore()
+    assert not (bag / 'metadata.yaml').exists() and not is_complete(bag)
+    store = typestore()
 
     # what was written is readable as it is: every flushed state, in order, intact
-    truncated = [(t, store.deserialize_cdr(d, ty)) for topic, ty, t, d in bagio.read_raw(bag) if topic == '/state']
+    truncated = [(t, store.deserialize_cdr(d, ty)) for topic, ty, t, d in read_raw(bag) if topic == '/state']
     n = check_states(truncated)
     assert n >= flushed > 0
     assert analyze_main([str(bag), '--json', '--no-report']) == 0
@@ -82,24 +83,24 @@ def test_kill_at_random_moment_loses_nothing_flushed_and_repairs(tmp_path, seed,
     # repaired: a complete bag with the same messages, the scenario still embedded
     assert repair_main([str(bag)]) == 0
     assert 'repaired' in capsys.readouterr().out
-    assert (bag / 'metadata.yaml').is_file() and bagio.is_complete(bag)
+    assert (bag / 'metadata.yaml').is_file() and is_complete(bag)
     assert (bag / 'bag_0.mcap.truncated').is_file()
     with open(bag / 'bag_0.mcap', 'rb') as f:
         summary = make_reader(f).get_summary()
     assert summary is not None and summary.chunk_indexes       # summary and index
-    assert summary.statistics.message_count == sum(1 for _ in bagio.read_raw(bag))
+    assert summary.statistics.message_count == sum(1 for _ in read_raw(bag))
     with AnyReader([bag], default_typestore=store) as reader:
         assert reader.message_count == summary.statistics.message_count
         conns = [c for c in reader.connections if c.topic == '/state']
         repaired = [(t, reader.deserialize(d, c.msgtype)) for c, t, d in reader.messages(connections=conns)]
     assert check_states(repaired) == n
-    assert bagio.read_metadata(bag)['scenario'] == SCENARIO.read_text()
+    assert read_metadata(bag)['scenario'] == SCENARIO.read_text()
     assert analyze_main([str(bag), '--json', '--no-report']) == 0
     assert json.loads(capsys.readouterr().out)[str(bag)] == before
 
     # a complete bag is left alone
     assert repair_main([str(bag)]) == 0
-    assert 'already complete' in capsys.readouterr().out
+    assert 'complete, nothing to repair' in capsys.readouterr().out
 
 
 def test_repair_refuses_what_is_not_a_bag(tmp_path, capsys):

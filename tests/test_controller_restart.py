@@ -18,8 +18,8 @@ import numpy as np
 import yaml
 from conftest import CONFIG, ROOT, make_scenario
 
-from adcs_sim import bag as bagio
 from adcs_sim.app.analysis import RunData, run_metrics
+from adcs_sim.bag.reader import read_raw
 
 DEADLINE = 180.0
 DURATION = 2000.0   # simulated s (1 s steps): long enough to be killed mid-run, short once rejoined
@@ -28,7 +28,7 @@ TIMEOUT = 0.25      # lockstep.timeout (wall s) while the controller is gone
 
 def _states_recorded(bag) -> int:
     try:
-        return sum(1 for t, *_ in bagio.read_raw(bag) if t == '/state')
+        return sum(1 for t, *_ in read_raw(bag) if t == '/state')
     except (FileNotFoundError, ValueError):
         return 0
 

@@ -7,8 +7,8 @@ import numpy as np
 from conftest import InProcessGraph, make_scenario
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion
-from adcs_sim import bag as bagio
 from adcs_sim.app.analysis import RunData
+from adcs_sim.bag.reader import read_messages
 
 
 def test_realtime_mode_paces_and_uses_latest_commands(ros_domain, tmp_path):
@@ -57,7 +57,7 @@ def test_measurement_noise_is_seeded_and_truth_is_recorded(ros_domain, tmp_path)
                              and rec.bag.topics['/truth/state'].count == n + 1)
             rec.close()
         measured = [(m.pose.pose.orientation, m.twist.twist.angular)
-                    for _, _, m in bagio.read_messages(bag, {'/state'})]
+                    for _, _, m in read_messages(bag, {'/state'})]
         q_m = np.array([[o.x, o.y, o.z, o.w] for o, _ in measured])
         w_m = np.array([[a.x, a.y, a.z] for _, a in measured])
         runs.append((RunData.from_bag(bag), q_m, w_m))

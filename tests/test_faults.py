@@ -246,8 +246,8 @@ def test_wheel_failure_in_lockstep_graph(ros_domain, tmp_path):
     commanded none (the controller re-allocates), the body gets no z torque over [100, 101] but
     did over [99, 100], and the fault is in the bag."""
     from adcs_controllers.nodes.pd_controller import PdController
-    from adcs_sim import bag as bagio
     from adcs_sim.app.analysis import RunData
+    from adcs_sim.bag.reader import read_messages
 
     n, t_fault = 300, 100.0
     bag_dir = tmp_path / 'bag'
@@ -277,7 +277,7 @@ def test_wheel_failure_in_lockstep_graph(ros_domain, tmp_path):
     assert run.u[k - 1, 2] != 0.0
     assert np.all(run.u[k:, 2] == 0.0)
 
-    cmds = [(t, msg) for _, t, msg in bagio.read_messages(bag_dir, {'/wheels/cmd'})]
+    cmds = [(t, msg) for _, t, msg in read_messages(bag_dir, {'/wheels/cmd'})]
     assert len(cmds) == n + 1
     z_cmd = {t / 1e9: msg.effort[list(msg.name).index('rw_z')] for t, msg in cmds}
     assert z_cmd[t_fault - 1] != 0.0

@@ -18,8 +18,8 @@ import numpy as np
 from conftest import ROOT, make_scenario, plain_message
 from scipy.spatial.transform import Rotation
 
-from adcs_sim import bag as bagio
 from adcs_sim.app.analysis import RunData
+from adcs_sim.bag.reader import read_messages
 
 N_RUNS = 8
 DURATION = 60.0
@@ -55,7 +55,7 @@ def _content(bag):
     uninitialised (seen here: the byte after a string's terminator), so equal messages can
     differ there."""
     out = defaultdict(list)
-    for topic, t, msg in bagio.read_messages(bag):
+    for topic, t, msg in read_messages(bag):
         out[topic].append((t, plain_message(msg)))
     return dict(out)
 

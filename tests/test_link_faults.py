@@ -13,8 +13,8 @@ import pytest
 from conftest import ROOT, make_scenario
 
 from adcs_msgs_py.params import ParameterError
-from adcs_sim import bag as bagio
 from adcs_sim.app.registry import NODES
+from adcs_sim.bag.reader import read_messages
 from adcs_sim.truth.link_faults import DELAY, DROP, LinkFaults
 
 
@@ -62,7 +62,7 @@ def test_pd_slew_with_10_percent_lost_commands_converges(tmp_path):
 
 
 def _statuses(bag):
-    for topic, t, msg in bagio.read_messages(bag, {'/dynamics/status'}):
+    for topic, t, msg in read_messages(bag, {'/dynamics/status'}):
         for st in msg.status:
             yield topic, t, {kv.key: kv.value for kv in st.values}
 

@@ -16,9 +16,9 @@ from reference_pd import pd_slew_reference
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from adcs_sim import bag as bagio
 from adcs_sim.app.analysis import RunData, run_metrics
 from adcs_sim.app.runner import run_scenario
+from adcs_sim.bag.reader import read_messages
 
 J = np.diag([12.0, 14.0, 10.0])
 Q0 = [0.3062, 0.1768, 0.1768, 0.9186]
@@ -58,7 +58,7 @@ def test_in_process_loop_converges_and_matches_reference(ros_domain, tmp_path):
 def _contents(bag_dir: Path):
     """Every message's (topic, log time, content). Content, not CDR bytes: Fast DDS leaves the
     alignment padding of a serialised message uninitialised, so equal messages can differ there."""
-    return [(topic, t, plain_message(msg)) for topic, t, msg in bagio.read_messages(bag_dir)]
+    return [(topic, t, plain_message(msg)) for topic, t, msg in read_messages(bag_dir)]
 
 
 def test_separate_processes_deterministic_and_match_reference(tmp_path):

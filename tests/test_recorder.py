@@ -35,7 +35,8 @@ from std_msgs.msg import Float64
 from adcs_msgs_py import topics
 from adcs_msgs_py.conversions import NS_PER_S, clock_msg, state_to_msg
 from adcs_msgs_py.node import EXIT_BAD_PARAMETERS
-from adcs_sim import bag as bagmod
+from adcs_sim.bag.reader import is_complete, read_metadata, read_raw
+from adcs_sim.bag.storage import mcap_file, typestore
 from adcs_sim.nodes.recorder import READY_LINE
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -280,9 +281,9 @@ def odom_fields(msg):
 
 
 def raw_states(bag) -> list[tuple]:
-    store = bagmod.typestore()
+    store = typestore()
     out = []
-    for topic, type_name, t, data in bagmod.read_raw(bag):
+    for topic, type_name, t, data in read_raw(bag):
         if topic == STATE_TOPIC:
             assert type_name == 'nav_msgs/msg/Odometry'
             stamp, q, w = odom_fields(store.deserialize_cdr(data, type_name))
@@ -292,7 +293,7 @@ def raw_states(bag) -> list[tuple]:
 
 def count_raw(bag, topic: str) -> int:
     try:
-        return sum(1 for m in bagmod.read_raw(bag) if m[0] == topic)
+        return sum(1 for m in read_raw(bag) if m[0] == topic)
     except FileNotFoundError:
         return 0
 
@@ -341,11 +342,11 @@ def test_signal_closes_a_complete_bag(recorders, tmp_path, sig):
 
     # mcap_ros2 (file order, not re-sorted)
     got = []
-    for m in read_ros2_messages(bagmod.mcap_file(out), topics=[STATE_TOPIC], log_time_order=False):
+    for m in read_ros2_messages(mcap_file(out), topics=[STATE_TOPIC], log_time_order=False):
         stamp, q, w = odom_fields(m.ros_msg)
         got.append((stamp, m.log_time_ns, q, w))
     assert state_prefix(got) == N_CLEAN
-    clocks = [m.ros_msg.clock for m in read_ros2_messages(bagmod.mcap_file(out), topics=[topics.CLOCK],
+    clocks = [m.ros_msg.clock for m in read_ros2_messages(mcap_file(out), topics=[topics.CLOCK],
                                                           log_time_order=False)]
     assert [c.sec * NS_PER_S + c.nanosec for c in clocks] == [k * STEP_NS for k in range(N_CLEAN)]
 
@@ -385,15 +386,15 @@ def test_sigkill_keeps_everything_flushed(recorders, tmp_path, seed):
         assert rec.kill() == -signal.SIGKILL
     assert not (out / 'metadata.yaml').exists()
 
-    # adcs_sim.bag.read_raw: a prefix k = 0..M-1 with N1 <= M <= N1 + n2, all intact
+    # adcs_sim.bag.reader.read_raw: a prefix k = 0..M-1 with N1 <= M <= N1 + n2, all intact
     n = state_prefix(raw_states(out))
     assert N1 <= n <= N1 + n2
     # the metadata written at start is readable from the truncated file too
-    assert bagmod.read_metadata(out).get('scenario') == scenario_text
+    assert read_metadata(out).get('scenario') == scenario_text
 
     # mcap's streaming reader with CRC checks, decoding with mcap_ros2, up to the truncated tail
     got = []
-    with open(bagmod.mcap_file(out), 'rb') as f:
+    with open(mcap_file(out), 'rb') as f:
         reader = NonSeekingReader(f, validate_crcs=True, decoder_factories=[DecoderFactory()])
         try:
             for _schema, channel, message, msg in reader.iter_decoded_messages(log_time_order=False):
@@ -408,14 +409,14 @@ def test_sigkill_keeps_everything_flushed(recorders, tmp_path, seed):
     # exactly what was readable, which rosbags' AnyReader opens
     from adcs_sim.app.repair import main as repair_main
     assert repair_main([str(out)]) == 0
-    assert (out / 'metadata.yaml').is_file() and bagmod.is_complete(out)
+    assert (out / 'metadata.yaml').is_file() and is_complete(out)
     with AnyReader([out], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
         conns = [c for c in reader.connections if c.topic == STATE_TOPIC]
         got = [(*odom_fields(reader.deserialize(data, c.msgtype))[:1], t,
                 *odom_fields(reader.deserialize(data, c.msgtype))[1:])
                for c, t, data in reader.messages(connections=conns)]
     assert state_prefix(got) == n
-    assert bagmod.read_metadata(out).get('scenario') == scenario_text
+    assert read_metadata(out).get('scenario') == scenario_text
 
 
 # --- 3. refusals -----------------------------------------------------------------------------
@@ -450,7 +451,7 @@ def test_scenario_file_is_embedded(recorders, tmp_path):
     rec = recorders(f'output:={out}', f'scenario_file:={SCENARIO}')
     rec.wait_ready()
     assert rec.stop(signal.SIGINT) == 0, rec.stderr()
-    assert bagmod.read_metadata(out)['scenario'] == (ROOT / SCENARIO).read_text()
+    assert read_metadata(out)['scenario'] == (ROOT / SCENARIO).read_text()
 
 
 # --- 5. discovery of topics outside the interface --------------------------------------------
@@ -475,8 +476,8 @@ def test_discovers_and_records_extra_topic(recorders, tmp_path):
         wait_acked(temp)
         assert rec.stop(signal.SIGINT) == 0, rec.stderr()
 
-    got = [(t, bagmod.typestore().deserialize_cdr(data, type_name).data)
-           for topic, type_name, t, data in bagmod.read_raw(out) if topic == '/extra/temperature']
+    got = [(t, typestore().deserialize_cdr(data, type_name).data)
+           for topic, type_name, t, data in read_raw(out) if topic == '/extra/temperature']
     assert [v for _, v in got] == values
     assert all(t == clock_ns for t, _ in got)
     info = yaml.safe_load((out / 'metadata.yaml').read_text())['rosbag2_bagfile_information']

@@ -19,7 +19,7 @@ import pytest
 from rosbags.typesys import Stores, get_typestore
 
 from adcs_sim.app.analyze import main as analyze_main
-from adcs_sim.bag import BagWriter
+from adcs_sim.bag.writer import BagWriter
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 T = STORE.types
@@ -212,7 +212,7 @@ def test_truncated_bag_is_recovered_and_says_so(bags, tmp_path):
     mcap = next(bag.glob('*.mcap'))
     data = mcap.read_bytes()
     mcap.write_bytes(data[:len(data) // 2])
-    from adcs_sim.bag import read_raw
+    from adcs_sim.bag.reader import read_raw
     readable = sum(1 for _ in read_raw(bag))
     total = N + N + (N - 1) * 2 + 2  # state, wheels, status + torque, dynamics/status
     assert 0 < readable < total
@@ -220,7 +220,7 @@ def test_truncated_bag_is_recovered_and_says_so(bags, tmp_path):
     assert not (bag.parent / 'report').exists()  # --no-report writes nothing
     assert analyze_main([str(bag)]) == 0
     text = (bag.parent / 'report' / 'report.md').read_text()
-    assert f'recovered from a truncated file' in text
+    assert 'recovered from a truncated file' in text
     assert f'{readable} messages recovered' in text
     assert (bag.parent / 'report' / 'attitude_error.png').stat().st_size > 1000
 

@@ -11,9 +11,9 @@ import time
 import pytest
 from conftest import ROOT, make_scenario
 
-from adcs_sim import bag as bagio
 from adcs_sim.app.analysis import RunData, run_metrics
 from adcs_sim.app.analyze import main as analyze_main
+from adcs_sim.bag.reader import read_metadata, read_raw
 
 
 def _children(pid: int) -> list[int]:
@@ -44,7 +44,7 @@ def test_runner_end_to_end_and_analyze_agree(tmp_path, capsys):
     analyzed = json.loads(capsys.readouterr().out)[str(out / 'bag')]
     assert analyzed == written
     # The scenario is embedded in the bag: the bag alone describes its run.
-    assert bagio.read_metadata(out / 'bag')['scenario'] == scenario.read_text()
+    assert read_metadata(out / 'bag')['scenario'] == scenario.read_text()
 
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
@@ -58,7 +58,7 @@ def test_runner_interrupted_mid_run_leaves_readable_bag_and_no_orphans(tmp_path,
         bag = out / 'bag'
         deadline = time.monotonic() + 120
         # Wait until the run is really under way: state messages are on disk (recorder flushed).
-        while not (bag.exists() and any(t == '/state' for t, *_ in bagio.read_raw(bag))):
+        while not (bag.exists() and any(t == '/state' for t, *_ in read_raw(bag))):
             assert time.monotonic() < deadline, 'run did not start'
             try:  # re-check the file when the runner exits or after 0.1 s, whichever first
                 proc.wait(timeout=0.1)

@@ -18,8 +18,8 @@ import time
 import pytest
 from conftest import ROOT, make_scenario
 
-from adcs_sim import bag as bagio
 from adcs_sim.app.analysis import RunData
+from adcs_sim.bag.reader import is_complete, read_raw
 
 DEADLINE = 120.0
 
@@ -90,13 +90,13 @@ class Run:
         left = [f'{pid} {args}' for pid, args in self.seen.items() if _alive(pid)]
         assert not left, f'processes left behind: {left}'
         if self.bag.exists():   # whatever was recorded is a complete, closed bag
-            assert bagio.is_complete(self.bag), sorted(p.name for p in self.bag.iterdir())
+            assert is_complete(self.bag), sorted(p.name for p in self.bag.iterdir())
 
 
 def _state_recorded(bag, count: int = 1) -> bool:
     """At least ``count`` states are in the bag's flushed part (the run is under way)."""
     try:
-        return sum(t == '/state' for t, *_ in bagio.read_raw(bag)) >= count
+        return sum(t == '/state' for t, *_ in read_raw(bag)) >= count
     except (FileNotFoundError, ValueError):
         return False
 
@@ -137,7 +137,7 @@ def test_signal_at_any_phase_leaves_no_orphan_and_a_complete_bag(tmp_path, phase
         assert 'interrupted by' in err, err
     run.assert_clean()
     if phase in ('shutdown', 'twice'):
-        assert bagio.is_complete(run.bag)
+        assert is_complete(run.bag)
         assert RunData.from_bag(run.bag).t.size > 1
 
 
@@ -157,5 +157,5 @@ def test_node_killed_mid_run_stops_graph_keeps_bag_and_names_it(tmp_path):
     assert 'pd_controller was killed by SIGKILL during the run' in err, err
     assert f'bag kept in {run.bag}' in err
     run.assert_clean()
-    assert bagio.is_complete(run.bag)
+    assert is_complete(run.bag)
     assert RunData.from_bag(run.bag).t.size > 1

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import make_scenario, run_fault_graph
-from numpy.testing import assert_allclose, assert_array_equal
+from numpy.testing import assert_array_equal
 
 from adcs_msgs_py.params import ParameterError
 
@@ -37,10 +37,10 @@ def test_zero_momentum_reconfiguration_in_lockstep(ros_domain, tmp_path):
     rw_x, rw_y only) from that step on; 1600 s later the attitude is inside the paper's fine band
     (q4 within 1 ± 0.01) on all axes, and the bag is the batch engine's run."""
     from adcs_controllers.nodes.zero_momentum_controller import ZeroMomentumController
-    from adcs_sim import bag as bagio
     from adcs_sim.app.analysis import RunData
     from adcs_sim.app.batch import BatchSimulation
     from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.bag.reader import read_messages
 
     n = 1620
     scenario = reconfiguring_scenario(tmp_path, 'uosat12_zero_momentum.yaml', 'zero_momentum_controller', n)
@@ -57,7 +57,7 @@ def test_zero_momentum_reconfiguration_in_lockstep(ros_domain, tmp_path):
     assert status[T_FAULT]['phase'] == 'two_wheel' and status[T_FAULT]['mode'] == 'zero_momentum'
     assert status[T_FAULT]['available_wheels'] == 'rw_x,rw_y'
     # torque commands to all three wheels before, speed commands to rw_x and rw_y from the fault on
-    cmds = {t / 1e9: msg for _, t, msg in bagio.read_messages(bag, {'/wheels/cmd'})}
+    cmds = {t / 1e9: msg for _, t, msg in read_messages(bag, {'/wheels/cmd'})}
     assert list(cmds[T_FAULT - 1].name) == ['rw_x', 'rw_y', 'rw_z'] and len(cmds[T_FAULT - 1].effort) == 3
     assert all(list(m.name) == ['rw_x', 'rw_y'] and len(m.velocity) == 2 and not len(m.effort)
                for t, m in cmds.items() if t >= T_FAULT)

@@ -27,10 +27,10 @@ def test_m2s_in_lockstep_is_the_batch_run_and_the_law(ros_domain, tmp_path):
     from adcs_controllers.nodes.m2s_controller import M2sController
     from adcs_core.attitude import quat_normalize
     from adcs_msgs_py import conversions as cv
-    from adcs_sim import bag as bagio
     from adcs_sim.app.analysis import RunData
     from adcs_sim.app.batch import BatchSimulation
     from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.bag.reader import read_messages
 
     n = 150
     expect = {'startup.expect_recorder': True}
@@ -53,7 +53,7 @@ def test_m2s_in_lockstep_is_the_batch_run_and_the_law(ros_domain, tmp_path):
 
     # replay the pure law over the states the controller received: the same status, bit for bit
     law = M2sLaw(sections['m2s_controller'])
-    states = [cv.state_from_msg(m) for _, _, m in bagio.read_messages(bag, {'/state'})]
+    states = [cv.state_from_msg(m) for _, _, m in read_messages(bag, {'/state'})]
     published = [values for _, _, values in run.controller_status]  # texts (repr of the floats), by step
     assert len(published) == len(states) == n + 1
     keys = ['V', 'theta', 'q_vag', 'J_hat_11', 'J_hat_22', 'J_hat_33', 'J_hat_23', 'J_hat_13', 'J_hat_12',

@@ -49,7 +49,8 @@ import yaml
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213
 from adcs_msgs_py import names as topics
-from adcs_sim import bag as bagio
+from adcs_sim.bag.batches import ColumnReader
+from adcs_sim.bag.columns import decode_batch, decode_diagnostics
 
 NS = 1e-9
 
@@ -158,6 +159,8 @@ class RunData:
     topic_counts: dict = field(default_factory=dict)  # messages per topic (relative to the namespace)
     # How the bag was read:
     truncated: bool = False            # no MCAP summary/footer (writer killed): data up to the last whole chunk
+    problem: str | None = None         # one line: damage (byte offset, reason), truncation or damaged summary
+    damaged: bool = False              # a fault was found: the data is every record before it
     message_count: int = 0             # messages read from the bag, all topics
     missing_topics: list = field(default_factory=list)  # of REPORTED_TOPICS, those with no message
     pointing: tuple | None = None      # (σ̂ body axis, τ̂ inertial direction) of a pointing run (seed 003)
@@ -176,7 +179,7 @@ class RunData:
         prefix of a ``state`` topic with the most of the graph's topics beside it. Only ``state``
         (``nav_msgs/Odometry``) is required; other topics are read when present and their absence
         listed in ``missing_topics``. One streaming pass; fixed-layout messages are decoded with
-        numpy from their CDR bytes (:func:`adcs_sim.bag.decode_batch`).
+        numpy from their CDR bytes (:func:`adcs_sim.bag.columns.decode_batch`).
 
         Raises ValueError (not a bag, no ``state`` messages) or OSError (no such path), each with
         a one-line message.
@@ -201,24 +204,21 @@ class RunData:
             return any(READ_TYPES[rel] == type_name and (topic == '/' + rel or topic.endswith('/' + rel))
                        for rel in READ_TYPES)
 
-        reader = bagio.ColumnReader(path, select)
+        reader = ColumnReader(path, select)
         columns: dict[str, list] = defaultdict(list)     # topic -> [(first row number, Columns)]
         diagnostics: dict[str, list] = defaultdict(list)  # topic -> [(stamps, statuses)]
         seen: dict[str, int] = defaultdict(int)
         for batch in reader:
             if batch.type_name == DIAGNOSTIC_ARRAY:
-                diagnostics[batch.topic].append(bagio.decode_diagnostics(batch))
+                diagnostics[batch.topic].append(decode_diagnostics(batch))
             else:
-                columns[batch.topic].extend((seen[batch.topic], c) for c in bagio.decode_batch(batch))
+                columns[batch.topic].extend((seen[batch.topic], c) for c in decode_batch(batch))
             seen[batch.topic] += len(batch)
         counts = {name: n for name, n in reader.topic_counts.items() if n}
         ns = fixed if fixed is not None else _namespace(counts, reader.topics)
         state_topic = ns + topics.STATE
         if not any(c.rows.size for _, c in columns.get(state_topic, [])):
-            what = f'{state_topic} ({ODOMETRY})'
-            if state_topic in reader.topics and reader.topics[state_topic] != ODOMETRY:
-                what = f'{state_topic} of type {ODOMETRY} (it is {reader.topics[state_topic]})'
-            raise ValueError(f'{path}: no {what} messages: not a run of the graph')
+            raise _no_state(path, reader, state_topic)
         truth = _merged(columns.get(ns + topics.TRUTH_STATE, []))
         t, cols = truth if truth[0].size else _merged(columns[state_topic])
         run = cls(t=t, q=cols['orientation'], w=cols['angular'])
@@ -242,6 +242,7 @@ class RunData:
                       _merged_statuses(diagnostics.get(ns + topics.FAULTS, [])) for s in statuses]
         run.topic_counts = {_relative(name, ns): n for name, n in counts.items()}
         run.truncated = reader.truncated
+        run.problem, run.damaged = reader.problem, reader.damaged
         run.message_count = reader.message_count
         run.missing_topics = [rel for rel in REPORTED_TOPICS if not counts.get(ns + rel)]
         run.namespace = ns
@@ -251,6 +252,17 @@ class RunData:
             run.q_ref = target_attitude(run.scenario)
             run.pointing = pointing_request(run.scenario)
         return run
+
+
+def _no_state(path, reader: ColumnReader, state_topic: str) -> ValueError:
+    """The one-line error for a bag without a state message (saying so when it is damaged)."""
+    what = f'{state_topic} ({ODOMETRY})'
+    if state_topic in reader.topics and reader.topics[state_topic] != ODOMETRY:
+        what = f'{state_topic} of type {ODOMETRY} (it is {reader.topics[state_topic]})'
+    if reader.problem is not None:
+        return ValueError(f'{path}: {reader.problem}: no {what} message before it '
+                          f'({reader.message_count} messages salvaged): nothing to analyse')
+    return ValueError(f'{path}: no {what} messages: not a run of the graph')
 
 
 def _relative(topic: str, ns: str) -> str:

@@ -12,7 +12,10 @@ the folder that holds the runs; with ``--reference FILE`` (published figures per
 ``--no-report`` only prints the metrics.
 
 A path that is not a readable bag gives a one-line error on stderr and exit status 1 (the other
-bags are still analysed).
+bags are still analysed). A damaged bag (a CRC or bounds check fails; every check is in
+:mod:`adcs_sim.bag.records`) is analysed up to the damage with a one-line warning on stderr naming
+the byte offset and what was read, or refused with a one-line error when nothing before the
+damage can be analysed or the damage cannot be located. So is a truncated one (writer killed).
 """
 from __future__ import annotations
 
@@ -29,6 +32,24 @@ def _report_dir(out: Path | None, path: str, name: str, several: bool) -> Path:
     if out is None:
         return default_report_dir(path)
     return out / name if several else out
+
+
+def _load(paths: list[str]) -> tuple[dict, int]:
+    """The runs that load ({path: Run}) and the exit status; one line on stderr per failure or warning."""
+    from adcs_sim.app.report import BagError, load_run  # matplotlib only after the arguments are parsed
+    runs = {}
+    status = 0
+    for path in paths:
+        try:
+            runs[path] = run = load_run(path)
+        except BagError as exc:
+            print(f'adcs-analyze: {path}: {exc}', file=sys.stderr)
+            status = 1
+            continue
+        if run.data.problem is not None:
+            print(f'adcs-analyze: warning: {path}: {run.data.problem}; analysed the {run.message_count} '
+                  f'messages read (up to t = {run.data.t_end:.6g} s)', file=sys.stderr)
+    return runs, status
 
 
 def main(argv=None) -> int:
@@ -49,15 +70,7 @@ def main(argv=None) -> int:
                              'added to the comparison with the relative differences')
     parser.add_argument('--no-report', action='store_true', help='only print the metrics')
     args = parser.parse_args(argv)
-    from adcs_sim.app.report import BagError, load_run  # matplotlib only after the arguments are parsed
-    runs = {}
-    status = 0
-    for path in args.bags:
-        try:
-            runs[path] = load_run(path)
-        except BagError as exc:
-            print(f'adcs-analyze: {path}: {exc}', file=sys.stderr)
-            status = 1
+    runs, status = _load(args.bags)
     results = {p: run_metrics(r.data, args.tolerance_deg, args.eigen_tolerance_deg) for p, r in runs.items()}
     if args.json:
         print(json.dumps({p: jsonable_metrics(m) for p, m in results.items()}, indent=2))

@@ -10,9 +10,9 @@ import time
 from pathlib import Path
 
 from adcs_msgs_py.node import network_hygiene_defaults
-from adcs_sim import bag as bagio
 from adcs_sim.app.domains import DomainLease
 from adcs_sim.app.scenario_files import RunError
+from adcs_sim.bag.reader import read_raw
 
 STOP_TIMEOUT_S = 20.0
 
@@ -167,7 +167,7 @@ def graph_env(lease: DomainLease, allow_network: bool = False) -> dict:
 def recorded_state(bag_dir: Path) -> bool:
     """Whether the bag (complete, or as flushed so far) holds at least one state message."""
     try:
-        return any(topic.endswith('/state') for topic, *_ in bagio.read_raw(bag_dir))
+        return any(topic.endswith('/state') for topic, *_ in read_raw(bag_dir))
     except (OSError, ValueError):
         return False
 

@@ -1,18 +1,24 @@
-"""``adcs-bag-repair <bag> [<bag> ...]``: make the bag of a killed recorder complete again.
+"""``adcs-bag-repair <bag> [<bag> ...]``: make the bag of a killed recorder, or a damaged bag, complete again.
 
 A recorder killed with SIGKILL leaves an MCAP file without summary or index and no
-``metadata.yaml``; ``adcs-analyze`` reads it as it is, but other tools (rosbags' ``AnyReader``,
-``ros2 bag info``) need a complete bag. This rewrites every whole record of the truncated file
-into a complete one in place (:func:`adcs_sim.bag.repair`) and keeps the original beside it as
-``<name>.mcap.truncated``. A complete bag is left alone (``--force`` rewrites it anyway).
-Exit status 0 when every bag is complete afterwards, 1 otherwise (one line per failure on stderr).
+``metadata.yaml``; a disk or a copy can damage a file anywhere. ``adcs-analyze`` reads such a
+bag as it is (with a warning), but other tools (rosbags' ``AnyReader``, ``ros2 bag info``) need a
+complete bag. This rewrites every intact record (all those before the truncation or the first
+fault a CRC or a bounds check finds) into a complete file in place
+(:func:`adcs_sim.bag.repair.repair`) and keeps the original beside it (``<name>.mcap.truncated``
+or ``.original``). It prints what it kept and dropped: messages, the byte offset of the damage.
+A complete, intact bag is left alone (``--force`` rewrites it anyway).
+
+Exit status 0 when every bag is complete afterwards; 1 when a bag cannot be repaired (not a bag,
+no intact message, a fault that no CRC locates): one line per failure on stderr, the bag left
+as it was.
 """
 from __future__ import annotations
 
 import argparse
 import sys
 
-from adcs_sim import bag as bagio
+from adcs_sim.bag.repair import repair
 
 
 def main(argv=None) -> int:
@@ -23,17 +29,18 @@ def main(argv=None) -> int:
     status = 0
     for path in args.bags:
         try:
-            result = bagio.repair(path, force=args.force)
+            result = repair(path, force=args.force)
         except (OSError, ValueError) as exc:
-            print(f'adcs-bag-repair: {path}: {exc}', file=sys.stderr)
+            print(f'adcs-bag-repair: {path}: {_one_line(exc, path)}', file=sys.stderr)
             status = 1
             continue
-        if result.status == 'complete':
-            print(f'{result.bag}: already complete, left alone')
-        else:
-            print(f'{result.bag}: repaired, {result.messages} messages '
-                  f'(original kept as {result.kept.name})')
+        print(result.summary())
     return status
+
+
+def _one_line(exc: Exception, path: str) -> str:
+    text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    return text[len(path) + 2:] if text.startswith(f'{path}: ') else text
 
 
 if __name__ == '__main__':

@@ -32,8 +32,8 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from adcs_msgs_py import names as topics
-from adcs_sim import bag as bagio
 from adcs_sim.app.analysis import RunData, attitude_errors, run_metrics, settling_times
+from adcs_sim.bag.reader import read_metadata
 
 ERROR_LEVEL = 2  # diagnostic_msgs/DiagnosticStatus.ERROR
 DPI = 110
@@ -536,6 +536,28 @@ def _md_escape(text: str) -> str:
     return str(text).replace('|', '\\|').replace('\n', ' ')
 
 
+def _recording_lines(run: Run) -> list[str]:
+    """The report's lines on how the bag was read: complete, truncated or damaged (and where)."""
+    data = run.data
+    if run.complete:
+        lines = [f'| recording | complete ({run.message_count} messages) |']
+    elif data.damaged:
+        lines = [f'| recording | **damaged file**: {_md_escape(data.problem)}; {run.message_count} intact '
+                 'messages before the damage read |']
+    else:
+        lines = [f'| recording | **recovered from a truncated file** (no MCAP summary: the recorder did '
+                 f'not close the bag); {run.message_count} messages recovered |']
+    lines += [f'| simulated time | {data.t[0]:g} s to {data.t_end:g} s ({data.t.size} state samples) |',
+              f'| attitude | {"true state (truth/state)" if data.topic_counts.get(topics.TRUTH_STATE) else "state"} |',
+              '']
+    if not run.complete:
+        what = 'the intact part of a damaged file' if data.damaged else 'a truncated file'
+        lines += [f'> Recovered from {what}: {run.message_count} messages recovered, '
+                  f'up to t = {data.t_end:g} s ({_md_escape(data.problem or "")}). Metrics and figures cover '
+                  'the recovered part only (`missed_steps`: the last count published before the cut).', '']
+    return lines
+
+
 def write_report(run: Run, out, tol_deg: float = 0.5, eigen_tol_deg: float | None = None) -> Path:
     """Write ``report.md`` and the figures of one run into ``out``; return the report's path."""
     out = Path(out)
@@ -549,18 +571,7 @@ def write_report(run: Run, out, tol_deg: float = 0.5, eigen_tol_deg: float | Non
 
     lines = [f'# Run report: {run.name}', '', '| | |', '| --- | --- |',
              f'| bag | `{run.path}` |']
-    if run.complete:
-        lines.append(f'| recording | complete ({run.message_count} messages) |')
-    else:
-        lines.append(f'| recording | **recovered from a truncated file** (no MCAP summary: the recorder did '
-                     f'not close the bag); {run.message_count} messages recovered |')
-    lines += [f'| simulated time | {data.t[0]:g} s to {data.t_end:g} s ({data.t.size} state samples) |',
-              f'| attitude | {"true state (truth/state)" if data.topic_counts.get(topics.TRUTH_STATE) else "state"} |',
-              '']
-    if not run.complete:
-        lines += [f'> Recovered from a truncated file: {run.message_count} messages recovered, '
-                  f'up to t = {data.t_end:g} s. Metrics and figures cover the recovered part only '
-                  '(`missed_steps`: the last count published before the cut).', '']
+    lines += _recording_lines(run)
 
     lines += ['## Topics', '', '| topic | messages |', '| --- | --- |']
     lines += [f'| `{t}` | {n} |' for t, n in sorted(data.topic_counts.items())]
@@ -581,7 +592,7 @@ def write_report(run: Run, out, tol_deg: float = 0.5, eigen_tol_deg: float | Non
         lines += [f'No fault events (no ERROR status on `{topics.FAULTS}`).', '']
 
     lines += ['## Scenario', '']
-    scenario_text = bagio.read_metadata(run.path).get('scenario') if data.scenario is not None else None
+    scenario_text = read_metadata(run.path).get('scenario') if data.scenario is not None else None
     if scenario_text:
         fence = '~~~~' if '```' in scenario_text else '```'
         lines += ['As embedded in the bag (MCAP metadata `scenario`):', '', fence + 'yaml', scenario_text.rstrip('\n'),
@@ -729,7 +740,8 @@ def write_comparison(runs: list[Run], out, tol_deg: float = 0.5,
 
     lines = [f'# Comparison of {len(runs)} runs', '', '| run | bag | recording |', '| --- | --- | --- |']
     for name, r in zip(names, runs):
-        how = 'complete' if r.complete else f'recovered from a truncated file ({r.message_count} messages)'
+        how = 'complete' if r.complete else f'recovered from a {"damaged" if r.data.damaged else "truncated"} ' \
+            f'file ({r.message_count} messages)'
         miss = missing_topics(r.data)
         how += f'; missing topics: {", ".join(miss)}' if miss else ''
         lines.append(f'| {_md_escape(name)} | `{r.path}` | {how} |')

@@ -7,7 +7,7 @@ periodic graph look-up. The file is flushed every ``flush_period`` wall seconds.
 
 On SIGINT / SIGTERM the node stops taking new work, drains what DDS has already delivered, and
 closes the bag (summary + ``metadata.yaml``). After SIGKILL, everything up to the last flush is
-readable (:func:`adcs_sim.bag.read_raw`).
+readable (:func:`adcs_sim.bag.reader.read_raw`).
 """
 from __future__ import annotations
 
@@ -23,8 +23,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from adcs_msgs_py import topics
 from adcs_msgs_py.node import AdcsNode, main_for
-from adcs_sim.bag import BagWriter, qos_dicts
 from adcs_sim.bag.schema import RECORDER_SCHEMA
+from adcs_sim.bag.writer import BagWriter, qos_dicts
 
 IGNORED_TOPICS = ('/rosout', '/parameter_events')
 STOP_REQUESTED = threading.Event()  # set by SIGINT / SIGTERM in the recorder process

@@ -1,7 +1,7 @@
 """A recorder's writing loop without ROS, to be SIGKILLed at random moments (tests/test_bag_repair.py).
 
 ``python bag_writer_child.py OUT CHUNK_SIZE FLUSH_EVERY SCENARIO``: writes /clock and /state
-(state k: stamp k * 0.1 s, content a function of k) through :class:`adcs_sim.bag.BagWriter`, the
+(state k: stamp k * 0.1 s, content a function of k) through :class:`adcs_sim.bag.writer.BagWriter`, the
 recorder's writer, flushing every FLUSH_EVERY states and printing ``flushed N`` (N states
 written before that flush) once the flush has returned. Runs until killed (or 10**6 states).
 """
@@ -10,7 +10,8 @@ import sys
 
 import numpy as np
 
-from adcs_sim.bag import BagWriter, typestore
+from adcs_sim.bag.storage import typestore
+from adcs_sim.bag.writer import BagWriter
 
 out, chunk, every, scenario = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 store = typestore()
