@@ -17,8 +17,9 @@ from typing import Any, Callable
 
 from adcs_controllers.laws.allocation import Actuation
 from adcs_controllers.laws.backstepping import BacksteppingLaw, ThrusterActuation
-from adcs_controllers.laws.inertia_free import M2rLaw, M2sLaw
 from adcs_controllers.laws.inverse_optimal import GsmnLaw, KtLaw, MinNormLaw
+from adcs_controllers.laws.motion_to_rest import M2rLaw, actuation_matrix, check_m2r_gains
+from adcs_controllers.laws.motion_to_spin import M2sLaw
 from adcs_controllers.laws.pd import PdLaw
 from adcs_controllers.laws.reconfiguration import TwoWheelReconfiguration
 from adcs_controllers.laws.single_axis import PointingALaw, PointingBLaw
@@ -231,14 +232,12 @@ def _inertia_free_check(v: dict) -> None:
                              "'torquers' (and torquers.enabled in the dynamics section)")
     import numpy as np
 
-    from adcs_controllers.laws.inertia_free import actuation_matrix
     B = actuation_matrix(v)
     if B is not None and np.linalg.matrix_rank(B) != 3:
         raise ParameterError('B', f'the actuation matrix must be invertible (u = -B^-1(...)), got {v["B"]!r}')
 
 
 def _m2r_check(v: dict) -> None:
-    from adcs_controllers.laws.inertia_free import actuation_matrix, check_m2r_gains
     from adcs_msgs_py.params import ParameterError
     _inertia_free_check(v)
     if any(v['target.rate']):

@@ -13,7 +13,8 @@ PURE_MODULES = [
     'adcs_sim.app.batch', 'adcs_core.faults', 'adcs_sim.truth.sensors', 'adcs_sim.truth.thrusters',
     'adcs_controllers.laws.pd', 'adcs_controllers.laws.allocation', 'adcs_controllers.families',
     'adcs_controllers.laws.inverse_optimal', 'adcs_controllers.laws.underactuated',
-    'adcs_controllers.laws.reconfiguration', 'adcs_controllers.laws.inertia_free',
+    'adcs_controllers.laws.reconfiguration', 'adcs_controllers.laws.motion_to_rest',
+    'adcs_controllers.laws.motion_to_spin', 'adcs_controllers.laws.saturation',
     'adcs_controllers.laws.single_axis', 'adcs_controllers.laws.backstepping',
     'adcs_msgs_py.params', 'adcs_msgs_py.names',
 ]

@@ -35,7 +35,8 @@ Definitions (every metric printed by ``adcs-run`` and ``adcs-analyze``):
   steps** from the last ``dynamics/status`` that reports them.
 
 :func:`run_metrics` gives these at one tolerance; :func:`settling_times` the settling times at
-several (e.g. 0.5° and 1° for a comparison table).
+several (e.g. 0.5° and 1° for a comparison table). :func:`k0_metric` is seed 001's settling index
+(eq. 29) of a sampled error series.
 """
 from __future__ import annotations
 
@@ -107,6 +108,26 @@ def integrated_norm(t: np.ndarray, u: np.ndarray, t_end: float) -> float:
 def integrated_square(t: np.ndarray, u: np.ndarray, t_end: float) -> float:
     """``∫uᵀu dt`` of a zero-order-held signal ``u`` (N, k) sampled at ``t``."""
     return float(np.sum(np.sum(np.asarray(u) ** 2, axis=-1) * zoh_durations(t, t_end)))
+
+
+def k0_metric(e: np.ndarray, window: int = 200, threshold: float = 0.03, reduce: str = 'max'):
+    """Settling index of seed 001 eq. (29): the first step k > window such that the last ``window``
+    errors ``e(k-1) .. e(k-window)`` are below ``threshold`` (``reduce='max'``, as printed) or
+    average below it (``reduce='mean'``, the text's wording). ``e`` (..., n) sampled errors; -1 if
+    never."""
+    e = np.asarray(e, dtype=float)
+    n = e.shape[-1]
+    c = np.concatenate([np.zeros(e.shape[:-1] + (1,)), np.cumsum(e, axis=-1)], axis=-1)
+    if reduce == 'mean':
+        ok = (c[..., window:] - c[..., :-window]) / window < threshold
+    elif reduce == 'max':
+        bad = np.concatenate([np.zeros(e.shape[:-1] + (1,)), np.cumsum(e >= threshold, axis=-1)], -1)
+        ok = (bad[..., window:] - bad[..., :-window]) == 0
+    else:
+        raise ValueError(f"reduce must be 'max' or 'mean', got {reduce!r}")
+    ok = ok[..., 1:]  # k = window + 1 .. n: window e(k-1) .. e(k-window)
+    k = np.where(ok.any(axis=-1), np.argmax(ok, axis=-1) + window + 1, -1)
+    return k if n > window else np.full(e.shape[:-1], -1)
 
 
 # --- a run's time series -------------------------------------------------------------------
