@@ -36,6 +36,34 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[..., _NEXT] * b[..., _PREV] - a[..., _PREV] * b[..., _NEXT]
 
 
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Dot product of 3-vectors along the last axis, summed in a fixed order (``a1 b1 + a2 b2 +
+    a3 b3``): a row gives the same bits alone or in a batch."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+def norm(a: np.ndarray) -> np.ndarray:
+    """Euclidean norm of 3-vectors along the last axis, ``sqrt(dot(a, a))``."""
+    return np.sqrt(dot(a, a))
+
+
+def unit(a: np.ndarray) -> np.ndarray:
+    """``a / |a|`` along the last axis (no guard: a zero vector gives NaN)."""
+    return a / norm(a)[..., None]
+
+
+def gain_vector(k) -> np.ndarray:
+    """A gain, scalar or one per batch element (...,), shaped to multiply (..., 3) vectors: a scalar
+    stays a scalar, an array gets a trailing axis."""
+    k = np.asarray(k, dtype=float)
+    return k[..., None] if k.ndim else k
+
+
+def transpose(M: np.ndarray) -> np.ndarray:
+    """The transpose of each matrix of a stack (..., m, n) -> (..., n, m)."""
+    return np.swapaxes(M, -1, -2)
+
+
 def matvec(M: np.ndarray, v: np.ndarray) -> np.ndarray:
     """``M v`` for matrices ``M`` (..., m, k) and vectors ``v`` (..., k), batch axes broadcast.
 
@@ -128,14 +156,6 @@ def rotate_to_inertial(q: np.ndarray, v_body: np.ndarray) -> np.ndarray:
 
 # --- rotation matrices (seed 001's attitude representation) -----------------------------------
 
-def _dot(a, b):
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
-
-
-def _T(M):
-    return np.swapaxes(M, -1, -2)
-
-
 def matmul(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """``A B`` for (..., 3, 3) matrices, column by column through :func:`matvec` (fixed order)."""
     A = np.asarray(A, dtype=float)
@@ -179,7 +199,7 @@ def rotation_exp(w: np.ndarray, t) -> np.ndarray:
     ``w`` (so ``R_d(t) = R_d(0) exp(t ω_d×)`` solves seed 001 eq. 5, ``dR_d/dt = R_d ω_d×``, for
     constant ω_d)."""
     w = np.asarray(w, dtype=float)
-    n = np.sqrt(_dot(w, w))
+    n = np.sqrt(dot(w, w))
     th = n * t
     safe = np.where(n > 0, n, 1.0)
     s = np.where(n > 0, np.sin(th) / safe, t)
@@ -190,7 +210,7 @@ def rotation_exp(w: np.ndarray, t) -> np.ndarray:
 
 def attitude_error(R: np.ndarray, R_d: np.ndarray) -> np.ndarray:
     """``R̃ = R_dᵀ R`` (seed 001 eq. 7): the attitude ``R`` relative to the desired ``R_d``."""
-    return matmul(_T(np.asarray(R_d, dtype=float)), R)
+    return matmul(transpose(np.asarray(R_d, dtype=float)), R)
 
 
 def eigenaxis_error(R_err: np.ndarray) -> np.ndarray:

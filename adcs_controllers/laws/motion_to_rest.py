@@ -38,23 +38,13 @@ import numpy as np
 
 from adcs_controllers.laws.base import SectionLaw
 from adcs_controllers.laws.saturation import MODE_NAMES, MODE_SATURATED, MODE_UNSATURATED, outside_box, sat_cutoff
-from adcs_core.attitude import attitude_error, eigenaxis_error, matvec, rotation_from_quaternion
+from adcs_core.attitude import attitude_error, dot, eigenaxis_error, gain_vector, matvec, rotation_from_quaternion
 
 __all__ = [
     's_of_rows', 's_vector', 'trace_term', 'trace_a', 'f_eq24', 'f_eq25', 'm2r_gains', 'm2r_torque',
     'm2r_lyapunov', 'prop1_bound', 'prop2_bound', 'check_m2r_gains', 'given', 'matrix_param',
     'actuation_matrix', 'InertiaFreeLaw', 'M2rLaw',
 ]
-
-
-def _dot(a, b):
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
-
-
-def _g(k):
-    """A gain (scalar or (...,)) as a multiplier of (..., 3) vectors."""
-    k = np.asarray(k, dtype=float)
-    return k[..., None] if k.ndim else k
 
 
 # --- the attitude-error vector S (eq. 13) and the trace term of V (eq. 11, 36) --------------------
@@ -117,7 +107,7 @@ def m2r_gains(alpha, beta, a, w, f: str = 'eq25', omega_bar=0.2):
     else:
         raise ValueError(f"f must be 'eq24' or 'eq25', got {f!r}")
     Kp = np.asarray(alpha, dtype=float) / trace_a(a)
-    return Kp, _g(beta) * fw
+    return Kp, gain_vector(beta) * fw
 
 
 def m2r_torque(R: np.ndarray, w: np.ndarray, R_d: np.ndarray, alpha, beta, a, B_inv=None,
@@ -133,7 +123,7 @@ def m2r_torque(R: np.ndarray, w: np.ndarray, R_d: np.ndarray, alpha, beta, a, B_
     R_err = attitude_error(R, R_d)
     S = s_vector(R_err, a)
     Kp, kv = m2r_gains(alpha, beta, a, w, f, omega_bar)
-    v = _g(Kp) * S + kv * w
+    v = gain_vector(Kp) * S + kv * w
     u = -v if B_inv is None else -matvec(B_inv, v)
     return u, {'S': S, 'Kp': Kp, 'kv': kv, 'theta': eigenaxis_error(R_err)}
 
@@ -143,7 +133,7 @@ def m2r_lyapunov(R, w, R_d, inertia, alpha, a):
     R_err = attitude_error(np.asarray(R, dtype=float), R_d)
     w = np.asarray(w, dtype=float)
     Kp = np.asarray(alpha, dtype=float) / trace_a(a)
-    return 0.5 * _dot(w, matvec(inertia, w)) + Kp * trace_term(R_err, a)
+    return 0.5 * dot(w, matvec(inertia, w)) + Kp * trace_term(R_err, a)
 
 
 def _b_inv(B):

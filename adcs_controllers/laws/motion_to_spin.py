@@ -52,11 +52,14 @@ from adcs_controllers.laws.saturation import (
 from adcs_core.attitude import (
     attitude_error,
     cross,
+    dot,
     eigenaxis_error,
+    gain_vector,
     matmul,
     matvec,
     rotation_exp,
     rotation_from_quaternion,
+    transpose,
 )
 
 __all__ = [
@@ -65,20 +68,6 @@ __all__ = [
 ]
 
 GAMMA_NAMES = ('11', '22', '33', '23', '13', '12')  # γ = [J11 J22 J33 J23 J13 J12], eq. (31)
-
-
-def _dot(a, b):
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
-
-
-def _g(k):
-    """A gain (scalar or (...,)) as a multiplier of (..., 3) vectors."""
-    k = np.asarray(k, dtype=float)
-    return k[..., None] if k.ndim else k
-
-
-def _T(M):
-    return np.swapaxes(M, -1, -2)
 
 
 def s_dot(R_err: np.ndarray, w_err: np.ndarray, a) -> np.ndarray:
@@ -126,7 +115,7 @@ def m2s_terms(R, w, R_d, w_d, a, K1, w_d_dot=None):
     R = np.asarray(R, dtype=float)
     w = np.asarray(w, dtype=float)
     R_err = attitude_error(R, R_d)
-    RT = _T(R_err)
+    RT = transpose(R_err)
     w_err = w - matvec(RT, np.broadcast_to(np.asarray(w_d, dtype=float), w.shape))
     S = s_vector(R_err, a)
     Sd = s_dot(R_err, w_err, a)
@@ -142,7 +131,7 @@ def m2s_estimator_inputs(w, terms, C_d=None):
     C_dᵀ z (..., nd) or None)``; ``dγ̂/dt = Q⁻¹ ·`` the first, ``dd̂/dt = A_d d̂ + D⁻¹ ·`` the second."""
     z, X = terms['z'], terms['X']
     raw_g = _lt(w, cross(w, z)) + _lt(X, z)
-    return raw_g, (None if C_d is None else matvec(_T(np.asarray(C_d, dtype=float)), z))
+    return raw_g, (None if C_d is None else matvec(transpose(np.asarray(C_d, dtype=float)), z))
 
 
 def m2s_estimator_rates(w, terms, Q_inv, A_d=None, C_d=None, D_inv=None, d_hat=None):
@@ -167,7 +156,7 @@ def m2s_torque(w, terms, gamma_hat, Kp, Kv, z_hat=None, B_inv=None):
     J_hat = inertia_from_gamma(gamma_hat)
     v1 = -cross(matvec(J_hat, w), w) - matvec(J_hat, terms['X'])
     v2 = np.zeros(w.shape) if z_hat is None else -np.asarray(z_hat, dtype=float)
-    v3 = -matvec(Kv, terms['z']) - _g(Kp) * terms['S']
+    v3 = -matvec(Kv, terms['z']) - gain_vector(Kp) * terms['S']
     v = v1 + v2 + v3
     u = v if B_inv is None else matvec(B_inv, v)
     return u, {'v1': v1, 'v2': v2, 'v3': v3}
@@ -178,7 +167,7 @@ def m2s_lyapunov(terms, a, Kp, inertia, gamma_hat, Q, d_tilde=None, D=None):
     J the true inertia (``γ̃ = γ(J) - γ̂``)."""
     z = terms['z']
     gt = gamma_from_inertia(inertia) - gamma_hat
-    V = (0.5 * _dot(z, matvec(inertia, z)) + Kp * trace_term(terms['R_err'], a)
+    V = (0.5 * dot(z, matvec(inertia, z)) + Kp * trace_term(terms['R_err'], a)
          + 0.5 * (gt * matvec(Q, gt)).sum(axis=-1))
     if d_tilde is not None:
         V = V + 0.5 * (d_tilde * matvec(D, d_tilde)).sum(axis=-1)
@@ -220,7 +209,7 @@ class M2sLaw(InertiaFreeLaw):
         super().__init__(p)
         self.w_d0 = np.asarray(self.w_ref, dtype=float)
         self.Kp = self.alpha / trace_a(self.a)
-        self.Kv = _g(self.beta)[..., None] * np.eye(3) if self.beta.ndim else self.beta * np.eye(3)
+        self.Kv = gain_vector(self.beta)[..., None] * np.eye(3) if self.beta.ndim else self.beta * np.eye(3)
         self.K1 = matrix_param(p, 'K1', np.eye(3))
         self.Q0 = matrix_param(p, 'Q', np.eye(6))
         self.Q0_inv = np.linalg.inv(self.Q0)
@@ -250,7 +239,7 @@ class M2sLaw(InertiaFreeLaw):
         self.t_max = float(p.get('t_max', 250.0))
         self.phi_max = float(p.get('phi_max', math.radians(10.0)))
         self.K_omega = float(p.get('K_omega', 0.5))
-        n0 = np.sqrt(_dot(self.w_d0, self.w_d0))
+        n0 = np.sqrt(dot(self.w_d0, self.w_d0))
         self.omega_bar0 = n0
         self.axis = self.w_d0 / np.where(n0 > 0, n0, 1.0)[..., None]
         delta0 = p.get('delta0')

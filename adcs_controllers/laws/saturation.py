@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from adcs_core.attitude import dot
+
 __all__ = [
     'MODE_UNSATURATED', 'MODE_SATURATED', 'MODE_NAMES', 'SAT_CODES', 'sat_cutoff', 'sat_scaling',
     'saturate', 'outside_box', 'qsat', 'extremum_tracking_step',
@@ -40,10 +42,6 @@ __all__ = [
 MODE_UNSATURATED = 0  # commanded torque inside the box B(u_max)
 MODE_SATURATED = 1    # commanded torque outside the box: cutoff/scaling applied
 MODE_NAMES = {MODE_UNSATURATED: 'unsaturated', MODE_SATURATED: 'saturated'}
-
-
-def _dot(a, b):
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 
 def sat_cutoff(u: np.ndarray, u_max) -> np.ndarray:
@@ -98,7 +96,7 @@ def qsat(q, q_max, u, u_max, K_Q, excess: str = 'printed'):
     elif excess != 'printed':
         raise ValueError(f"excess must be 'printed' or 'positive', got {excess!r}")
     with np.errstate(invalid='ignore', divide='ignore'):  # u_max = inf: never outside, unused
-        ratio = np.sqrt(_dot(d, d)) / np.sqrt(_dot(u_max, u_max))
+        ratio = np.sqrt(dot(d, d)) / np.sqrt(dot(u_max, u_max))
     grown = np.minimum((1.0 + np.asarray(K_Q, dtype=float) * ratio) * q, q_max)
     return np.where(outside_box(u, u_max), np.where(q >= q_max, q_max, grown), q)
 
@@ -110,8 +108,8 @@ def extremum_tracking_step(t, w, axis, omega_bar, omega_bar0, delta, t_last, t_m
     commanded rate ω̄_k, ``delta`` δ_k, ``t_last`` t̄_k. Returns ``(omega_bar, delta, t_last, phi)``
     after the step (δ and t̄ change only with the command)."""
     w = np.asarray(w, dtype=float)
-    n = np.sqrt(_dot(w, w))
-    cosphi = _dot(w, axis) / np.where(n > 0, n, 1.0)
+    n = np.sqrt(dot(w, w))
+    cosphi = dot(w, axis) / np.where(n > 0, n, 1.0)
     phi = np.where(n > 0, np.arccos(np.clip(cosphi, -1.0, 1.0)), np.pi)
     due = (t - t_last) > t_max
     new_delta = K_omega * delta
