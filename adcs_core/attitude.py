@@ -154,6 +154,14 @@ def rotate_to_inertial(q: np.ndarray, v_body: np.ndarray) -> np.ndarray:
     return rotate_to_body(np.concatenate([-q[..., :3], q[..., 3:4]], axis=-1), v_body)
 
 
+def pointing_error(q: np.ndarray, sigma: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """Angle (rad, in [0, π]) between the body axis ``σ̂`` and the inertial direction ``τ̂`` at
+    attitude ``q`` (seed 003's pointing error; ``sigma`` and ``tau`` normalised here)."""
+    s = unit(np.asarray(sigma, dtype=float))
+    t = rotate_to_body(np.asarray(q, dtype=float), unit(np.asarray(tau, dtype=float)))
+    return np.arctan2(norm(cross(s, t)), dot(s, t))
+
+
 # --- rotation matrices (seed 001's attitude representation) -----------------------------------
 
 def matmul(A: np.ndarray, B: np.ndarray) -> np.ndarray:

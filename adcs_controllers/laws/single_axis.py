@@ -96,6 +96,7 @@ from adcs_core.attitude import (
     gain_vector,
     matvec,
     norm,
+    pointing_error,
     rotate_to_body,
     rotate_to_inertial,
     transpose,
@@ -106,7 +107,7 @@ __all__ = [
     'STAGE_MOMENTUM', 'STAGE_LQR', 'STAGE_B', 'MODE_NAMES', 'Q_PAPER', 'R_PAPER',
     'EPS_OMEGA', 'EPS_PHI', 'wrap', 'inertial_frame', 'dcm_313', 'euler_313', 'euler_rates_313',
     'body_axis_angles', 'elevation', 'check_feasible', 'final_angles', 'final_attitudes',
-    'target_momentum', 'attitude_angles', 'pointing_error', 'pointing_state',
+    'target_momentum', 'attitude_angles', 'pointing_state',
     'linearisation', 'lqr_gain', 'momentum_state_choice', 'momentum_stabilisation_torque',
     'lqr_torque', 'controller_a_torque', 'desired_rate_b', 'controller_b_torque',
     'PointingALaw', 'PointingBLaw',
@@ -257,13 +258,6 @@ def attitude_angles(q, frame):
     cols = [rotate_to_body(q, frame[..., j, :]) for j in range(3)]  # ô_j in body = column j of T_BI
     T = np.stack(cols, axis=-1)
     return euler_313(T)
-
-
-def pointing_error(q, sigma, tau):
-    """Angle (rad) between body axis ``σ̂`` and inertial direction ``τ̂`` at attitude ``q``."""
-    s = unit(np.asarray(sigma, dtype=float))
-    t = rotate_to_body(np.asarray(q, dtype=float), unit(np.asarray(tau, dtype=float)))
-    return np.arctan2(norm(cross(s, t)), dot(s, t))
 
 
 def pointing_state(q, frame, sigma, tau, psi_f, phi_f):

@@ -27,7 +27,7 @@ Definitions (every metric printed by ``adcs-run`` and ``adcs-analyze``):
   ``[t0, end]``.
 * **Pointing** (seed 003; runs whose controller section has ``sigma`` and ``tau``): the pointing
   error is the angle between the body axis ``σ̂`` and the inertial direction ``τ̂``
-  (:func:`adcs_controllers.laws.single_axis.pointing_error`, true attitude); at 1°, 0.1° and
+  (:func:`adcs_core.attitude.pointing_error`, true attitude); at 1°, 0.1° and
   0.01° (Table 1) the *first entry* and the *settling* (staying below to the end) times, as above,
   and the final pointing error.
 * **Peak torque** per body axis ``max |u_i|`` over the applied-torque samples; **peak wheel
@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import yaml
 
-from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213
+from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213, pointing_error
 from adcs_msgs_py import names as topics
 from adcs_sim import bag as bagio
 
@@ -384,7 +384,6 @@ POINTING_BANDS_DEG = (1.0, 0.1, 0.01)   # seed 003 Table 1
 
 def pointing_error_deg(run: RunData) -> np.ndarray:
     """Angle (deg) between σ̂ and τ̂ at each state sample of a pointing run."""
-    from adcs_controllers.laws.single_axis import pointing_error
     sigma, tau = run.pointing
     return np.degrees(pointing_error(run.q, sigma, tau))
 
