@@ -56,7 +56,10 @@ from scipy.spatial.transform import Rotation
 
 from adcs_core.attitude import EULER_213
 from adcs_msgs_py.params import ParameterError, load_params_file, unflatten
-from adcs_sim.app.analysis import RunData, run_metrics
+from adcs_sim.app.analysis import RunData, attitude_errors_deg, pointing_error_deg, run_metrics
+from adcs_sim.app.batch import BatchSimulation
+from adcs_sim.app.registry import NODES
+from adcs_sim.app.scenario_files import RunError, config_dirs, resolve_scenario, validate_scenario
 
 DISTRIBUTIONS = {
     'normal': ({'std'}, {'mean', 'link'}),
@@ -159,7 +162,6 @@ def _campaign_section(path: Path) -> dict:
 def _campaign_scenario(c: dict, path: Path) -> tuple[Path, dict, dict]:
     """(scenario path, validated sections, sections as written) of ``campaign.scenario``: relative
     to the campaign file, else a scenario name or path as ``adcs-run`` takes it."""
-    from adcs_sim.app.scenario_files import RunError, resolve_scenario, validate_scenario
     scenario = Path(str(c['scenario']))
     candidate = scenario if scenario.is_absolute() else path.parent / scenario
     try:
@@ -258,7 +260,6 @@ class Campaign:
     # --- dispersions ---------------------------------------------------------------------------
 
     def _target(self, where: str, target: str) -> tuple[str, str, Any]:
-        from adcs_sim.app.registry import NODES
         section, _, key = str(target).partition('.')
         if section not in self.nominal or section not in NODES:
             raise CampaignError(f'{where}: no section {section!r} in {self.scenario_path.name} '
@@ -350,7 +351,6 @@ class Campaign:
     def run_sections(self, index: int, inputs: dict[str, Any] | None = None) -> dict[str, dict[str, Any]]:
         """Validated sections of run ``index``; CampaignError naming the run and the key if the
         draw is impossible (e.g. a negative inertia). ``inputs`` as for :meth:`run_given`."""
-        from adcs_sim.app.registry import NODES
         inputs = self.draw(index) if inputs is None else inputs
         out = {}
         for section, given in self.run_given(index, inputs).items():
@@ -395,7 +395,6 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
 
     A pure function of its arguments (what a Dask worker executes).
     """
-    from adcs_sim.app.batch import BatchSimulation
     inputs = [campaign.draw(i) for i in indices]
     result = BatchSimulation.from_runs([campaign.run_sections(i, d) for i, d in zip(indices, inputs)]).run()
     rows = []
@@ -418,7 +417,6 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
 def error_series(result, j: int, every: int) -> dict:
     """Run ``j``'s error every ``every`` samples (deg, float32): the pointing error of a pointing
     run, else the eigenaxis attitude error; with its times (s)."""
-    from adcs_sim.app.analysis import attitude_errors_deg, pointing_error_deg
     run = result.run_data(j)
     with np.errstate(all='ignore'):
         error = pointing_error_deg(run) if run.pointing is not None else attitude_errors_deg(run)[0]
@@ -435,7 +433,6 @@ def _resolve_campaign(path: Path) -> Path:
     """A campaign path, or a bare file name found in the ``campaigns`` folder of the configs."""
     if path.exists() or path.is_absolute() or len(path.parts) != 1:
         return path
-    from adcs_sim.app.scenario_files import config_dirs
     for d in config_dirs():
         if (d / 'campaigns' / path.name).exists():
             return d / 'campaigns' / path.name

@@ -9,6 +9,7 @@ import os
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from adcs_sim.app.analysis import RunData, attitude_errors, run_metrics, settling_times
 from adcs_sim.app.report.figures import AXES, add_legend, log_positive, new_figure, save_figure, step_plot
@@ -82,7 +83,6 @@ def load_reference(path) -> dict:
     """Published figures to compare runs with: a YAML file ``{source: text, runs: {run name:
     {comparison row: value}}}`` (rows as in ``comparison.csv``, e.g. ``integrated_torque_Nms``,
     ``peak_torque_x_Nm``, ``settling_euler213_theta1_x_0.5deg_s``). Raises ValueError."""
-    import yaml
     try:
         tree = yaml.safe_load(Path(path).read_text(encoding='utf-8'))
     except (OSError, yaml.YAMLError) as exc:

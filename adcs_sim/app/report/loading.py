@@ -4,10 +4,12 @@ torque, fault events, missing topics). No matplotlib here."""
 from __future__ import annotations
 
 import os
+import struct
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from mcap.exceptions import McapError
 
 from adcs_msgs_py import names as topics
 from adcs_sim.app.analysis import RunData
@@ -16,21 +18,15 @@ ERROR_LEVEL = 2  # diagnostic_msgs/DiagnosticStatus.ERROR
 # Status keys of the commanded torque (plotted in the torque figure, not with the other status values).
 TORQUE_KEYS = ('u_x', 'u_y', 'u_z')
 
-
-def _bag_errors() -> tuple[type[BaseException], ...]:
-    """Exceptions that mean "this input is not a readable bag" (reported in one line, no traceback)."""
-    import struct
-
-    from mcap.exceptions import McapError
-    errors = [OSError, ValueError, EOFError, struct.error, McapError]
-    try:
-        from rosbags.highlevel import AnyReaderError
-        from rosbags.rosbag2 import ReaderError
-        from rosbags.serde import SerdeError
-        errors += [AnyReaderError, ReaderError, SerdeError]
-    except ImportError:  # pragma: no cover - other rosbags versions
-        pass
-    return tuple(errors)
+# Exceptions that mean "this input is not a readable bag" (reported in one line, no traceback).
+BAG_ERRORS: tuple[type[BaseException], ...] = (OSError, ValueError, EOFError, struct.error, McapError)
+try:
+    from rosbags.highlevel import AnyReaderError
+    from rosbags.rosbag2 import ReaderError
+    from rosbags.serde import SerdeError
+    BAG_ERRORS += (AnyReaderError, ReaderError, SerdeError)
+except ImportError:  # pragma: no cover - other rosbags versions
+    pass
 
 
 def bag_folder(path) -> Path | None:
@@ -88,7 +84,7 @@ def load_run(path, name: str | None = None) -> Run:
     """Check and read a bag; raises :class:`BagError` (one-line message) if it cannot be used."""
     try:
         data = RunData.from_bag(path)
-    except _bag_errors() as exc:
+    except BAG_ERRORS as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         reason = reason[len(str(path)) + 2:] if reason.startswith(f'{path}: ') else reason
         raise BagError(reason) from None
