@@ -18,10 +18,12 @@ from numpy.testing import assert_allclose, assert_array_equal
 from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
+from adcs_controllers.families import M2R_SCHEMA, M2S_SCHEMA
 from adcs_controllers.laws import motion_to_rest as m2r
 from adcs_controllers.laws import motion_to_spin as m2s
 from adcs_controllers.laws import saturation as sat
 from adcs_core import attitude as rot
+from adcs_msgs_py.params import REQUIRED
 from adcs_sim.app import analysis
 from adcs_sim.truth.plant import Plant, Torquers
 
@@ -41,11 +43,19 @@ def random_rotations(n, seed):
     return Rotation.random(n, random_state=seed).as_matrix()
 
 
+def schema_defaults(schema) -> dict:
+    """Every parameter of ``schema`` that has a default, at its default: the section a scenario
+    without these keys gives the law (the laws keep no defaults of their own)."""
+    return {p.name: p.default for p in schema.params if p.default is not REQUIRED}
+
+
 def m2s_params(**over):
-    """Section 6.3 set-up: A = diag(1, 2, 3), α = β = 1, K1 = D = I, Q = I6, Ĵ(0) = I, C_d = 0."""
-    p = {'inertia': np.diag(J52).tolist(), 'target.attitude': IDENTITY.tolist(),
-         'target.rate': WD_INTERMEDIATE.tolist(), 'alpha': 1.0, 'beta': 1.0, 'A': A123.tolist(),
-         'K1': 1.0, 'Q': 1.0, 'J_hat0': [1.0, 1.0, 1.0], 'q_max': 10000.0, 'K_Q': 0.001}
+    """Section 6.3 set-up: A = diag(1, 2, 3), α = β = 1, K1 = D = I, Q = I6, Ĵ(0) = I, C_d = 0
+    (the schema's defaults for the rest)."""
+    p = {**schema_defaults(M2S_SCHEMA), 'inertia': np.diag(J52).tolist(),
+         'target.attitude': IDENTITY.tolist(), 'target.rate': WD_INTERMEDIATE.tolist(), 'alpha': 1.0,
+         'beta': 1.0, 'A': A123.tolist(), 'K1': 1.0, 'Q': 1.0, 'J_hat0': [1.0, 1.0, 1.0], 'q_max': 10000.0,
+         'K_Q': 0.001}
     p.update(over)
     return p
 
@@ -53,9 +63,9 @@ def m2s_params(**over):
 def m2r_params(u_max, **over):
     """Section 4 set-up: R_d = diag(1, -1, -1), ω̄ = 0.2, A = diag(1, 2, 3), α = β = u_max/2."""
     u_max = np.asarray(u_max, dtype=float)
-    p = {'inertia': J26.ravel().tolist(), 'target.attitude': Q_RD_M2R.tolist(),
-         'target.rate': [0.0, 0.0, 0.0], 'alpha': u_max / 2, 'beta': u_max / 2,
-         'A': A123.tolist(), 'f': 'eq25', 'omega_bar': 0.2, 'u_max': u_max[..., None]}
+    p = {**schema_defaults(M2R_SCHEMA), 'inertia': J26.ravel().tolist(),
+         'target.attitude': Q_RD_M2R.tolist(), 'target.rate': [0.0, 0.0, 0.0], 'alpha': u_max / 2,
+         'beta': u_max / 2, 'A': A123.tolist(), 'f': 'eq25', 'omega_bar': 0.2, 'u_max': u_max[..., None]}
     p.update(over)
     return p
 
@@ -512,6 +522,57 @@ def test_m2s_disturbance_estimate_diverges_at_1_Nm(m2s_disturbance):
     assert th[-1, 1] < 0.05 and we[-1, 1] < 0.03
     assert np.median(dinf[half:, 2]) > 5.0
     assert np.median(th[half:, 2]) > 1.0 and np.median(we[half:, 2]) > 0.5  # tumbling
+
+
+class _Recording(dict):
+    """A section that records how the law reads it: ``p[key]`` (no fallback) or ``p.get(key, ...)``."""
+
+    def __init__(self, *a, **kw):
+        super().__init__(*a, **kw)
+        self.indexed, self.fetched = set(), set()
+
+    def __getitem__(self, key):
+        self.indexed.add(key)
+        return super().__getitem__(key)
+
+    def get(self, key, default=None):
+        self.fetched.add(key)
+        return super().get(key, default)
+
+
+@pytest.mark.parametrize('schema, law_class', [(M2S_SCHEMA, m2s.M2sLaw), (M2R_SCHEMA, m2r.M2rLaw)],
+                         ids=['M2S', 'M2R'])
+def test_inertia_free_laws_take_their_defaults_from_the_schema(schema, law_class):
+    """The schema is the one source of defaults: the law reads every schema key it uses as
+    ``p[key]`` (a section without it is a KeyError, never completed by a default of the law's own)
+    and a section validated from the required keys alone gives the law the schema's values."""
+    section = schema.validate({'inertia': np.diag(J52).tolist(), 'alpha': 1.0, 'beta': 1.0,
+                               'actuator': 'torquers'})
+    recorded = _Recording(section)
+    law = law_class(recorded)
+    assert recorded.indexed <= set(schema.by_name)
+    assert not recorded.fetched & set(schema.by_name), 'schema keys read with a fallback of the law'
+    for key in recorded.indexed:
+        with pytest.raises(KeyError):
+            law_class({k: v for k, v in section.items() if k != key})
+    d = schema_defaults(schema)
+    assert_array_equal(law.a, d['A'])
+    assert law.B is None and d['B'] == []
+    assert_array_equal(law.u_max, [d['torquers.max_torque']])
+    if law_class is m2r.M2rLaw:
+        assert (law.f, law.omega_bar) == (d['f'], d['omega_bar'])
+        return
+    # the two defaults law and schema used to disagree on (issue 17): the schema's hold
+    assert law.max_step == d['max_step'] == 0.02
+    assert law.saturation == sat.SAT_CODES[d['saturation']] == sat.SAT_CODES['clip']
+    assert (law.q_max, law.K_Q, law.t_max, law.phi_max, law.K_omega, law.vag_excess) == (
+        d['q_max'], d['K_Q'], d['t_max'], d['phi_max'], d['K_omega'], d['vag_excess'])
+    assert (bool(law.vag), law.vag_disturbance, law.extremum) == (d['vag'], d['vag_disturbance'], d['extremum'])
+    assert_array_equal(law.gamma0, [*d['J_hat0'], 0.0, 0.0, 0.0])
+    assert law.C_d is None and law.A_d is None and law.d_true is None and law.d_hat0.shape == (0,)
+    assert_array_equal(law.K1, np.eye(3))
+    assert_array_equal(law.Q0, np.eye(6))
+    assert_array_equal(law.delta0, law.omega_bar0)  # delta0 = 0: ||w_d||
 
 
 def test_section_laws_refuse_bad_parameters():

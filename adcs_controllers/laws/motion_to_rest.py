@@ -200,16 +200,19 @@ def check_m2r_gains(alpha, beta, u_max, B=None, proposition: int = 1) -> None:
     else:
         raise ValueError(f'proposition must be 1 or 2, got {proposition}')
 
+
 # --- the section keys shared by M2R and M2S ------------------------------------------------------
 
 def given(p, key):
-    """``p[key]``, or None when absent or empty (a params file's ``[]`` means "the default")."""
-    v = p.get(key)
+    """``p[key]``, or None when it is empty (a params file's ``[]``: the meaning the schema gives an
+    empty value, e.g. B = I). A validated section has every key: a missing one is a KeyError (the
+    schema, :mod:`adcs_controllers.families`, is the one source of defaults)."""
+    v = p[key]
     return None if v is None or np.size(v) == 0 else v
 
 
 def matrix_param(p, key, default):
-    """An n x n gain from a section: absent -> ``default`` (n x n), a scalar (times ``default``),
+    """An n x n gain from a section: empty -> ``default`` (n x n), a scalar (times ``default``),
     n diagonal values, or n² row-major values."""
     v = given(p, key)
     if v is None:
@@ -233,14 +236,18 @@ def actuation_matrix(p) -> np.ndarray | None:
 
 class InertiaFreeLaw(SectionLaw):
     """Common keys: ``A`` diag(A) (3 values, eq. 13), ``alpha``, ``beta`` (eq. 15-16 / 44), ``B``
-    (3 diagonal or 9 row-major values, default I), ``u_max`` (N m, scalar or 3; default: the
-    section's ``torquers.max_torque``, else inf)."""
+    (3 diagonal or 9 row-major values, empty: I), ``torquers.max_torque`` (u_max, N m; a pure-law
+    caller may give ``u_max`` instead: scalar, 3, (..., 1) or (..., 3)).
+
+    ``p`` is a validated section (:data:`adcs_controllers.families.M2R_SCHEMA` /
+    ``M2S_SCHEMA``): every key is there, with the schema's default where the file has none; the
+    laws keep no defaults of their own."""
 
     mode_names = MODE_NAMES
 
     def __init__(self, p: dict) -> None:
         super().__init__(p)
-        self.a = np.asarray(p.get('A', [1.0, 2.0, 3.0]), dtype=float)
+        self.a = np.asarray(p['A'], dtype=float)
         if self.a.shape[-1:] != (3,) or not np.all(self.a > 0) or np.any(
                 (self.a[..., 0] == self.a[..., 1]) | (self.a[..., 1] == self.a[..., 2])
                 | (self.a[..., 0] == self.a[..., 2])):
@@ -252,7 +259,7 @@ class InertiaFreeLaw(SectionLaw):
         if 'u_max' in p:
             self.u_max = np.asarray(p['u_max'], dtype=float)
         else:  # the section's scalar torquer limit (one per run in a batch): per axis, (..., 1)
-            self.u_max = np.asarray(p.get('torquers.max_torque', np.inf), dtype=float)[..., None]
+            self.u_max = np.asarray(p['torquers.max_torque'], dtype=float)[..., None]
         self.R_d0 = rotation_from_quaternion(self.q_ref)
 
 
@@ -261,10 +268,12 @@ class M2rLaw(InertiaFreeLaw):
 
     * ``inertia`` (J, used only for the status V of eq. 11), ``target.attitude`` (R_d as a
       scalar-last quaternion), ``target.rate`` (must be zero: M2R),
-    * ``alpha``, ``beta`` (N m; Kp = α/tr A, Kv = β diag f), ``A`` (diag, default [1, 2, 3]),
-    * ``f``: ``'eq25'`` (default, with ``omega_bar`` ω̄ rad/s, default 0.2) or ``'eq24'``,
-    * ``B`` (default I), ``u_max`` (N m; when finite the gains are checked against eq. 20, or
-      eq. 23 with ``proposition: 2``, and the torque is cut off at it as the torquers do).
+    * ``alpha``, ``beta`` (N m; Kp = α/tr A, Kv = β diag f), ``A`` (diag),
+    * ``f``: ``'eq25'`` (with ``omega_bar`` ω̄ rad/s) or ``'eq24'``,
+    * ``B``, u_max (N m; when finite the gains are checked against eq. 20, or eq. 23 with
+      ``proposition: 2``, and the torque is cut off at it as the torquers do).
+
+    Defaults: :data:`adcs_controllers.families.M2R_SCHEMA` (the only place they are kept).
 
     Status: ``V`` (eq. 11), ``theta`` (eq. 10), ``S``, ``mode`` (saturated or not)."""
 
@@ -272,10 +281,10 @@ class M2rLaw(InertiaFreeLaw):
         super().__init__(p)
         if np.any(np.asarray(self.w_ref) != 0):
             raise ValueError('M2R regulates to rest: target.rate must be zero')
-        self.f = p.get('f', 'eq25')
-        self.omega_bar = p.get('omega_bar', 0.2)
+        self.f = p['f']
+        self.omega_bar = p['omega_bar']
         if np.all(np.isfinite(self.u_max)):
-            check_m2r_gains(self.alpha, self.beta, self.u_max, self.B, int(p.get('proposition', 1)))
+            check_m2r_gains(self.alpha, self.beta, self.u_max, self.B, int(p['proposition']))
 
     def control(self, t, q, w):
         R = rotation_from_quaternion(q)

@@ -180,20 +180,22 @@ class M2sLaw(InertiaFreeLaw):
 
     * ``inertia`` (true J: only for the status V of eq. 36), ``target.attitude`` (R_d(0) as a
       quaternion), ``target.rate`` (ω_d, rad/s, constant; eq. 54 / 59),
-    * ``alpha``, ``beta``: Kp = α/tr A, Kv = β I (reading R5); ``A`` (default [1, 2, 3]); ``K1``
-      (scalar, 3 or 9 values; default I),
-    * ``Q`` (6 or 36 values, default I6: Q₀ of Q = q Q₀), ``J_hat0`` (3 or 9 values, default I),
-    * disturbance model: ``C_d`` (3 x nd, default none: not estimated), ``A_d`` (nd x nd, default 0),
-      ``D`` (default I), ``d_hat0`` (default 0), ``d_true`` (true d, for V only, optional),
-    * ``saturation``: ``'none'`` (default), ``'cutoff'`` (alias ``'clip'``) or ``'scaling'``
-      (alias ``'scale'``) (or one per batch
-      element); ``u_max`` (N m, scalar, 3, (..., 1) or (..., 3)); ``B`` (default I),
-    * VAG: ``vag`` (bool, or one per batch element), ``q_max`` (10 000), ``K_Q`` (0.001), ``vag_excess`` ('printed'),
+    * ``alpha``, ``beta``: Kp = α/tr A, Kv = β I (reading R5); ``A``; ``K1`` (scalar, 3 or 9
+      values; empty: I),
+    * ``Q`` (6 or 36 values, empty: I6: Q₀ of Q = q Q₀), ``J_hat0`` (3 or 9 values),
+    * disturbance model: ``C_d`` (3 x nd; empty or zero: not estimated), ``A_d`` (nd x nd; empty:
+      0), ``D`` (empty: I), ``d_hat0`` (empty: 0), ``d_true`` (true d, for V only; empty: none),
+    * ``saturation``: ``'clip'`` (alias ``'cutoff'``), ``'scale'`` (alias ``'scaling'``) or, for a
+      pure-law caller, ``'none'`` (or one per batch element); u_max (``torquers.max_torque``, or
+      ``u_max``: N m, scalar, 3, (..., 1) or (..., 3)); ``B`` (empty: I),
+    * VAG: ``vag`` (bool, or one per batch element), ``q_max``, ``K_Q``, ``vag_excess``,
       ``vag_disturbance`` (bool, also divide the rate of d̂ by q; not in the paper's examples),
     * extremum tracking: ``extremum`` (bool), ``t_max`` (s), ``phi_max`` (rad), ``K_omega``,
-      ``delta0`` (default, or 0: ‖ω_d‖),
-    * ``max_step`` (s): the largest RK4 step of the estimator between two control calls
-      (default 0.05).
+      ``delta0`` (0: ‖ω_d‖),
+    * ``max_step`` (s): the largest RK4 step of the estimator between two control calls.
+
+    Defaults: :data:`adcs_controllers.families.M2S_SCHEMA` (the only place they are kept; the law
+    reads every key of the validated section).
 
     The compensator states (γ̂, d̂, q, ω̄, R_d) are continuous-time (q, ω̄ per call): each
     ``control(t, q, w)`` first advances γ̂ and d̂ from the previous call's time to ``t`` with the
@@ -213,7 +215,7 @@ class M2sLaw(InertiaFreeLaw):
         self.K1 = matrix_param(p, 'K1', np.eye(3))
         self.Q0 = matrix_param(p, 'Q', np.eye(6))
         self.Q0_inv = np.linalg.inv(self.Q0)
-        Jh = np.asarray(p.get('J_hat0', [1.0, 1.0, 1.0]), dtype=float)
+        Jh = np.asarray(p['J_hat0'], dtype=float)
         self.gamma0 = gamma_from_inertia(Jh[..., :, None] * np.eye(3) if Jh.shape[-1] == 3
                                          else Jh.reshape(Jh.shape[:-1] + (3, 3)))
         C_d = given(p, 'C_d')
@@ -227,24 +229,24 @@ class M2sLaw(InertiaFreeLaw):
         d0 = given(p, 'd_hat0')
         self.d_hat0 = np.broadcast_to(np.asarray(0.0 if d0 is None else d0, dtype=float), (nd,))
         self.d_true = None if given(p, 'd_true') is None else np.asarray(p['d_true'], dtype=float)
-        sat = p.get('saturation', 'none')
+        sat = p['saturation']
         self.saturation = np.vectorize(SAT_CODES.__getitem__, otypes=[int])(sat) \
             if np.all(np.isin(sat, list(SAT_CODES))) else saturate(np.zeros(3), 1.0, str(sat))
-        self.vag = np.asarray(p.get('vag', False), dtype=bool)
-        self.q_max = float(p.get('q_max', 10000.0))
-        self.K_Q = float(p.get('K_Q', 0.001))
-        self.vag_excess = p.get('vag_excess', 'printed')
-        self.vag_disturbance = bool(p.get('vag_disturbance', False))
-        self.extremum = bool(p.get('extremum', False))
-        self.t_max = float(p.get('t_max', 250.0))
-        self.phi_max = float(p.get('phi_max', math.radians(10.0)))
-        self.K_omega = float(p.get('K_omega', 0.5))
+        self.vag = np.asarray(p['vag'], dtype=bool)
+        self.q_max = float(p['q_max'])
+        self.K_Q = float(p['K_Q'])
+        self.vag_excess = p['vag_excess']
+        self.vag_disturbance = bool(p['vag_disturbance'])
+        self.extremum = bool(p['extremum'])
+        self.t_max = float(p['t_max'])
+        self.phi_max = float(p['phi_max'])
+        self.K_omega = float(p['K_omega'])
         n0 = np.sqrt(dot(self.w_d0, self.w_d0))
         self.omega_bar0 = n0
         self.axis = self.w_d0 / np.where(n0 > 0, n0, 1.0)[..., None]
-        delta0 = p.get('delta0')
-        self.delta0 = np.asarray(n0 if delta0 is None or np.all(delta0 == 0) else delta0, dtype=float)
-        self.max_step = float(p.get('max_step', 0.05))
+        delta0 = p['delta0']
+        self.delta0 = np.asarray(n0 if np.all(delta0 == 0) else delta0, dtype=float)
+        self.max_step = float(p['max_step'])
         if not self.max_step > 0:
             raise ValueError(f'max_step must be positive, got {self.max_step}')
         self.reset()
