@@ -15,16 +15,20 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable
 
+import numpy as np
+
 from adcs_controllers.laws.allocation import Actuation
-from adcs_controllers.laws.backstepping import BacksteppingLaw, ThrusterActuation
-from adcs_controllers.laws.inertia_free import M2rLaw, M2sLaw
+from adcs_controllers.laws.backstepping import BacksteppingLaw, ThrusterActuation, actuator_matrix, positive_null_vector
 from adcs_controllers.laws.inverse_optimal import GsmnLaw, KtLaw, MinNormLaw
+from adcs_controllers.laws.motion_to_rest import M2rLaw, actuation_matrix, check_m2r_gains
+from adcs_controllers.laws.motion_to_spin import M2sLaw
 from adcs_controllers.laws.pd import PdLaw
 from adcs_controllers.laws.reconfiguration import TwoWheelReconfiguration
-from adcs_controllers.laws.single_axis import PointingALaw, PointingBLaw
+from adcs_controllers.laws.single_axis import PointingALaw, PointingBLaw, body_axis_angles, elevation
 from adcs_controllers.laws.underactuated import SnlcGsmnLaw, SnlcLaw, SnlcMinNormLaw, ZeroMomentumLaw
 from adcs_msgs_py.blocks import (
     check_per_wheel,
+    check_thrusters,
     check_unit_quaternion,
     check_wheels,
     expect_faults_param,
@@ -33,11 +37,10 @@ from adcs_msgs_py.blocks import (
     thruster_params,
     wheel_params,
 )
-from adcs_msgs_py.params import Param, Schema, all_positive, non_negative, positive
+from adcs_msgs_py.params import Param, ParameterError, Schema, all_positive, non_negative, positive
 
 
 def _actuator_check(v: dict) -> None:
-    from adcs_msgs_py.params import ParameterError
     if v['actuator'] == 'wheels':
         check_wheels(v, with_physics=False)
         if not v['wheels.names']:
@@ -125,7 +128,6 @@ KT_SCHEMA = Schema('kt_controller', [
 # --- seed 000: two-wheel (underactuated) laws, optionally after a three-wheel PD phase ----------
 
 def _two_wheel_check(v: dict) -> None:
-    from adcs_msgs_py.params import ParameterError
     _actuator_check(v)
     if v['three_wheel.enabled']:
         for key in ('three_wheel.kp', 'three_wheel.kd'):
@@ -135,7 +137,6 @@ def _two_wheel_check(v: dict) -> None:
 
 
 def _zero_momentum_check(v: dict) -> None:
-    from adcs_msgs_py.params import ParameterError
     _two_wheel_check(v)
     if v['actuator'] != 'wheels':
         raise ParameterError('actuator', "the zero-momentum law commands wheel speeds: it needs "
@@ -225,21 +226,15 @@ def _distinct_positive(vs) -> str | None:
 def _inertia_free_check(v: dict) -> None:
     """Both seed 001 laws act through ideal torquers (the paper's "continuously variable torques
     without momentum storage"); the torquer limit is the paper's u_max."""
-    from adcs_msgs_py.params import ParameterError
     if v['actuator'] != 'torquers':
         raise ParameterError('actuator', "the seed 001 laws command external torques: set actuator "
                              "'torquers' (and torquers.enabled in the dynamics section)")
-    import numpy as np
-
-    from adcs_controllers.laws.inertia_free import actuation_matrix
     B = actuation_matrix(v)
     if B is not None and np.linalg.matrix_rank(B) != 3:
         raise ParameterError('B', f'the actuation matrix must be invertible (u = -B^-1(...)), got {v["B"]!r}')
 
 
 def _m2r_check(v: dict) -> None:
-    from adcs_controllers.laws.inertia_free import actuation_matrix, check_m2r_gains
-    from adcs_msgs_py.params import ParameterError
     _inertia_free_check(v)
     if any(v['target.rate']):
         raise ParameterError('target.rate', f'M2R brings the body to rest: must be [0, 0, 0], got {v["target.rate"]!r}')
@@ -326,10 +321,6 @@ def _nonzero_vector(v) -> str | None:
 def _pointing_check(v: dict) -> None:
     """Wheels with their spin inertia (the node forms h = sum a_i Js_i Omega_i from wheels/state),
     and the pointing request feasible: eq. (14), |alpha| <= pi/2 - |lambda|."""
-    import numpy as np
-
-    from adcs_controllers.laws.single_axis import body_axis_angles, elevation
-    from adcs_msgs_py.params import ParameterError
     _actuator_check(v)
     if v['actuator'] != 'wheels':
         raise ParameterError('actuator', "the pointing laws need the wheels' momentum: actuator 'wheels'")
@@ -391,8 +382,6 @@ POINTING_B_SCHEMA = Schema('pointing_b_controller', [
 # --- seed 002: quaternion integrator backstepping, four thrusters and one pitch wheel -----------
 
 def _backstepping_check(v: dict) -> None:
-    from adcs_msgs_py.blocks import check_thrusters
-    from adcs_msgs_py.params import ParameterError
     check_wheels(v, with_physics=False)
     if len(v['wheels.names']) != 1:
         raise ParameterError('wheels.names', 'the backstepping allocation (eq. 20-21) has exactly one '
@@ -405,9 +394,7 @@ def _backstepping_check(v: dict) -> None:
     if v['firing.off_level'] > v['firing.on_level']:
         raise ParameterError('firing.off_level', f'must not exceed firing.on_level '
                              f'({v["firing.on_level"]} N), got {v["firing.off_level"]}')
-    import numpy as np
 
-    from adcs_controllers.laws.backstepping import actuator_matrix, positive_null_vector
     n = len(v['thrusters.names'])
     B = actuator_matrix(np.reshape(v['thrusters.positions'], (n, 3)),
                         np.reshape(v['thrusters.directions'], (n, 3)), np.asarray(v['wheels.axes']))

@@ -7,6 +7,11 @@ Every function takes a leading batch axis (``q`` of shape ``(..., 4)``).
 
 Conversions to matrices and Euler angles use :mod:`scipy.spatial.transform`; only what the papers
 define (kinematics, error quaternion, eigenaxis angle) is written here.
+
+Rotation matrices (seed 001 works on them): ``R`` (..., 3, 3) maps body vectors to inertial ones
+(:func:`rotation_from_quaternion` of the scalar-last quaternion), ``dR/dt = R ω×``; the attitude
+error is ``R̃ = R_dᵀ R`` and its eigenaxis angle ``θ = acos((tr R̃ - 1)/2)``. Matrix products go
+through :func:`matmul` (built on :func:`matvec`): a run in a batch gives the same bits as alone.
 """
 from __future__ import annotations
 
@@ -29,6 +34,34 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     is the plant's innermost operation (8 calls per RK4 step), so it is written out.
     """
     return a[..., _NEXT] * b[..., _PREV] - a[..., _PREV] * b[..., _NEXT]
+
+
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Dot product of 3-vectors along the last axis, summed in a fixed order (``a1 b1 + a2 b2 +
+    a3 b3``): a row gives the same bits alone or in a batch."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+def norm(a: np.ndarray) -> np.ndarray:
+    """Euclidean norm of 3-vectors along the last axis, ``sqrt(dot(a, a))``."""
+    return np.sqrt(dot(a, a))
+
+
+def unit(a: np.ndarray) -> np.ndarray:
+    """``a / |a|`` along the last axis (no guard: a zero vector gives NaN)."""
+    return a / norm(a)[..., None]
+
+
+def gain_vector(k) -> np.ndarray:
+    """A gain, scalar or one per batch element (...,), shaped to multiply (..., 3) vectors: a scalar
+    stays a scalar, an array gets a trailing axis."""
+    k = np.asarray(k, dtype=float)
+    return k[..., None] if k.ndim else k
+
+
+def transpose(M: np.ndarray) -> np.ndarray:
+    """The transpose of each matrix of a stack (..., m, n) -> (..., n, m)."""
+    return np.swapaxes(M, -1, -2)
 
 
 def matvec(M: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -119,3 +152,76 @@ def rotate_to_body(q: np.ndarray, v_inertial: np.ndarray) -> np.ndarray:
 def rotate_to_inertial(q: np.ndarray, v_body: np.ndarray) -> np.ndarray:
     """``R(q) v``: a body vector in inertial axes."""
     return rotate_to_body(np.concatenate([-q[..., :3], q[..., 3:4]], axis=-1), v_body)
+
+
+def pointing_error(q: np.ndarray, sigma: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """Angle (rad, in [0, π]) between the body axis ``σ̂`` and the inertial direction ``τ̂`` at
+    attitude ``q`` (seed 003's pointing error; ``sigma`` and ``tau`` normalised here)."""
+    s = unit(np.asarray(sigma, dtype=float))
+    t = rotate_to_body(np.asarray(q, dtype=float), unit(np.asarray(tau, dtype=float)))
+    return np.arctan2(norm(cross(s, t)), dot(s, t))
+
+
+# --- rotation matrices (seed 001's attitude representation) -----------------------------------
+
+def matmul(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``A B`` for (..., 3, 3) matrices, column by column through :func:`matvec` (fixed order)."""
+    A = np.asarray(A, dtype=float)
+    B = np.asarray(B, dtype=float)
+    return np.stack([matvec(A, B[..., :, j]) for j in range(B.shape[-1])], axis=-1)
+
+
+def hat(w: np.ndarray) -> np.ndarray:
+    """Cross-product matrix ``w×`` (..., 3, 3) of ``w`` (..., 3)."""
+    w = np.asarray(w, dtype=float)
+    z = np.zeros(w.shape[:-1])
+    x, y, s = w[..., 0], w[..., 1], w[..., 2]
+    return np.stack([np.stack([z, -s, y], -1), np.stack([s, z, -x], -1),
+                     np.stack([-y, x, z], -1)], -2)
+
+
+def rotation_from_quaternion(q: np.ndarray) -> np.ndarray:
+    """``R`` (..., 3, 3) of a scalar-last quaternion ``q = [x, y, z, w]`` (normalised here): maps
+    body vectors to inertial ones, seed 001's R and ``Rotation.from_quat(q).as_matrix()``."""
+    q = np.asarray(q, dtype=float)
+    q = q / np.sqrt(q[..., 0] ** 2 + q[..., 1] ** 2 + q[..., 2] ** 2 + q[..., 3] ** 2)[..., None]
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], -2)
+
+
+def quaternion_from_rotation(R: np.ndarray) -> np.ndarray:
+    """Scalar-last unit quaternion (..., 4) of rotation matrices ``R`` (..., 3, 3), with ``w ≥ 0``
+    (scipy's ``Rotation.from_matrix``, applied element by element along the batch axes)."""
+    R = np.asarray(R, dtype=float)
+    flat = R.reshape(-1, 3, 3)
+    q = np.stack([Rotation.from_matrix(m).as_quat() for m in flat]) if len(flat) else np.zeros((0, 4))
+    q = np.where(q[:, 3:4] < 0, -q, q)
+    return q.reshape(R.shape[:-2] + (4,))
+
+
+def rotation_exp(w: np.ndarray, t) -> np.ndarray:
+    """``exp(t w×)`` (..., 3, 3), Rodrigues' formula: the rotation in ``t`` seconds at body rate
+    ``w`` (so ``R_d(t) = R_d(0) exp(t ω_d×)`` solves seed 001 eq. 5, ``dR_d/dt = R_d ω_d×``, for
+    constant ω_d)."""
+    w = np.asarray(w, dtype=float)
+    n = np.sqrt(dot(w, w))
+    th = n * t
+    safe = np.where(n > 0, n, 1.0)
+    s = np.where(n > 0, np.sin(th) / safe, t)
+    c = np.where(n > 0, (1.0 - np.cos(th)) / (safe * safe), 0.5 * t * t)
+    K = hat(w)
+    return np.eye(3) + s[..., None, None] * K + c[..., None, None] * matmul(K, K)
+
+
+def attitude_error(R: np.ndarray, R_d: np.ndarray) -> np.ndarray:
+    """``R̃ = R_dᵀ R`` (seed 001 eq. 7): the attitude ``R`` relative to the desired ``R_d``."""
+    return matmul(transpose(np.asarray(R_d, dtype=float)), R)
+
+
+def eigenaxis_error(R_err: np.ndarray) -> np.ndarray:
+    """Eigenaxis attitude error ``θ = acos((tr R̃ - 1)/2)`` (seed 001 eq. 10), rad in [0, π]."""
+    tr = R_err[..., 0, 0] + R_err[..., 1, 1] + R_err[..., 2, 2]
+    return np.arccos(np.clip(0.5 * (tr - 1.0), -1.0, 1.0))

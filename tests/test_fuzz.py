@@ -29,14 +29,16 @@ import yaml
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
+from adcs_controllers.families import M2R_SCHEMA, M2S_SCHEMA
 from adcs_controllers.laws import backstepping as bs
-from adcs_controllers.laws import inertia_free as inf
 from adcs_controllers.laws import single_axis as sa
 from adcs_controllers.laws.allocation import Actuation
 from adcs_controllers.laws.base import LawOutputRejected, checked_control, checked_output
+from adcs_controllers.laws.motion_to_rest import M2rLaw
+from adcs_controllers.laws.motion_to_spin import M2sLaw
 from adcs_core.attitude import error_quaternion
 from adcs_msgs_py import conversions as cv
-from adcs_msgs_py.params import flatten
+from adcs_msgs_py.params import REQUIRED, flatten
 from adcs_sim.app.registry import NODES
 
 settings.register_profile('adcs-fuzz', derandomize=True, max_examples=60, deadline=None,
@@ -284,18 +286,24 @@ def test_zero_torque_limits_command_zero(name, q, w, h):
 J26 = [[5.0, -0.1, -0.5], [-0.1, 2.0, 1.0], [-0.5, 1.0, 3.5]]
 
 
+def _defaults(schema) -> dict:
+    """The section a scenario without the optional keys gives a law: the schema's defaults."""
+    return {p.name: p.default for p in schema.params if p.default is not REQUIRED}
+
+
 def _m2r(u_max):
-    return inf.M2rLaw({'inertia': sum(J26, []), 'target.attitude': [1.0, 0.0, 0.0, 0.0],
-                       'target.rate': [0.0, 0.0, 0.0], 'alpha': u_max / 2, 'beta': u_max / 2,
-                       'A': [1.0, 2.0, 3.0], 'f': 'eq25', 'omega_bar': 0.2, 'u_max': u_max})
+    return M2rLaw({**_defaults(M2R_SCHEMA), 'inertia': sum(J26, []),
+                   'target.attitude': [1.0, 0.0, 0.0, 0.0], 'target.rate': [0.0, 0.0, 0.0],
+                   'alpha': u_max / 2, 'beta': u_max / 2, 'A': [1.0, 2.0, 3.0], 'f': 'eq25', 'omega_bar': 0.2,
+                   'u_max': u_max})
 
 
 def _m2s(saturation, u_max):
-    return inf.M2sLaw({'inertia': np.diag([1.4947, 3.7997, 5.2056]).tolist(),
-                       'target.attitude': [0.0, 0.0, 0.0, 1.0], 'target.rate': [0.0, 0.1, 0.0],
-                       'alpha': 1.0, 'beta': 1.0, 'A': [1.0, 2.0, 3.0], 'K1': 1.0, 'Q': 1.0,
-                       'J_hat0': [1.0, 1.0, 1.0], 'q_max': 10000.0, 'K_Q': 0.001,
-                       'saturation': saturation, 'u_max': u_max})
+    return M2sLaw({**_defaults(M2S_SCHEMA), 'inertia': np.diag([1.4947, 3.7997, 5.2056]).tolist(),
+                   'target.attitude': [0.0, 0.0, 0.0, 1.0], 'target.rate': [0.0, 0.1, 0.0],
+                   'alpha': 1.0, 'beta': 1.0, 'A': [1.0, 2.0, 3.0], 'K1': 1.0, 'Q': 1.0,
+                   'J_hat0': [1.0, 1.0, 1.0], 'q_max': 10000.0, 'K_Q': 0.001,
+                   'saturation': saturation, 'u_max': u_max})
 
 
 def _backstepping(hold):

@@ -1,4 +1,5 @@
-"""Seed 001's inertia-free laws (adcs_controllers.laws.inertia_free): M2R (eq. 11-25) with the
+"""Seed 001's inertia-free laws (adcs_controllers.laws: motion_to_rest, motion_to_spin, saturation;
+the rotation kernel of adcs_core.attitude; the settling index k0 of adcs_sim.app.analysis): M2R (eq. 11-25) with the
 torque bounds of Propositions 1 and 2, the adaptive M2S compensator (Theorem 2, eq. 31-46), cutoff
 and scaling saturation (eq. 47-51), VAG (eq. 55-58) and extremum tracking (eq. 60-67); closed
 loops on the pure plant (adcs_sim.truth.plant.Plant with ideal external Torquers, no momentum storage).
@@ -17,7 +18,13 @@ from numpy.testing import assert_allclose, assert_array_equal
 from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
-from adcs_controllers.laws import inertia_free as inf
+from adcs_controllers.families import M2R_SCHEMA, M2S_SCHEMA
+from adcs_controllers.laws import motion_to_rest as m2r
+from adcs_controllers.laws import motion_to_spin as m2s
+from adcs_controllers.laws import saturation as sat
+from adcs_core import attitude as rot
+from adcs_msgs_py.params import REQUIRED
+from adcs_sim.app import analysis
 from adcs_sim.truth.plant import Plant, Torquers
 
 # Eq. (26): M2R example inertia; eq. (52): M2S example inertia (kg m²).
@@ -36,11 +43,19 @@ def random_rotations(n, seed):
     return Rotation.random(n, random_state=seed).as_matrix()
 
 
+def schema_defaults(schema) -> dict:
+    """Every parameter of ``schema`` that has a default, at its default: the section a scenario
+    without these keys gives the law (the laws keep no defaults of their own)."""
+    return {p.name: p.default for p in schema.params if p.default is not REQUIRED}
+
+
 def m2s_params(**over):
-    """Section 6.3 set-up: A = diag(1, 2, 3), α = β = 1, K1 = D = I, Q = I6, Ĵ(0) = I, C_d = 0."""
-    p = {'inertia': np.diag(J52).tolist(), 'target.attitude': IDENTITY.tolist(),
-         'target.rate': WD_INTERMEDIATE.tolist(), 'alpha': 1.0, 'beta': 1.0, 'A': A123.tolist(),
-         'K1': 1.0, 'Q': 1.0, 'J_hat0': [1.0, 1.0, 1.0], 'q_max': 10000.0, 'K_Q': 0.001}
+    """Section 6.3 set-up: A = diag(1, 2, 3), α = β = 1, K1 = D = I, Q = I6, Ĵ(0) = I, C_d = 0
+    (the schema's defaults for the rest)."""
+    p = {**schema_defaults(M2S_SCHEMA), 'inertia': np.diag(J52).tolist(),
+         'target.attitude': IDENTITY.tolist(), 'target.rate': WD_INTERMEDIATE.tolist(), 'alpha': 1.0,
+         'beta': 1.0, 'A': A123.tolist(), 'K1': 1.0, 'Q': 1.0, 'J_hat0': [1.0, 1.0, 1.0], 'q_max': 10000.0,
+         'K_Q': 0.001}
     p.update(over)
     return p
 
@@ -48,9 +63,9 @@ def m2s_params(**over):
 def m2r_params(u_max, **over):
     """Section 4 set-up: R_d = diag(1, -1, -1), ω̄ = 0.2, A = diag(1, 2, 3), α = β = u_max/2."""
     u_max = np.asarray(u_max, dtype=float)
-    p = {'inertia': J26.ravel().tolist(), 'target.attitude': Q_RD_M2R.tolist(),
-         'target.rate': [0.0, 0.0, 0.0], 'alpha': u_max / 2, 'beta': u_max / 2,
-         'A': A123.tolist(), 'f': 'eq25', 'omega_bar': 0.2, 'u_max': u_max[..., None]}
+    p = {**schema_defaults(M2R_SCHEMA), 'inertia': J26.ravel().tolist(),
+         'target.attitude': Q_RD_M2R.tolist(), 'target.rate': [0.0, 0.0, 0.0], 'alpha': u_max / 2,
+         'beta': u_max / 2, 'A': A123.tolist(), 'f': 'eq25', 'omega_bar': 0.2, 'u_max': u_max[..., None]}
     p.update(over)
     return p
 
@@ -98,16 +113,16 @@ def at(run, t):
 
 def test_rotation_helpers_match_scipy_and_round_trip():
     q = Rotation.random(50, random_state=1).as_quat()  # scalar last
-    R = inf.rotation_from_quaternion(q)
+    R = rot.rotation_from_quaternion(q)
     assert_allclose(R, Rotation.from_quat(q).as_matrix(), atol=1e-15)
-    q2 = inf.quaternion_from_rotation(R)
+    q2 = rot.quaternion_from_rotation(R)
     assert_allclose(np.abs(np.sum(q2 * q, axis=-1)), 1.0, atol=1e-12)
     assert np.all(q2[:, 3] >= 0)
     w = np.random.default_rng(2).normal(size=(50, 3))
-    assert_allclose(inf.rotation_exp(w, 0.7), Rotation.from_rotvec(0.7 * w).as_matrix(), atol=1e-14)
-    assert_allclose(inf.hat(w) @ w[:, :, None], 0.0, atol=1e-15)
+    assert_allclose(rot.rotation_exp(w, 0.7), Rotation.from_rotvec(0.7 * w).as_matrix(), atol=1e-14)
+    assert_allclose(rot.hat(w) @ w[:, :, None], 0.0, atol=1e-15)
     # eq. (10): θ of R̃ is the rotation angle
-    assert_allclose(inf.eigenaxis_error(Rotation.from_rotvec(0.7 * w).as_matrix()),
+    assert_allclose(rot.eigenaxis_error(Rotation.from_rotvec(0.7 * w).as_matrix()),
                     np.minimum(0.7 * np.linalg.norm(w, axis=1) % (2 * np.pi),
                                2 * np.pi - 0.7 * np.linalg.norm(w, axis=1) % (2 * np.pi)), atol=1e-7)
 
@@ -116,12 +131,12 @@ def test_s_vector_eq13_and_s_dot_eq38():
     R = random_rotations(40, 3)
     a = np.array([0.7, 1.9, 3.2])
     S_def = sum(a[i] * np.cross(R[:, i, :], np.eye(3)[i]) for i in range(3))  # R̃ᵀe_i = row i
-    assert_allclose(inf.s_vector(R, a), S_def, atol=1e-15)
+    assert_allclose(m2r.s_vector(R, a), S_def, atol=1e-15)
     w = np.random.default_rng(4).normal(size=(40, 3))
     h = 1e-6
-    fd = (inf.s_vector(R @ inf.rotation_exp(w, h), a) - inf.s_vector(R @ inf.rotation_exp(w, -h), a)) / (2 * h)
-    assert_allclose(inf.s_dot(R, w, a), fd, atol=1e-8)
-    assert_array_equal(inf.s_vector(np.eye(3), a), 0.0)
+    fd = (m2r.s_vector(R @ rot.rotation_exp(w, h), a) - m2r.s_vector(R @ rot.rotation_exp(w, -h), a)) / (2 * h)
+    assert_allclose(m2s.s_dot(R, w, a), fd, atol=1e-8)
+    assert_array_equal(m2r.s_vector(np.eye(3), a), 0.0)
 
 
 def _fd(V, x, dx, h=1e-6):
@@ -135,10 +150,10 @@ def test_m2r_lyapunov_derivative_is_eq14():
     for i, R in enumerate(random_rotations(20, 7)):
         w = rng.normal(size=3) * (0.1 if i % 2 else 1.0)
         for f in ('eq24', 'eq25'):
-            u, st = inf.m2r_torque(R, w, Rd, 0.4, 0.6, A123, f=f, omega_bar=0.2)
+            u, st = m2r.m2r_torque(R, w, Rd, 0.4, 0.6, A123, f=f, omega_bar=0.2)
             wdot = np.linalg.solve(J26, np.cross(J26 @ w, w) + u)
-            vd = _fd(lambda R_, w_: inf.m2r_lyapunov(R_, w_, Rd, J26, 0.4, A123), (R, w),
-                     (R @ inf.hat(w), wdot))
+            vd = _fd(lambda R_, w_: m2r.m2r_lyapunov(R_, w_, Rd, J26, 0.4, A123), (R, w),
+                     (R @ rot.hat(w), wdot))
             assert_allclose(vd, -np.sum(st['kv'] * w * w), rtol=1e-6, atol=1e-10)
 
 
@@ -161,16 +176,16 @@ def test_m2s_lyapunov_derivative_is_eq45():
         d, dh = rng.normal(size=5), rng.normal(size=5)
 
         def rates(R_, w_, Rd_, gh_, d_, dh_):
-            terms = inf.m2s_terms(R_, w_, Rd_, wd, A123, K1)
-            u, _ = inf.m2s_torque(w_, terms, gh_, Kp, Kv, z_hat=Cd @ dh_)
-            g_dot, dh_dot = inf.m2s_estimator_rates(w_, terms, np.linalg.inv(Q), Ad, Cd,
+            terms = m2s.m2s_terms(R_, w_, Rd_, wd, A123, K1)
+            u, _ = m2s.m2s_torque(w_, terms, gh_, Kp, Kv, z_hat=Cd @ dh_)
+            g_dot, dh_dot = m2s.m2s_estimator_rates(w_, terms, np.linalg.inv(Q), Ad, Cd,
                                                     np.linalg.inv(D), dh_)
             wdot = np.linalg.solve(J26, np.cross(J26 @ w_, w_) + u + Cd @ d_)
-            return (R_ @ inf.hat(w_), wdot, Rd_ @ inf.hat(wd), g_dot, Ad @ d_, dh_dot), terms
+            return (R_ @ rot.hat(w_), wdot, Rd_ @ rot.hat(wd), g_dot, Ad @ d_, dh_dot), terms
 
         def V(R_, w_, Rd_, gh_, d_, dh_):
-            terms = inf.m2s_terms(R_, w_, Rd_, wd, A123, K1)
-            return inf.m2s_lyapunov(terms, A123, Kp, J26, gh_, Q, d_ - dh_, D)
+            terms = m2s.m2s_terms(R_, w_, Rd_, wd, A123, K1)
+            return m2s.m2s_lyapunov(terms, A123, Kp, J26, gh_, Q, d_ - dh_, D)
 
         x = (R, w, Rd, gh, d, dh)
         dx, terms = rates(*x)
@@ -189,9 +204,9 @@ def test_m2r_batch_equals_loop_bit_for_bit():
     alpha = np.linspace(0.1, 0.9, 32)
     Rd = random_rotations(1, 13)[0]
     for f in ('eq24', 'eq25'):
-        u, st = inf.m2r_torque(R, w, Rd, alpha, 0.3, A123, f=f)
+        u, st = m2r.m2r_torque(R, w, Rd, alpha, 0.3, A123, f=f)
         for i in range(32):
-            ui, sti = inf.m2r_torque(R[i], w[i], Rd, alpha[i], 0.3, A123, f=f)
+            ui, sti = m2r.m2r_torque(R[i], w[i], Rd, alpha[i], 0.3, A123, f=f)
             assert_array_equal(u[i], ui)
             assert_array_equal(st['S'][i], sti['S'])
 
@@ -204,9 +219,9 @@ def test_m2s_law_batch_equals_loop_bit_for_bit():
     wd = np.array([WD_NONPRINCIPAL, WD_INTERMEDIATE, [0.05, 0.0, 0.02]])
     common = dict(extremum=True, t_max=0.3, max_step=0.04, C_d=np.eye(3).ravel().tolist(),
                   d_hat0=0.01, inertia=J26.ravel().tolist())
-    batch = inf.M2sLaw(m2s_params(saturation=sats, vag=vags, u_max=np.array(umax)[:, None],
+    batch = m2s.M2sLaw(m2s_params(saturation=sats, vag=vags, u_max=np.array(umax)[:, None],
                                   alpha=alpha, **{'target.rate': wd.tolist()}, **common))
-    singles = [inf.M2sLaw(m2s_params(saturation=sats[i], vag=vags[i], u_max=umax[i], alpha=alpha[i],
+    singles = [m2s.M2sLaw(m2s_params(saturation=sats[i], vag=vags[i], u_max=umax[i], alpha=alpha[i],
                                      **{'target.rate': wd[i].tolist()}, **common)) for i in range(3)]
     rng = np.random.default_rng(14)
     q = Rotation.random(3, random_state=15).as_quat()
@@ -239,40 +254,40 @@ def test_torque_bounds_prop1_prop2_hold_on_random_states(f):
     Rd = random_rotations(1, 18)[0]
     w = rng.uniform(-10, 10, size=(n, 3)) * rng.uniform(0, 1, size=(n, 1)) ** 3
     u_max = 1.0
-    inf.check_m2r_gains(0.5, 0.5, u_max)
-    u, _ = inf.m2r_torque(R, w, Rd, 0.5, 0.5, A123, f=f)
-    assert np.abs(u).max() <= inf.prop1_bound(0.5, 0.5) * (1 + 1e-12)
+    m2r.check_m2r_gains(0.5, 0.5, u_max)
+    u, _ = m2r.m2r_torque(R, w, Rd, 0.5, 0.5, A123, f=f)
+    assert np.abs(u).max() <= m2r.prop1_bound(0.5, 0.5) * (1 + 1e-12)
     assert np.abs(u).max() > 0.7 * u_max
     # Proposition 2 with a random B and per-axis limits: largest α = β meeting eq. (23)
     B = np.eye(3) + 0.3 * rng.normal(size=(3, 3))
     B_inv = np.linalg.inv(B)
     u_lim = np.array([1.0, 0.5, 2.0])
     k = np.min(u_lim / (np.linalg.norm(B_inv, axis=1) * (1 + math.sqrt(3))))
-    inf.check_m2r_gains(k, k, u_lim, B, proposition=2)
-    u, _ = inf.m2r_torque(R, w, Rd, k, k, A123, B_inv=B_inv, f=f)
-    assert np.all(np.abs(u) <= inf.prop2_bound(k, k, B) * (1 + 1e-12))
+    m2r.check_m2r_gains(k, k, u_lim, B, proposition=2)
+    u, _ = m2r.m2r_torque(R, w, Rd, k, k, A123, B_inv=B_inv, f=f)
+    assert np.all(np.abs(u) <= m2r.prop2_bound(k, k, B) * (1 + 1e-12))
     assert np.all(np.abs(u) <= u_lim * (1 + 1e-12))
 
 
 def test_parameter_check_refuses_bad_alpha_beta():
     with pytest.raises(ValueError, match=r'alpha=0.6, beta=0.5 violate eq. \(20\).*1.1 N m > u_max = 1'):
-        inf.check_m2r_gains(0.6, 0.5, 1.0)
+        m2r.check_m2r_gains(0.6, 0.5, 1.0)
     with pytest.raises(ValueError, match=r'eq. \(23\) on axis 2'):
-        inf.check_m2r_gains(0.2, 0.2, [1.0, 0.5, 1.0], proposition=2)
+        m2r.check_m2r_gains(0.2, 0.2, [1.0, 0.5, 1.0], proposition=2)
     with pytest.raises(ValueError, match='beta'):
-        inf.check_m2r_gains(0.5, -0.1, 1.0)
+        m2r.check_m2r_gains(0.5, -0.1, 1.0)
     with pytest.raises(ValueError, match=r'alpha=0.05, beta=0.06'):  # second run of a batch
-        inf.check_m2r_gains(np.array([0.5, 0.05]), np.array([0.5, 0.06]), np.array([[1.0], [0.1]]))
+        m2r.check_m2r_gains(np.array([0.5, 0.05]), np.array([0.5, 0.06]), np.array([[1.0], [0.1]]))
     with pytest.raises(ValueError, match=r'eq. \(20\)'):
-        inf.M2rLaw(m2r_params(1.0, alpha=0.7))
+        m2r.M2rLaw(m2r_params(1.0, alpha=0.7))
     # A rotation B: σmin = 1, but ‖B⁻¹x‖∞ can exceed ‖x‖∞: (18) is not a bound (readings R2)
     B = Rotation.from_rotvec([0.3, -0.6, 0.4]).as_matrix()
     with pytest.raises(ValueError, match='Proposition 1'):
-        inf.check_m2r_gains(0.1, 0.1, 1.0, B)
+        m2r.check_m2r_gains(0.1, 0.1, 1.0, B)
     R = random_rotations(5000, 19)
     w = np.random.default_rng(20).normal(size=(5000, 3)) * 3
-    u, _ = inf.m2r_torque(R, w, np.eye(3), 0.5, 0.5, A123, B_inv=np.linalg.inv(B))
-    assert np.abs(u).max() > inf.prop1_bound(0.5, 0.5, B) * 1.05
+    u, _ = m2r.m2r_torque(R, w, np.eye(3), 0.5, 0.5, A123, B_inv=np.linalg.inv(B))
+    assert np.abs(u).max() > m2r.prop1_bound(0.5, 0.5, B) * 1.05
 
 
 def test_m2r_torque_does_not_depend_on_the_scale_of_A():
@@ -280,8 +295,8 @@ def test_m2r_torque_does_not_depend_on_the_scale_of_A():
     (section 4.1) but gives exactly the same law as diag(1, 2, 3) (readings R4)."""
     R = random_rotations(200, 21)
     w = np.random.default_rng(22).normal(size=(200, 3))
-    u1, _ = inf.m2r_torque(R, w, np.eye(3), 0.5, 0.5, A123)
-    u2, st = inf.m2r_torque(R, w, np.eye(3), 0.5, 0.5, 0.1 * A123)
+    u1, _ = m2r.m2r_torque(R, w, np.eye(3), 0.5, 0.5, A123)
+    u2, st = m2r.m2r_torque(R, w, np.eye(3), 0.5, 0.5, 0.1 * A123)
     assert_allclose(u1, u2, rtol=1e-12, atol=1e-15)
     assert_allclose(st['Kp'], 0.5 / 0.6)
 
@@ -292,8 +307,8 @@ def test_cutoff_and_scaling_eq47_51():
     rng = np.random.default_rng(23)
     u = rng.normal(size=(1000, 3)) * 3
     lim = np.array([1.0, 0.5, 2.0])
-    c = inf.sat_cutoff(u, lim)
-    s = inf.sat_scaling(u, lim)
+    c = sat.sat_cutoff(u, lim)
+    s = sat.sat_scaling(u, lim)
     inside = np.all(np.abs(u) <= lim, axis=1)
     assert_array_equal(c[inside], u[inside])
     assert_array_equal(s[inside], u[inside])
@@ -308,14 +323,14 @@ def test_cutoff_and_scaling_eq47_51():
 
 def test_qsat_eq56():
     u_max = np.array([0.01, 0.01, 0.01])
-    assert inf.qsat(3.0, 10000.0, np.array([0.005, -0.01, 0.0]), u_max, 0.001) == 3.0
+    assert sat.qsat(3.0, 10000.0, np.array([0.005, -0.01, 0.0]), u_max, 0.001) == 3.0
     u = np.array([0.03, 0.0, -0.005])
     excess = np.linalg.norm(np.abs(u) - u_max) / np.linalg.norm(u_max)
-    assert_allclose(inf.qsat(3.0, 10000.0, u, u_max, 0.001), (1 + 0.001 * excess) * 3.0, rtol=1e-15)
+    assert_allclose(sat.qsat(3.0, 10000.0, u, u_max, 0.001), (1 + 0.001 * excess) * 3.0, rtol=1e-15)
     pos = np.linalg.norm(np.maximum(np.abs(u) - u_max, 0)) / np.linalg.norm(u_max)
-    assert_allclose(inf.qsat(3.0, 1e4, u, u_max, 0.001, excess='positive'), (1 + 0.001 * pos) * 3.0)
-    assert inf.qsat(9999.9, 10000.0, 100 * u, u_max, 0.001) == 10000.0  # capped
-    assert inf.qsat(20000.0, 10000.0, u, u_max, 0.001) == 10000.0
+    assert_allclose(sat.qsat(3.0, 1e4, u, u_max, 0.001, excess='positive'), (1 + 0.001 * pos) * 3.0)
+    assert sat.qsat(9999.9, 10000.0, 100 * u, u_max, 0.001) == 10000.0  # capped
+    assert sat.qsat(20000.0, 10000.0, u, u_max, 0.001) == 10000.0
 
 
 def test_extremum_tracking_bisects_the_spin_rate():
@@ -325,23 +340,23 @@ def test_extremum_tracking_bisects_the_spin_rate():
     bad = np.array([1.0, 0.0, 1.0])   # 45° off
     good = np.array([0.0, 0.01, 1.0])
     args = dict(omega_bar0=0.1, t_max=250.0, phi_max=math.radians(10), K_omega=0.5)
-    ob, d, tl, phi = inf.extremum_tracking_step(100.0, bad, axis, omega_bar=0.1, delta=0.1, t_last=0.0, **args)
+    ob, d, tl, phi = sat.extremum_tracking_step(100.0, bad, axis, omega_bar=0.1, delta=0.1, t_last=0.0, **args)
     assert_allclose([ob, d, tl], [0.1, 0.1, 0.0], rtol=0)  # Δt ≤ t_max: no change
     assert_allclose(phi, math.pi / 4)
-    ob, d, tl, _ = inf.extremum_tracking_step(251.0, bad, axis, omega_bar=0.1, delta=0.1, t_last=0.0, **args)
+    ob, d, tl, _ = sat.extremum_tracking_step(251.0, bad, axis, omega_bar=0.1, delta=0.1, t_last=0.0, **args)
     assert_allclose([ob, d, tl], [0.05, 0.05, 251.0], rtol=1e-15)
-    ob, d, tl, _ = inf.extremum_tracking_step(502.0, good, axis, omega_bar=ob, delta=d, t_last=tl, **args)
+    ob, d, tl, _ = sat.extremum_tracking_step(502.0, good, axis, omega_bar=ob, delta=d, t_last=tl, **args)
     assert_allclose([ob, d, tl], [0.075, 0.025, 502.0], rtol=1e-15)
-    ob2, d2, tl2, _ = inf.extremum_tracking_step(900.0, good, axis, omega_bar=0.1, delta=d, t_last=tl, **args)
+    ob2, d2, tl2, _ = sat.extremum_tracking_step(900.0, good, axis, omega_bar=0.1, delta=d, t_last=tl, **args)
     assert_allclose([ob2, d2, tl2], [0.1, 0.025, 502.0], rtol=0)  # at ω̄_0 and aligned: stays
 
 
 def test_k0_metric_eq29():
     e = np.concatenate([np.linspace(1, 0, 300), np.full(500, 0.01)])
-    k = inf.k0_metric(e, window=200, threshold=0.03)
+    k = analysis.k0_metric(e, window=200, threshold=0.03)
     first_small = int(np.argmax(e < 0.03))
     assert k == first_small + 200
-    assert inf.k0_metric(np.ones(1000)) == -1
+    assert analysis.k0_metric(np.ones(1000)) == -1
 
 
 # --- closed loops --------------------------------------------------------------------------------
@@ -359,7 +374,7 @@ def m2r_runs():
     disturbances z_d = 0.1 and 0.2 N m per axis (section 4.1). 450 s, 0.1 s hold, one batch."""
     u_max = np.array([1.0, 0.1, 1.0, 1.0])
     dist = np.array([[0.0] * 3, [0.0] * 3, [0.1] * 3, [0.2] * 3])
-    law = inf.M2rLaw(m2r_params(u_max))
+    law = m2r.M2rLaw(m2r_params(u_max))
     return closed_loop(law, J26, IDENTITY, [1.0, -1.0, 0.5], 450.0, 0.1,
                        np.repeat(u_max[:, None], 3, 1), dist=dist)
 
@@ -384,7 +399,7 @@ def _max_min_S(a):
     rng = np.random.default_rng(0)
 
     def negmin(rv):
-        return -inf.s_vector(Rotation.from_rotvec(rv).as_matrix(), a).min()
+        return -m2r.s_vector(Rotation.from_rotvec(rv).as_matrix(), a).min()
     return -min(minimize(negmin, rng.normal(size=3), method='Nelder-Mead').fun for _ in range(20))
 
 
@@ -395,7 +410,7 @@ def test_m2r_constant_disturbance_torque_balance(m2r_runs):
     r = m2r_runs
     Kp = 0.5 / 6.0
     from scipy.optimize import fsolve
-    rv = fsolve(lambda v: Kp * inf.s_vector(Rotation.from_rotvec(v).as_matrix(), A123) - 0.1,
+    rv = fsolve(lambda v: Kp * m2r.s_vector(Rotation.from_rotvec(v).as_matrix(), A123) - 0.1,
                 [0.24, 0.3, 0.4], xtol=1e-13)
     theta_ss = np.linalg.norm(rv)
     assert_allclose(theta_ss, 0.5858, atol=1e-4)
@@ -415,7 +430,7 @@ def m2s_10_1():
     with a 0.02 s hold (readings R7: the unsaturated adaptive loop needs ≤ 0.02 s)."""
     sats = ['none', 'cutoff', 'scaling', 'cutoff', 'scaling']
     u_max = np.array([np.inf, 10.0, 10.0, 1.0, 1.0])
-    law = inf.M2sLaw(m2s_params(saturation=sats, u_max=u_max[:, None], max_step=0.02))
+    law = m2s.M2sLaw(m2s_params(saturation=sats, u_max=u_max[:, None], max_step=0.02))
     return closed_loop(law, J52, Q_R0_M2S, W0_M2S, 60.0, 0.02, np.repeat(u_max[:, None], 3, 1),
                        every=10)
 
@@ -446,7 +461,7 @@ def test_m2s_estimator_step_refinement_converges():
     longer changes (< 1e-9 on the state after 20 s with 0.1 s control calls and R_d(t) moving)."""
     finals = []
     for ms in (0.1, 0.05, 0.025, 0.0125):
-        law = inf.M2sLaw(m2s_params(saturation='cutoff', u_max=10.0, max_step=ms))
+        law = m2s.M2sLaw(m2s_params(saturation='cutoff', u_max=10.0, max_step=ms))
         r = closed_loop(law, J52, Q_R0_M2S, W0_M2S, 8.0, 0.1, np.full(3, 10.0), max_step=0.02)
         finals.append(np.concatenate([r['q'][-1], r['w'][-1], r['gamma_hat'][-1]]))
     d = [np.abs(finals[i + 1] - finals[i]).max() for i in range(3)]
@@ -464,7 +479,7 @@ def test_LONG_m2s_vag_low_torque_reaches_the_spin():
     vag = [True, True, False, True, True]
     u_max = np.array([0.01, 0.01, 0.01, 0.02, 0.02])
     wd = np.array([WD_INTERMEDIATE] * 3 + [WD_NONPRINCIPAL] * 2)
-    law = inf.M2sLaw(m2s_params(saturation=sats, vag=vag, u_max=u_max[:, None], max_step=0.1,
+    law = m2s.M2sLaw(m2s_params(saturation=sats, vag=vag, u_max=u_max[:, None], max_step=0.1,
                                 **{'target.rate': wd.tolist()}))
     r = closed_loop(law, J52, Q_R0_M2S, W0_M2S, 900.0, 0.1, np.repeat(u_max[:, None], 3, 1),
                     every=50)
@@ -486,7 +501,7 @@ def m2s_disturbance():
     60 s with a 0.02 s hold."""
     sats, vag = ['none', 'cutoff', 'cutoff'], [False, True, True]
     u_max = np.array([np.inf, 10.0, 1.0])
-    law = inf.M2sLaw(m2s_params(saturation=sats, vag=vag, u_max=u_max[:, None], max_step=0.02,
+    law = m2s.M2sLaw(m2s_params(saturation=sats, vag=vag, u_max=u_max[:, None], max_step=0.02,
                                 C_d=np.eye(3).ravel().tolist(),
                                 **{'target.rate': WD_NONPRINCIPAL.tolist()}))
     zd = np.broadcast_to(-0.1 / math.sqrt(3.0) * np.ones(3), (3, 3))
@@ -509,18 +524,69 @@ def test_m2s_disturbance_estimate_diverges_at_1_Nm(m2s_disturbance):
     assert np.median(th[half:, 2]) > 1.0 and np.median(we[half:, 2]) > 0.5  # tumbling
 
 
+class _Recording(dict):
+    """A section that records how the law reads it: ``p[key]`` (no fallback) or ``p.get(key, ...)``."""
+
+    def __init__(self, *a, **kw):
+        super().__init__(*a, **kw)
+        self.indexed, self.fetched = set(), set()
+
+    def __getitem__(self, key):
+        self.indexed.add(key)
+        return super().__getitem__(key)
+
+    def get(self, key, default=None):
+        self.fetched.add(key)
+        return super().get(key, default)
+
+
+@pytest.mark.parametrize('schema, law_class', [(M2S_SCHEMA, m2s.M2sLaw), (M2R_SCHEMA, m2r.M2rLaw)],
+                         ids=['M2S', 'M2R'])
+def test_inertia_free_laws_take_their_defaults_from_the_schema(schema, law_class):
+    """The schema is the one source of defaults: the law reads every schema key it uses as
+    ``p[key]`` (a section without it is a KeyError, never completed by a default of the law's own)
+    and a section validated from the required keys alone gives the law the schema's values."""
+    section = schema.validate({'inertia': np.diag(J52).tolist(), 'alpha': 1.0, 'beta': 1.0,
+                               'actuator': 'torquers'})
+    recorded = _Recording(section)
+    law = law_class(recorded)
+    assert recorded.indexed <= set(schema.by_name)
+    assert not recorded.fetched & set(schema.by_name), 'schema keys read with a fallback of the law'
+    for key in recorded.indexed:
+        with pytest.raises(KeyError):
+            law_class({k: v for k, v in section.items() if k != key})
+    d = schema_defaults(schema)
+    assert_array_equal(law.a, d['A'])
+    assert law.B is None and d['B'] == []
+    assert_array_equal(law.u_max, [d['torquers.max_torque']])
+    if law_class is m2r.M2rLaw:
+        assert (law.f, law.omega_bar) == (d['f'], d['omega_bar'])
+        return
+    # the two defaults law and schema used to disagree on (issue 17): the schema's hold
+    assert law.max_step == d['max_step'] == 0.02
+    assert law.saturation == sat.SAT_CODES[d['saturation']] == sat.SAT_CODES['clip']
+    assert (law.q_max, law.K_Q, law.t_max, law.phi_max, law.K_omega, law.vag_excess) == (
+        d['q_max'], d['K_Q'], d['t_max'], d['phi_max'], d['K_omega'], d['vag_excess'])
+    assert (bool(law.vag), law.vag_disturbance, law.extremum) == (d['vag'], d['vag_disturbance'], d['extremum'])
+    assert_array_equal(law.gamma0, [*d['J_hat0'], 0.0, 0.0, 0.0])
+    assert law.C_d is None and law.A_d is None and law.d_true is None and law.d_hat0.shape == (0,)
+    assert_array_equal(law.K1, np.eye(3))
+    assert_array_equal(law.Q0, np.eye(6))
+    assert_array_equal(law.delta0, law.omega_bar0)  # delta0 = 0: ||w_d||
+
+
 def test_section_laws_refuse_bad_parameters():
     with pytest.raises(ValueError, match='distinct'):
-        inf.M2rLaw(m2r_params(1.0, A=[1.0, 1.0, 3.0]))
+        m2r.M2rLaw(m2r_params(1.0, A=[1.0, 1.0, 3.0]))
     with pytest.raises(ValueError, match='target.rate'):
-        inf.M2rLaw(m2r_params(1.0, **{'target.rate': [0.0, 0.1, 0.0]}))
+        m2r.M2rLaw(m2r_params(1.0, **{'target.rate': [0.0, 0.1, 0.0]}))
     with pytest.raises(ValueError, match='saturation'):
-        inf.M2sLaw(m2s_params(saturation='clamp'))
+        m2s.M2sLaw(m2s_params(saturation='clamp'))
     with pytest.raises(ValueError, match='max_step'):
-        inf.M2sLaw(m2s_params(max_step=0.0))
+        m2s.M2sLaw(m2s_params(max_step=0.0))
     with pytest.raises(ValueError, match='K1'):
-        inf.M2sLaw(m2s_params(K1=[1.0, 2.0]))
-    law = inf.M2rLaw(m2r_params(0.1))
+        m2s.M2sLaw(m2s_params(K1=[1.0, 2.0]))
+    law = m2r.M2rLaw(m2r_params(0.1))
     u, st = law.control(0.0, IDENTITY, np.array([1.0, -1.0, 0.5]))
     assert np.abs(u).max() <= 0.1 and st['theta'] == pytest.approx(np.pi)
     assert law.published_status(st)['mode'] in ('saturated', 'unsaturated')

@@ -285,8 +285,9 @@ def test_comparison_default_folder_and_bad_member(bags, tmp_path, capsys):
 
 
 def test_report_module_is_pure():
-    """No rclpy and no pyplot (GUI backends) behind the report module."""
-    code = 'import sys, adcs_sim.app.report; print("rclpy" in sys.modules, "matplotlib.pyplot" in sys.modules)'
+    """No rclpy and no pyplot (GUI backends) behind the report modules."""
+    code = ('import sys, adcs_sim.app.report.single_run, adcs_sim.app.report.comparison; '
+            'print("rclpy" in sys.modules, "matplotlib.pyplot" in sys.modules)')
     from conftest import ROOT
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, cwd=ROOT, check=True)
     assert out.stdout.split() == ['False', 'False']

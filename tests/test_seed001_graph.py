@@ -23,7 +23,7 @@ def test_m2s_in_lockstep_is_the_batch_run_and_the_law(ros_domain, tmp_path):
     """150 steps (3 s at 0.02 s) of m2s_disturbance_vagc_1: the torques saturate at 1 N m from the
     first step, q of the VAG law grows, the disturbance estimate moves; bag == batch engine bit for
     bit; the published status (V, Ĵ, d̂, q) == the pure law replayed over the received states."""
-    from adcs_controllers.laws.inertia_free import M2sLaw
+    from adcs_controllers.laws.motion_to_spin import M2sLaw
     from adcs_controllers.nodes.m2s_controller import M2sController
     from adcs_core.attitude import quat_normalize
     from adcs_msgs_py import conversions as cv
@@ -98,7 +98,7 @@ def test_m2s_section_with_empty_defaults_builds_the_paper_law():
     from conftest import CONFIG
 
     from adcs_controllers.families import M2S_SCHEMA
-    from adcs_controllers.laws.inertia_free import M2sLaw
+    from adcs_controllers.laws.motion_to_spin import M2sLaw
     from adcs_sim.app.scenario_files import validate_scenario
     section = validate_scenario(CONFIG / 'm2s_intermediate_cutoff_10.yaml')['m2s_controller']
     law = M2sLaw(section)

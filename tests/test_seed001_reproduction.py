@@ -118,10 +118,10 @@ def test_m2r_constant_disturbance_torque_balance(runs):
     from scipy.optimize import fsolve
     from scipy.spatial.transform import Rotation
 
-    from adcs_controllers.laws import inertia_free as inf
+    from adcs_controllers.laws.motion_to_rest import s_vector
     a = np.array([1.0, 2.0, 3.0])
     Kp = 0.5 / a.sum()
-    rv = fsolve(lambda v: Kp * inf.s_vector(Rotation.from_rotvec(v).as_matrix(), a) - 0.1,
+    rv = fsolve(lambda v: Kp * s_vector(Rotation.from_rotvec(v).as_matrix(), a) - 0.1,
                 [0.24, 0.3, 0.4], xtol=1e-13)
     theta_ss = float(np.linalg.norm(rv))
     assert_allclose(theta_ss, 0.5858, atol=1e-4)

@@ -65,7 +65,17 @@ import numpy as np
 import scipy.linalg
 
 from adcs_controllers.laws.base import SectionLaw
-from adcs_core.attitude import cross, error_quaternion, matvec, quat_multiply, rotate_to_body
+from adcs_core.attitude import (
+    cross,
+    dot,
+    error_quaternion,
+    gain_vector,
+    hat,
+    matvec,
+    quat_multiply,
+    rotate_to_body,
+    transpose,
+)
 from adcs_core.orbit import CircularOrbit, orbit_frame_attitude, orbit_rate
 
 __all__ = [
@@ -216,13 +226,6 @@ def sgn(x):
     return np.where(np.asarray(x) >= 0.0, 1.0, -1.0)
 
 
-def _skew(v):
-    x, y, z = v[..., 0], v[..., 1], v[..., 2]
-    zero = np.zeros(x.shape)
-    return np.stack([np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1),
-                     np.stack([-y, x, zero], -1)], -2)
-
-
 def g_matrix(eta, eps, s=None):
     """``G(q̃)`` (..., 3, 4) = transpose of ``[[s ε̃ᵀ], [η̃ I + S(ε̃)]]`` (eq. 25), scalar-first
     column order ``[η, ε]`` (``z1`` is ``[1 - |η̃|, ε̃]``). ``s`` defaults to ``sgn(η̃)``; passing
@@ -230,8 +233,8 @@ def g_matrix(eta, eps, s=None):
     eta = np.asarray(eta, dtype=float)
     eps = np.asarray(eps, dtype=float)
     s = sgn(eta) if s is None else s
-    GT_lower = eta[..., None, None] * np.eye(3) + _skew(eps)        # (..., 3, 3)
-    G_right = np.swapaxes(GT_lower, -1, -2)
+    GT_lower = eta[..., None, None] * np.eye(3) + hat(eps)          # (..., 3, 3)
+    G_right = transpose(GT_lower)
     return np.concatenate([(s[..., None] * eps)[..., :, None], G_right], axis=-1)
 
 
@@ -239,11 +242,7 @@ def _gain(K, v):
     K = np.asarray(K, dtype=float)
     if K.ndim >= 2 and K.shape[-2:] == (3, 3):
         return matvec(K, v)
-    return (K[..., None] if K.ndim else K) * v
-
-
-def _dot(a, b):
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+    return gain_vector(K) * v
 
 
 def backstepping_torque(q, w, q_d, w_d, w_d_dot, inertia, K1, K2, tau_g=None):
@@ -271,19 +270,19 @@ def backstepping_torque(q, w, q_d, w_d, w_d_dot, inertia, K1, K2, tau_g=None):
     Gz1 = matvec(G, z1)
     alpha1 = -_gain(K1, Gz1)                                        # eq. (29)
     z2 = we - alpha1                                                # eq. (24)
-    eta_dot = -0.5 * _dot(eps, we)                                  # eq. (13)
+    eta_dot = -0.5 * dot(eps, we)                                   # eq. (13)
     eps_dot = 0.5 * (eta[..., None] * we + cross(eps, we))          # eq. (14)
-    z1_dot = 0.5 * matvec(np.swapaxes(G, -1, -2), we)               # eq. (25)
+    z1_dot = 0.5 * matvec(transpose(G), we)                         # eq. (25)
     G_dot = g_matrix(eta_dot, eps_dot, s)
     alpha1_dot = -_gain(K1, matvec(G_dot, z1) + matvec(G, z1_dot))  # section 3.3
     tau = (-Gz1 - _gain(K2, z2) + cross(w, matvec(J, w))
            + matvec(J, w_id_dot) + matvec(J, alpha1_dot))           # eq. (32)
     if tau_g is not None:
         tau = tau - np.asarray(tau_g, dtype=float)
-    V1 = _dot(z1[..., 1:], z1[..., 1:]) + z1[..., 0] ** 2            # eq. (27)
-    V2 = V1 + 0.5 * _dot(z2, matvec(J, z2))                         # eq. (31)
-    W = _dot(Gz1, _gain(K1, Gz1)) + _dot(z2, _gain(K2, z2))         # eq. (33)
-    angle = 2.0 * np.arctan2(np.sqrt(_dot(eps, eps)), np.abs(eta))
+    V1 = dot(z1[..., 1:], z1[..., 1:]) + z1[..., 0] ** 2             # eq. (27)
+    V2 = V1 + 0.5 * dot(z2, matvec(J, z2))                          # eq. (31)
+    W = dot(Gz1, _gain(K1, Gz1)) + dot(z2, _gain(K2, z2))           # eq. (33)
+    angle = 2.0 * np.arctan2(np.sqrt(dot(eps, eps)), np.abs(eta))
     status = {'mode': np.full(eta.shape, MODE_TRACKING), 'q_err': qe, 'w_err': we, 'z1': z1,
               'z2': z2, 'alpha1': alpha1, 'alpha1_dot': alpha1_dot, 'V1': V1, 'V2': V2, 'W': W,
               'angle': angle}
@@ -393,7 +392,7 @@ class ThrusterWheelAllocation:
         tau = np.asarray(tau, dtype=float)
         w = np.asarray(w, dtype=float)
         speed = np.asarray(wheel_speed, dtype=float)
-        h_w = self.wheel_inertia * (speed + _dot(w, self.wheel_axis * np.ones(w.shape)))
+        h_w = self.wheel_inertia * (speed + dot(w, self.wheel_axis * np.ones(w.shape)))
         h = -h_w                                       # the paper's h_wy (module doc, R4)
         u = allocate(tau, w, self.B_pinv, h, self.wheel_axis)
         # What the wheel can deliver this period: its torque limit and the torque that brings it

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from adcs_core.inertia import inertia_matrix
+
 
 class SectionLaw:
     """A law bound to a validated controller section: the controller's inertia model and the
@@ -19,7 +21,6 @@ class SectionLaw:
     output: str = 'torque'
 
     def __init__(self, p: dict) -> None:
-        from adcs_core.inertia import inertia_matrix
         self.inertia = inertia_matrix(p['inertia'])
         q_ref = np.asarray(p['target.attitude'], dtype=float)
         self.q_ref = q_ref / np.linalg.norm(q_ref, axis=-1, keepdims=True)

@@ -73,7 +73,7 @@ import numpy as np
 
 from adcs_controllers.laws.base import SectionLaw
 from adcs_controllers.laws.pd import pd_torque
-from adcs_core.attitude import cross, error_quaternion, matvec
+from adcs_core.attitude import cross, dot, error_quaternion, gain_vector, matvec, transpose
 
 __all__ = [
     'MODE_LOW_GAIN', 'MODE_ZERO_TORQUE', 'MODE_HIGH_GAIN', 'MODE_MIN_NORM', 'MODE_CONTINUOUS',
@@ -91,21 +91,6 @@ MODE_CONTINUOUS = 4    # Krstic-Tsiotras: one continuous law
 
 # --- helpers -------------------------------------------------------------------------------------
 
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Dot product along the last axis (length 3), summed in a fixed order."""
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
-
-
-def _vec_gain(k):
-    """A gain that broadcasts over the batch axes, shaped to multiply (..., 3) vectors."""
-    k = np.asarray(k, dtype=float)
-    return k[..., None] if k.ndim else k
-
-
-def _transpose(M: np.ndarray) -> np.ndarray:
-    return np.swapaxes(M, -1, -2)
-
-
 def inertia_inverse(inertia: np.ndarray) -> np.ndarray:
     """Inverse of 3 x 3 matrices (..., 3, 3) by cofactors (cross products of the columns).
 
@@ -114,7 +99,7 @@ def inertia_inverse(inertia: np.ndarray) -> np.ndarray:
     M = np.asarray(inertia, dtype=float)
     a0, a1, a2 = M[..., :, 0], M[..., :, 1], M[..., :, 2]
     r0, r1, r2 = cross(a1, a2), cross(a2, a0), cross(a0, a1)
-    det = _dot(a0, r0)[..., None, None]
+    det = dot(a0, r0)[..., None, None]
     return np.stack([r0, r1, r2], axis=-2) / det
 
 
@@ -147,19 +132,19 @@ def lyapunov(q: np.ndarray, w: np.ndarray, kp, kd, gamma, q_ref: np.ndarray | No
     qe, we = error_state(q, w, q_ref, w_ref, shortest_path)
     kp, kd, gamma = (np.asarray(k, dtype=float) for k in (kp, kd, gamma))
     qv = qe[..., :3]
-    return 2.0 * (kp + gamma * kd) * (1.0 - qe[..., 3]) + 0.5 * _dot(we, we) + gamma * _dot(qv, we)
+    return 2.0 * (kp + gamma * kd) * (1.0 - qe[..., 3]) + 0.5 * dot(we, we) + gamma * dot(qv, we)
 
 
 def _lie(qe, we, inertia, inertia_inv, kp, kd, gamma, h):
     """(LfV, LgVᵀ) of eq. (15) on the error state; ``h`` wheel momentum (..., 3) or None."""
     qv, q4 = qe[..., :3], qe[..., 3]
     kp, kd, gamma = (np.asarray(k, dtype=float) for k in (kp, kd, gamma))
-    LgV = matvec(_transpose(inertia_inv), we + _vec_gain(gamma) * qv)
+    LgV = matvec(transpose(inertia_inv), we + gain_vector(gamma) * qv)
     H = matvec(inertia, we)
     if h is not None:
         H = H + h
-    LfV = ((kp + gamma * kd) * _dot(qv, we) + 0.5 * gamma * q4 * _dot(we, we)
-           - _dot(LgV, cross(we, H)))
+    LfV = ((kp + gamma * kd) * dot(qv, we) + 0.5 * gamma * q4 * dot(we, we)
+           - dot(LgV, cross(we, H)))
     return LfV, LgV
 
 
@@ -187,15 +172,15 @@ def min_norm_projection(LgV: np.ndarray, u_bench: np.ndarray):
     Returns ``(u, on)``: ``u = (LgV u_bench) LgVᵀ / (LgV LgVᵀ)`` where ``LgV u_bench < 0``
     (``on`` True), else ``u = 0``. ``LgV`` and ``u_bench`` are (..., 3).
     """
-    b = _dot(LgV, u_bench)
+    b = dot(LgV, u_bench)
     on = b < 0.0  # LgV = 0 gives b = 0: off, no division by zero
-    aa = _dot(LgV, LgV)
+    aa = dot(LgV, LgV)
     scale = np.where(on, b / np.where(on, aa, 1.0), 0.0)
     return scale[..., None] * LgV, on
 
 
 def _status(mode, V, LfV, LgV, u):
-    LgV_u = _dot(LgV, u)
+    LgV_u = dot(LgV, u)
     return {'mode': mode, 'V': V, 'Vdot': LfV + LgV_u, 'LgV_u': LgV_u}
 
 
@@ -239,12 +224,12 @@ def gsmn_torque(q: np.ndarray, w: np.ndarray, inertia: np.ndarray, kp1, kd1, kp2
                     None if h is None else np.asarray(h, dtype=float))
     u1 = pd_torque(qe, we, inertia, kp1, kd1)
     u2 = pd_torque(qe, we, inertia, kp2, kd2)
-    b2 = _dot(LgV, u2)
+    b2 = dot(LgV, u2)
     on = b2 < 0.0  # LgV = 0 gives b2 = 0: off, no division by zero
     high = np.max(np.abs(u2), axis=-1) < np.asarray(epsilon, dtype=float)
     # Low-gain mode projects u1 whatever the sign of LgV u1 (as printed; the region is set by u2).
-    b = np.where(high, b2, _dot(LgV, u1))
-    aa = _dot(LgV, LgV)
+    b = np.where(high, b2, dot(LgV, u1))
+    aa = dot(LgV, LgV)
     u = np.where(on, b / np.where(on, aa, 1.0), 0.0)[..., None] * LgV
     mode = np.where(on, np.where(high, MODE_HIGH_GAIN, MODE_LOW_GAIN), MODE_ZERO_TORQUE)
     V = lyapunov(qe, we, kp1, kd1, gamma)
@@ -265,8 +250,8 @@ def kt_lyapunov(q: np.ndarray, w: np.ndarray, k1, q_ref: np.ndarray | None = Non
     qe, we = error_state(q, w, q_ref, w_ref)
     p = gibbs(qe)
     k1 = np.asarray(k1, dtype=float)
-    z = we + _vec_gain(k1) * p
-    return 0.5 * k1 ** 2 * _dot(p, p) + 0.5 * _dot(z, z)
+    z = we + gain_vector(k1) * p
+    return 0.5 * k1 ** 2 * dot(p, p) + 0.5 * dot(z, z)
 
 
 def kt_torque(q: np.ndarray, w: np.ndarray, inertia: np.ndarray, k1, k2,
@@ -287,21 +272,21 @@ def kt_torque(q: np.ndarray, w: np.ndarray, inertia: np.ndarray, k1, k2,
     k1 = np.asarray(k1, dtype=float)
     k2 = np.asarray(k2, dtype=float)
     p = gibbs(qe)
-    z = we + _vec_gain(k1) * p
+    z = we + gain_vector(k1) * p
     # 4/k1 I⁻¹ S(w)ᵀ I² S(w) I⁻¹ z, right to left; S(w)ᵀ y = -w x y
     s = cross(we, matvec(inertia_inv, z))
     gyro = matvec(inertia_inv, -cross(we, matvec(inertia, matvec(inertia, s))))
-    inner = (_vec_gain(2.0 * k2 + k1) * z + _vec_gain(k1 * _dot(p, z)) * p
-             + _vec_gain(4.0 / k1) * gyro)
+    inner = (gain_vector(2.0 * k2 + k1) * z + gain_vector(k1 * dot(p, z)) * p
+             + gain_vector(4.0 / k1) * gyro)
     u = -matvec(inertia, inner)
     # status: V = k1²/2 |p|² + 1/2 |z|²
-    LgV = matvec(_transpose(inertia_inv), z)
-    pdot = 0.5 * (we + cross(p, we) + _vec_gain(_dot(p, we)) * p)
+    LgV = matvec(transpose(inertia_inv), z)
+    pdot = 0.5 * (we + cross(p, we) + gain_vector(dot(p, we)) * p)
     H = matvec(inertia, we)
     if h is not None:
         H = H + np.asarray(h, dtype=float)
-    LfV = _dot(_vec_gain(k1 ** 2) * p + _vec_gain(k1) * z, pdot) - _dot(LgV, cross(we, H))
-    V = 0.5 * k1 ** 2 * _dot(p, p) + 0.5 * _dot(z, z)
+    LfV = dot(gain_vector(k1 ** 2) * p + gain_vector(k1) * z, pdot) - dot(LgV, cross(we, H))
+    V = 0.5 * k1 ** 2 * dot(p, p) + 0.5 * dot(z, z)
     mode = np.full(V.shape, MODE_CONTINUOUS)
     return u, _status(mode, V, LfV, LgV, u)
 

@@ -88,13 +88,26 @@ import scipy.linalg
 from scipy.spatial.transform import Rotation
 
 from adcs_controllers.laws.base import SectionLaw
-from adcs_core.attitude import cross, eigenaxis_angle, error_quaternion, matvec
+from adcs_core.attitude import (
+    cross,
+    dot,
+    eigenaxis_angle,
+    error_quaternion,
+    gain_vector,
+    matvec,
+    norm,
+    pointing_error,
+    rotate_to_body,
+    rotate_to_inertial,
+    transpose,
+    unit,
+)
 
 __all__ = [
     'STAGE_MOMENTUM', 'STAGE_LQR', 'STAGE_B', 'MODE_NAMES', 'Q_PAPER', 'R_PAPER',
     'EPS_OMEGA', 'EPS_PHI', 'wrap', 'inertial_frame', 'dcm_313', 'euler_313', 'euler_rates_313',
     'body_axis_angles', 'elevation', 'check_feasible', 'final_angles', 'final_attitudes',
-    'target_momentum', 'attitude_angles', 'pointing_error', 'pointing_state',
+    'target_momentum', 'attitude_angles', 'pointing_state',
     'linearisation', 'lqr_gain', 'momentum_state_choice', 'momentum_stabilisation_torque',
     'lqr_torque', 'controller_a_torque', 'desired_rate_b', 'controller_b_torque',
     'PointingALaw', 'PointingBLaw',
@@ -113,30 +126,6 @@ EPS_PHI = np.deg2rad(1.0)       # rad, section 3.3
 _XY = np.array([1.0, 1.0, 0.0])
 
 
-def _dot(a, b):
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
-
-
-def _norm(a):
-    return np.sqrt(_dot(a, a))
-
-
-def _unit(a):
-    return a / _norm(a)[..., None]
-
-
-def _g(k):
-    k = np.asarray(k, dtype=float)
-    return k[..., None] if k.ndim else k
-
-
-def _to_body(q, v):
-    """``R(q)ᵀ v``: inertial vector ``v`` in body axes (q body-in-inertial, scalar last)."""
-    qv, q4 = q[..., :3], q[..., 3:4]
-    t = 2.0 * cross(v, qv)
-    return v + q4 * t + cross(t, qv)
-
-
 def wrap(a):
     """Angle wrapped to [-π, π)."""
     return np.mod(np.asarray(a, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
@@ -153,13 +142,13 @@ def inertial_frame(H, tau):
     H = np.asarray(H, dtype=float)
     tau = np.broadcast_to(np.asarray(tau, dtype=float), np.broadcast_shapes(H.shape, np.shape(tau)))
     H = np.broadcast_to(H, tau.shape)
-    o3 = _unit(H)
+    o3 = unit(H)
     n = cross(H, tau)
-    nn = _norm(n)
-    degenerate = nn <= 1e-12 * _norm(H) * _norm(tau)
+    nn = norm(n)
+    degenerate = nn <= 1e-12 * norm(H) * norm(tau)
     axis = np.eye(3)[np.argmin(np.abs(o3), axis=-1)]
     n = np.where(degenerate[..., None], cross(o3, axis), n)
-    o2 = _unit(n)
+    o2 = unit(n)
     o1 = cross(o2, o3)
     return np.stack([o1, o2, o3], axis=-2)
 
@@ -194,14 +183,14 @@ def euler_rates_313(theta, phi, w):
 
 def body_axis_angles(sigma):
     """(λ, η) of eq. (9): elevation of σ̂ over ê1-ê2 and azimuth from ê1 (σ̂ normalised here)."""
-    s = _unit(np.asarray(sigma, dtype=float))
+    s = unit(np.asarray(sigma, dtype=float))
     return np.arcsin(np.clip(s[..., 2], -1.0, 1.0)), np.arctan2(s[..., 1], s[..., 0])
 
 
 def elevation(tau, H):
     """α: elevation of τ̂ over the plane ⟂ H (the ô1-ô2 plane), in [-π/2, π/2]."""
-    return np.arcsin(np.clip(_dot(_unit(np.asarray(tau, dtype=float)),
-                                  _unit(np.asarray(H, dtype=float))), -1.0, 1.0))
+    return np.arcsin(np.clip(dot(unit(np.asarray(tau, dtype=float)),
+                                  unit(np.asarray(H, dtype=float))), -1.0, 1.0))
 
 
 def check_feasible(lam, alpha, tol=1e-12):
@@ -251,7 +240,7 @@ def final_attitudes(sigma, tau, H):
     alpha = elevation(tau, H)
     psi, phi = final_angles(lam, eta, alpha)
     T = dcm_313(psi, np.pi / 2 + 0.0 * psi, phi)                      # (..., 2, 3, 3) body <- F_I
-    R = np.swapaxes(C, -1, -2)[..., None, :, :] @ np.swapaxes(T, -1, -2)  # body -> inertial
+    R = transpose(C)[..., None, :, :] @ transpose(T)  # body -> inertial
     shape = R.shape[:-2]
     q = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_quat().reshape(shape + (4,))
     return q, psi, phi
@@ -266,16 +255,9 @@ def target_momentum(phi_f, H0):
 
 def attitude_angles(q, frame):
     """(Ψ, Θ, Φ) of eq. (7) for attitude ``q`` (..., 4) and F_I rows ``frame`` (..., 3, 3)."""
-    cols = [_to_body(q, frame[..., j, :]) for j in range(3)]   # ô_j in body = column j of T_BI
+    cols = [rotate_to_body(q, frame[..., j, :]) for j in range(3)]  # ô_j in body = column j of T_BI
     T = np.stack(cols, axis=-1)
     return euler_313(T)
-
-
-def pointing_error(q, sigma, tau):
-    """Angle (rad) between body axis ``σ̂`` and inertial direction ``τ̂`` at attitude ``q``."""
-    s = _unit(np.asarray(sigma, dtype=float))
-    t = _to_body(np.asarray(q, dtype=float), _unit(np.asarray(tau, dtype=float)))
-    return np.arctan2(_norm(cross(s, t)), _dot(s, t))
 
 
 def pointing_state(q, frame, sigma, tau, psi_f, phi_f):
@@ -327,7 +309,7 @@ def momentum_stabilisation_torque(w, h, h_f, K_p, K_h):
     """Stage 1 of controller A, eq. (22) with the sign that makes eq. (21) negative:
     ``u = -K_p (ω - K_h (h - h_f))``, ``u_3 = 0``."""
     e_h = np.asarray(h, dtype=float) - h_f
-    return -_g(K_p) * (np.asarray(w, dtype=float) - _g(K_h) * e_h) * _XY
+    return -gain_vector(K_p) * (np.asarray(w, dtype=float) - gain_vector(K_h) * e_h) * _XY
 
 
 def lqr_torque(e_psi, w, h, h_f, gain, state_index):
@@ -348,7 +330,7 @@ def controller_a_torque(q, w, h, frame, sigma, tau, psi_f, phi_f, H0, K_p, K_h, 
     st = pointing_state(q, frame, sigma, tau, psi_f, phi_f)
     h_f = target_momentum(phi_f, H0)
     w = np.asarray(w, dtype=float)
-    switch = (_norm(w) < eps_omega) & (np.abs(st['e_phi']) < eps_phi)
+    switch = (norm(w) < eps_omega) & (np.abs(st['e_phi']) < eps_phi)
     stage = np.where((np.asarray(stage) == STAGE_MOMENTUM) & switch, STAGE_LQR, stage)
     u1 = momentum_stabilisation_torque(w, h, h_f, K_p, K_h)
     u2 = lqr_torque(st['e_psi'], w, h, h_f, gain, state_index)
@@ -372,7 +354,7 @@ def controller_b_torque(q, w, h, frame, sigma, tau, psi_f, phi_f, H0, K_p, K_Psi
     w_des = desired_rate_b(st['phi'], st['e_psi'], K_Psi)
     e_w = np.asarray(w, dtype=float) - w_des
     e_h = np.asarray(h, dtype=float) - h_f
-    u = -_g(K_p) * (e_w - _g(K_h) * e_h) * _XY
+    u = -gain_vector(K_p) * (e_w - gain_vector(K_h) * e_h) * _XY
     stage = np.full(np.shape(st['psi']), STAGE_B)
     st.update(mode=stage, stage=stage, w_des=w_des)
     return u, st
@@ -405,8 +387,8 @@ class _PointingLaw(SectionLaw):
     def __init__(self, p: dict) -> None:
         p = {'target.attitude': [0.0, 0.0, 0.0, 1.0], 'target.rate': [0.0, 0.0, 0.0], **p}
         super().__init__(p)
-        self.sigma = _unit(np.asarray(p['sigma'], dtype=float))
-        self.tau = _unit(np.asarray(p['tau'], dtype=float))
+        self.sigma = unit(np.asarray(p['sigma'], dtype=float))
+        self.tau = unit(np.asarray(p['tau'], dtype=float))
         self.H = None if p.get('H') is None else np.asarray(p['H'], dtype=float)
         self.solution = int(p.get('solution', 0))
         if self.solution not in (0, 1, 2):
@@ -423,7 +405,7 @@ class _PointingLaw(SectionLaw):
     def _setup(self, q, w, h):
         """Per-run geometry at the first call: frame, (Ψ_f, Φ_f), H0."""
         if self.H is None:
-            H = _to_body_inv(q, matvec(self.inertia, w) + h)
+            H = rotate_to_inertial(q, matvec(self.inertia, w) + h)
         else:
             H = np.broadcast_to(self.H, q.shape[:-1] + (3,))
         qf, psi, phi = final_attitudes(self.sigma, self.tau, H)
@@ -434,7 +416,7 @@ class _PointingLaw(SectionLaw):
             k = np.where(d[..., 1] < d[..., 0], 1, 0)
         pick = lambda a: np.where(k == 0, a[..., 0], a[..., 1])  # noqa: E731
         geo = {'frame': inertial_frame(H, self.tau), 'psi_f': pick(psi), 'phi_f': pick(phi),
-               'H0': _norm(H), 'q_f': np.where((k == 0)[..., None], qf[..., 0, :], qf[..., 1, :]),
+               'H0': norm(H), 'q_f': np.where((k == 0)[..., None], qf[..., 0, :], qf[..., 1, :]),
                'shape': q.shape[:-1]}
         return geo
 
@@ -453,11 +435,6 @@ class _PointingLaw(SectionLaw):
         w = np.asarray(w, dtype=float)
         h = np.broadcast_to(np.asarray(h, dtype=float), w.shape)
         return q, w, h
-
-
-def _to_body_inv(q, v_body):
-    """``R(q) v``: body vector in inertial axes."""
-    return _to_body(np.concatenate([-q[..., :3], q[..., 3:4]], axis=-1), v_body)
 
 
 class PointingALaw(_PointingLaw):

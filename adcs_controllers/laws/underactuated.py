@@ -70,7 +70,7 @@ import numpy as np
 
 from adcs_controllers.laws.base import SectionLaw
 from adcs_controllers.laws.inverse_optimal import error_state, inertia_inverse
-from adcs_core.attitude import cross, matvec, quat_kinematics
+from adcs_core.attitude import cross, dot, gain_vector, matvec, quat_kinematics, transpose
 
 __all__ = [
     'MODE_LOW_GAIN', 'MODE_ZERO_TORQUE', 'MODE_HIGH_GAIN', 'MODE_MIN_NORM', 'MODE_SNLC',
@@ -87,16 +87,6 @@ MODE_SNLC = 5           # snlc benchmark (continuous)
 MODE_ZERO_MOMENTUM = 6  # zero-momentum wheel speed law
 
 _XY = np.array([1.0, 1.0, 0.0])
-
-
-def _dot(a, b):
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
-
-
-def _g(k):
-    """A gain broadcasting over batch axes (scalar or (...,)), as a (..., 1) multiplier."""
-    k = np.asarray(k, dtype=float)
-    return k[..., None] if k.ndim else k
 
 
 def _sat_ratio(num, den, a):
@@ -178,9 +168,9 @@ def zero_momentum_wheel_speeds(q, inertia, wheel_inertia, k, g, a1=np.inf, a2=np
 def _snlc(qe, we, Id, k, g, K, a1, a2, eps_den, scale_by_inertia):
     wd, wd_dot = desired_rates(qe, we, k, g, a1, a2, eps_den)
     if scale_by_inertia:  # eq. 14 / 24 as printed: I_i (-K_i (ω_i - ωd_i) + ω̇d_i)
-        u = Id * (-_g(K) * (we - wd) + wd_dot)
+        u = Id * (-gain_vector(K) * (we - wd) + wd_dot)
     else:                 # eq. 31 form (default): -K_i (ω_i - ωd_i) + I_i ω̇d_i
-        u = -_g(K) * (we - wd) + Id * wd_dot
+        u = -gain_vector(K) * (we - wd) + Id * wd_dot
     return u * _XY, wd, wd_dot
 
 
@@ -197,7 +187,7 @@ def snlc_torque(q, w, inertia, k, g, K, a1=np.inf, a2=np.inf, eps_den=0.0, q_ref
     u, wd, wd_dot = _snlc(qe, we, _diag(inertia), k, g, K, a1, a2, eps_den, scale_by_inertia)
     mode = np.full(u.shape[:-1], MODE_SNLC)
     e = we - wd
-    V = 2.0 * np.asarray(k, dtype=float) * (1.0 - qe[..., 3]) + 0.5 * _dot(e, e)  # eq. 15/16
+    V = 2.0 * np.asarray(k, dtype=float) * (1.0 - qe[..., 3]) + 0.5 * dot(e, e)  # eq. 15/16
     return u, {'mode': mode, 'V': V, 'wd': wd, 'wd_dot': wd_dot}
 
 
@@ -206,14 +196,14 @@ def _lie(qe, we, inertia, k, gamma, sigma, a1, a2, eps_den, h):
     w_gs, w_gs_dot = desired_rates(qe, we, gamma, sigma, a1, a2, eps_den)
     e = we - w_gs
     Iinv = inertia_inverse(inertia)
-    LgV = matvec(np.swapaxes(Iinv, -1, -2), e) * _XY
-    dq4 = -0.5 * _dot(qe[..., :3], we)
+    LgV = matvec(transpose(Iinv), e) * _XY
+    dq4 = -0.5 * dot(qe[..., :3], we)
     k = np.asarray(k, dtype=float)
-    LfV = -2.0 * k * dq4 - _dot(e, w_gs_dot)
+    LfV = -2.0 * k * dq4 - dot(e, w_gs_dot)
     if h is not None:
         L = matvec(inertia, we) + h
-        LfV = LfV - _dot(e, matvec(Iinv, cross(we, L)))
-    V = 2.0 * k * (1.0 - qe[..., 3]) + 0.5 * _dot(e, e)
+        LfV = LfV - dot(e, matvec(Iinv, cross(we, L)))
+    V = 2.0 * k * (1.0 - qe[..., 3]) + 0.5 * dot(e, e)
     return V, LfV, LgV, w_gs
 
 
@@ -223,7 +213,7 @@ def lyapunov(q, w, k, gamma, sigma, a1=np.inf, a2=np.inf, eps_den=0.0, q_ref=Non
     qe, we = error_state(q, w, q_ref, w_ref, shortest_path)
     wg, _ = desired_rates(qe, we, gamma, sigma, a1, a2, eps_den)
     e = we - wg
-    return 2.0 * np.asarray(k, dtype=float) * (1.0 - qe[..., 3]) + 0.5 * _dot(e, e)
+    return 2.0 * np.asarray(k, dtype=float) * (1.0 - qe[..., 3]) + 0.5 * dot(e, e)
 
 
 def lie_derivatives(q, w, inertia, k, gamma, sigma, a1=np.inf, a2=np.inf, eps_den=0.0, h=None,
@@ -239,12 +229,12 @@ def lie_derivatives(q, w, inertia, k, gamma, sigma, a1=np.inf, a2=np.inf, eps_de
 
 
 def _project(LgV, b, on):
-    aa = _dot(LgV, LgV)
+    aa = dot(LgV, LgV)
     return np.where(on, b / np.where(on, aa, 1.0), 0.0)[..., None] * LgV
 
 
 def _status(mode, V, LfV, LgV, u, wd, w_gs):
-    LgV_u = _dot(LgV, u)
+    LgV_u = dot(LgV, u)
     return {'mode': mode, 'V': V, 'Vdot': LfV + LgV_u, 'LgV_u': LgV_u, 'wd': wd, 'w_gs': w_gs}
 
 
@@ -264,7 +254,7 @@ def min_norm_torque(q, w, inertia, k, g, K, gamma, sigma, a1=np.inf, a2=np.inf, 
     V, LfV, LgV, w_gs = _lie(qe, we, inertia, k, gamma, sigma, a1, a2, eps_den,
                              None if h is None else np.asarray(h, dtype=float))
     ub, wd, _ = _snlc(qe, we, _diag(inertia), k, g, K, a1, a2, eps_den, scale_by_inertia)
-    b = _dot(LgV, ub)
+    b = dot(LgV, ub)
     on = b < 0.0
     u = _project(LgV, b, on)
     mode = np.where(on, MODE_MIN_NORM, MODE_ZERO_TORQUE)
@@ -288,10 +278,10 @@ def gsmn_torque(q, w, inertia, k1, g1, K1, k2, g2, K2, gamma, sigma, epsilon, a1
     Id = _diag(inertia)
     ulg, wd, _ = _snlc(qe, we, Id, k1, g1, K1, a1, a2, eps_den, scale_by_inertia)
     uhg, _, _ = _snlc(qe, we, Id, k2, g2, K2, a1, a2, eps_den, scale_by_inertia)
-    bh = _dot(LgV, uhg)
+    bh = dot(LgV, uhg)
     on = bh < 0.0
     high = np.max(np.abs(uhg), axis=-1) < np.asarray(epsilon, dtype=float)
-    b = np.where(high, bh, _dot(LgV, ulg))  # low-gain mode projects u_lg as printed
+    b = np.where(high, bh, dot(LgV, ulg))  # low-gain mode projects u_lg as printed
     u = _project(LgV, b, on)
     mode = np.where(on, np.where(high, MODE_HIGH_GAIN, MODE_LOW_GAIN), MODE_ZERO_TORQUE)
     return u, _status(mode, V, LfV, LgV, u, wd, w_gs)
@@ -408,7 +398,7 @@ class ZeroMomentumLaw(_BoundLaw):
         h, status = zero_momentum_wheel_momentum(qe, self.law_inertia, self.k, self.g, self.a1, self.a2,
                                                  self.eps_den)
         e = we - status['wd']
-        status['V'] = 2.0 * np.asarray(self.k, dtype=float) * (1.0 - qe[..., 3]) + 0.5 * _dot(e, e)
+        status['V'] = 2.0 * np.asarray(self.k, dtype=float) * (1.0 - qe[..., 3]) + 0.5 * dot(e, e)
         return h, status
 
 

@@ -27,7 +27,7 @@ Definitions (every metric printed by ``adcs-run`` and ``adcs-analyze``):
   ``[t0, end]``.
 * **Pointing** (seed 003; runs whose controller section has ``sigma`` and ``tau``): the pointing
   error is the angle between the body axis ``σ̂`` and the inertial direction ``τ̂``
-  (:func:`adcs_controllers.laws.single_axis.pointing_error`, true attitude); at 1°, 0.1° and
+  (:func:`adcs_core.attitude.pointing_error`, true attitude); at 1°, 0.1° and
   0.01° (Table 1) the *first entry* and the *settling* (staying below to the end) times, as above,
   and the final pointing error.
 * **Peak torque** per body axis ``max |u_i|`` over the applied-torque samples; **peak wheel
@@ -35,7 +35,8 @@ Definitions (every metric printed by ``adcs-run`` and ``adcs-analyze``):
   steps** from the last ``dynamics/status`` that reports them.
 
 :func:`run_metrics` gives these at one tolerance; :func:`settling_times` the settling times at
-several (e.g. 0.5° and 1° for a comparison table).
+several (e.g. 0.5° and 1° for a comparison table). :func:`k0_metric` is seed 001's settling index
+(eq. 29) of a sampled error series.
 """
 from __future__ import annotations
 
@@ -47,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import yaml
 
-from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213
+from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213, pointing_error
 from adcs_msgs_py import names as topics
 from adcs_sim.bag.batches import ColumnReader
 from adcs_sim.bag.columns import decode_batch, decode_diagnostics
@@ -108,6 +109,26 @@ def integrated_norm(t: np.ndarray, u: np.ndarray, t_end: float) -> float:
 def integrated_square(t: np.ndarray, u: np.ndarray, t_end: float) -> float:
     """``∫uᵀu dt`` of a zero-order-held signal ``u`` (N, k) sampled at ``t``."""
     return float(np.sum(np.sum(np.asarray(u) ** 2, axis=-1) * zoh_durations(t, t_end)))
+
+
+def k0_metric(e: np.ndarray, window: int = 200, threshold: float = 0.03, reduce: str = 'max'):
+    """Settling index of seed 001 eq. (29): the first step k > window such that the last ``window``
+    errors ``e(k-1) .. e(k-window)`` are below ``threshold`` (``reduce='max'``, as printed) or
+    average below it (``reduce='mean'``, the text's wording). ``e`` (..., n) sampled errors; -1 if
+    never."""
+    e = np.asarray(e, dtype=float)
+    n = e.shape[-1]
+    c = np.concatenate([np.zeros(e.shape[:-1] + (1,)), np.cumsum(e, axis=-1)], axis=-1)
+    if reduce == 'mean':
+        ok = (c[..., window:] - c[..., :-window]) / window < threshold
+    elif reduce == 'max':
+        bad = np.concatenate([np.zeros(e.shape[:-1] + (1,)), np.cumsum(e >= threshold, axis=-1)], -1)
+        ok = (bad[..., window:] - bad[..., :-window]) == 0
+    else:
+        raise ValueError(f"reduce must be 'max' or 'mean', got {reduce!r}")
+    ok = ok[..., 1:]  # k = window + 1 .. n: window e(k-1) .. e(k-window)
+    k = np.where(ok.any(axis=-1), np.argmax(ok, axis=-1) + window + 1, -1)
+    return k if n > window else np.full(e.shape[:-1], -1)
 
 
 # --- a run's time series -------------------------------------------------------------------
@@ -375,7 +396,6 @@ POINTING_BANDS_DEG = (1.0, 0.1, 0.01)   # seed 003 Table 1
 
 def pointing_error_deg(run: RunData) -> np.ndarray:
     """Angle (deg) between σ̂ and τ̂ at each state sample of a pointing run."""
-    from adcs_controllers.laws.single_axis import pointing_error
     sigma, tau = run.pointing
     return np.degrees(pointing_error(run.q, sigma, tau))
 

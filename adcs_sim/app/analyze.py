@@ -3,8 +3,8 @@
 The same numbers ``adcs-run`` prints at the end of a run; definitions in
 :mod:`adcs_sim.app.analysis`. ``--json`` prints machine-readable output.
 
-Each bag also gets a report (:mod:`adcs_sim.app.report`): ``report.md`` with the scenario, the
-metrics and figures (PNG + SVG), written to ``<bag>/../report/`` (a ``report`` folder beside the
+Each bag also gets a report (:mod:`adcs_sim.app.report.single_run`): ``report.md`` with the
+scenario, the metrics and figures (PNG + SVG), written to ``<bag>/../report/`` (a ``report`` folder beside the
 bag folder) or ``--out DIR``. ``--compare`` writes one comparison of all the bags instead
 (``comparison.csv``, ``comparison.md``, overlaid figures) to ``--out DIR`` or ``comparison/`` in
 the folder that holds the runs; with ``--reference FILE`` (published figures per run, e.g.
@@ -25,10 +25,10 @@ import sys
 from pathlib import Path
 
 from adcs_sim.app.analysis import format_metrics, jsonable_metrics, run_metrics
+from adcs_sim.app.report.loading import BagError, default_report_dir, load_run
 
 
 def _report_dir(out: Path | None, path: str, name: str, several: bool) -> Path:
-    from adcs_sim.app.report import default_report_dir
     if out is None:
         return default_report_dir(path)
     return out / name if several else out
@@ -36,7 +36,6 @@ def _report_dir(out: Path | None, path: str, name: str, several: bool) -> Path:
 
 def _load(paths: list[str]) -> tuple[dict, int]:
     """The runs that load ({path: Run}) and the exit status; one line on stderr per failure or warning."""
-    from adcs_sim.app.report import BagError, load_run  # matplotlib only after the arguments are parsed
     runs = {}
     status = 0
     for path in paths:
@@ -82,24 +81,25 @@ def main(argv=None) -> int:
         return status
     # Where the reports are goes to stdout with the table, to stderr with --json (stdout stays JSON).
     info = sys.stderr if args.json else sys.stdout
-    from adcs_sim.app import report
+    # matplotlib (behind the figures) only when a report is written: --help and --no-report stay quick
+    from adcs_sim.app.report import comparison, single_run
     if args.compare:
         if len(runs) < 2:
             print('adcs-analyze: --compare needs at least two readable bags', file=sys.stderr)
             return 1
-        out = args.out or report.default_comparison_dir(list(runs))
+        out = args.out or comparison.default_comparison_dir(list(runs))
         try:
-            reference = report.load_reference(args.reference) if args.reference else None
-            csv_path, md_path = report.write_comparison(list(runs.values()), out, args.tolerance_deg,
-                                                        args.eigen_tolerance_deg, reference)
+            reference = comparison.load_reference(args.reference) if args.reference else None
+            csv_path, md_path = comparison.write_comparison(list(runs.values()), out, args.tolerance_deg,
+                                                            args.eigen_tolerance_deg, reference)
         except ValueError as exc:
             print(f'adcs-analyze: --reference: {exc}', file=sys.stderr)
             return 2
         print(f'comparison: {md_path} ({csv_path.name})', file=info)
         return status
-    for (path, run), name in zip(runs.items(), report.unique_names(list(runs.values()))):
+    for (path, run), name in zip(runs.items(), comparison.unique_names(list(runs.values()))):
         out = _report_dir(args.out, path, name, len(runs) > 1)
-        md_path = report.write_report(run, out, args.tolerance_deg, args.eigen_tolerance_deg)
+        md_path = single_run.write_report(run, out, args.tolerance_deg, args.eigen_tolerance_deg)
         print(f'report: {md_path}', file=info)
     return status
 

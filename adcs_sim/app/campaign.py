@@ -56,7 +56,10 @@ from scipy.spatial.transform import Rotation
 
 from adcs_core.attitude import EULER_213
 from adcs_msgs_py.params import ParameterError, load_params_file, unflatten
-from adcs_sim.app.analysis import RunData, run_metrics
+from adcs_sim.app.analysis import RunData, attitude_errors_deg, pointing_error_deg, run_metrics
+from adcs_sim.app.batch import BatchSimulation
+from adcs_sim.app.registry import NODES
+from adcs_sim.app.scenario_files import RunError, config_dirs, resolve_scenario, validate_scenario
 
 DISTRIBUTIONS = {
     'normal': ({'std'}, {'mean', 'link'}),
@@ -135,6 +138,87 @@ class Dispersion:
         return value.tolist() if value.ndim else float(value)
 
 
+# --- reading a campaign file (Campaign.load) ---------------------------------------------------
+
+def _campaign_section(path: Path) -> dict:
+    """The ``campaign:`` mapping of the file at ``path``, its keys checked."""
+    try:
+        tree = yaml.safe_load(path.read_text(encoding='utf-8'))
+    except OSError as exc:
+        raise CampaignError(f'cannot read campaign {path}: {exc.strerror}') from None
+    except yaml.YAMLError as exc:
+        raise CampaignError(f'{path} is not valid YAML: {exc}') from None
+    if not isinstance(tree, dict) or set(tree) != {'campaign'} or not isinstance(tree['campaign'], dict):
+        raise CampaignError(f'{path}: expected one top-level mapping `campaign:`')
+    c = tree['campaign']
+    unknown = sorted(set(c) - CAMPAIGN_KEYS)
+    if unknown:
+        raise CampaignError(f'campaign.{unknown[0]}: unknown key; known: {sorted(CAMPAIGN_KEYS)}')
+    if 'scenario' not in c:
+        raise CampaignError('campaign.scenario: required (the scenario file to disperse)')
+    return c
+
+
+def _campaign_scenario(c: dict, path: Path) -> tuple[Path, dict, dict]:
+    """(scenario path, validated sections, sections as written) of ``campaign.scenario``: relative
+    to the campaign file, else a scenario name or path as ``adcs-run`` takes it."""
+    scenario = Path(str(c['scenario']))
+    candidate = scenario if scenario.is_absolute() else path.parent / scenario
+    try:
+        scenario_path = candidate.resolve() if candidate.exists() else resolve_scenario(str(scenario))
+        defaults = validate_scenario(scenario_path)
+        nominal = load_params_file(str(scenario_path))
+    except (RunError, ParameterError) as exc:
+        raise CampaignError(f'campaign.scenario: {exc}') from None
+    return scenario_path, defaults, nominal
+
+
+def _campaign_numbers(c: dict, runs: int | None) -> tuple[int, int, int, float, int]:
+    """(runs, seed, chunk_size, tolerance_deg, series_every), checked (``runs`` overrides the file's)."""
+    runs = _integer(c, 'runs', runs)
+    if runs < 1:
+        raise CampaignError(f'campaign.runs: must be at least 1, got {runs}')
+    seed = _integer(c, 'seed', None, default=0)
+    if seed < 0:
+        raise CampaignError(f'campaign.seed: must be >= 0, got {seed}')
+    chunk = _integer(c, 'chunk_size', None, default=100)
+    if chunk < 1:
+        raise CampaignError(f'campaign.chunk_size: must be at least 1, got {chunk}')
+    tol = c.get('tolerance_deg', 0.5)
+    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0 < tol < 180:
+        raise CampaignError(f'campaign.tolerance_deg: must be a number in (0, 180), got {tol!r}')
+    series_every = _integer(c, 'series_every', None, default=0)
+    if series_every < 0:
+        raise CampaignError(f'campaign.series_every: must be >= 0 (0: no series), got {series_every}')
+    return runs, seed, chunk, float(tol), series_every
+
+
+def _campaign_metrics(c: dict, known: list[str]) -> list[str]:
+    """``campaign.metrics`` (default: every known metric), each name expanded to its columns."""
+    metrics = c.get('metrics') or known
+    if not isinstance(metrics, list):
+        raise CampaignError('campaign.metrics: must be a list of metric names')
+    expanded = []
+    for m in metrics:
+        cols = [k for k in known if k == m or k.startswith(f'{m}[')]
+        if not cols:
+            raise CampaignError(f'campaign.metrics: unknown metric {m!r}; known: {known}')
+        expanded += cols
+    return list(dict.fromkeys(expanded))
+
+
+def _campaign_requirements(c: dict, known: list[str]) -> dict[str, dict[str, float]]:
+    """``campaign.requirements``: ``{metric: {min: x} and/or {max: x}}``, checked."""
+    requirements = c.get('requirements') or {}
+    for m, bound in requirements.items():
+        if m not in known:
+            raise CampaignError(f'campaign.requirements.{m}: unknown metric; known: {known}')
+        if not isinstance(bound, dict) or not bound or set(bound) - {'min', 'max'} or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in bound.values()):
+            raise CampaignError(f'campaign.requirements.{m}: expected {{min: x}} and/or {{max: x}}')
+    return {m: {k: float(v) for k, v in b.items()} for m, b in requirements.items()}
+
+
 @dataclass
 class Campaign:
     """A loaded, checked campaign: the nominal scenario (flat params per section) and dispersions."""
@@ -155,67 +239,17 @@ class Campaign:
     @classmethod
     def load(cls, path, runs: int | None = None) -> 'Campaign':
         """Read and check a campaign file (``runs`` overrides its run count). Raises CampaignError."""
-        from adcs_sim.app.scenario_files import RunError, resolve_scenario, validate_scenario
         path = _resolve_campaign(Path(path))
-        try:
-            tree = yaml.safe_load(path.read_text(encoding='utf-8'))
-        except OSError as exc:
-            raise CampaignError(f'cannot read campaign {path}: {exc.strerror}') from None
-        except yaml.YAMLError as exc:
-            raise CampaignError(f'{path} is not valid YAML: {exc}') from None
-        if not isinstance(tree, dict) or set(tree) != {'campaign'} or not isinstance(tree['campaign'], dict):
-            raise CampaignError(f'{path}: expected one top-level mapping `campaign:`')
-        c = tree['campaign']
-        unknown = sorted(set(c) - CAMPAIGN_KEYS)
-        if unknown:
-            raise CampaignError(f'campaign.{unknown[0]}: unknown key; known: {sorted(CAMPAIGN_KEYS)}')
-        if 'scenario' not in c:
-            raise CampaignError('campaign.scenario: required (the scenario file to disperse)')
-        scenario = Path(str(c['scenario']))
-        candidate = scenario if scenario.is_absolute() else path.parent / scenario
-        try:
-            scenario_path = candidate.resolve() if candidate.exists() else resolve_scenario(str(scenario))
-            defaults = validate_scenario(scenario_path)
-            nominal = load_params_file(str(scenario_path))
-        except (RunError, ParameterError) as exc:
-            raise CampaignError(f'campaign.scenario: {exc}') from None
-        runs = _integer(c, 'runs', runs)
-        if runs < 1:
-            raise CampaignError(f'campaign.runs: must be at least 1, got {runs}')
-        seed = _integer(c, 'seed', None, default=0)
-        if seed < 0:
-            raise CampaignError(f'campaign.seed: must be >= 0, got {seed}')
-        chunk = _integer(c, 'chunk_size', None, default=100)
-        if chunk < 1:
-            raise CampaignError(f'campaign.chunk_size: must be at least 1, got {chunk}')
-        tol = c.get('tolerance_deg', 0.5)
-        if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0 < tol < 180:
-            raise CampaignError(f'campaign.tolerance_deg: must be a number in (0, 180), got {tol!r}')
-        known = metric_names(float(tol), pointing=_points_an_axis(defaults))
-        series_every = _integer(c, 'series_every', None, default=0)
-        if series_every < 0:
-            raise CampaignError(f'campaign.series_every: must be >= 0 (0: no series), got {series_every}')
-        metrics = c.get('metrics') or known
-        if not isinstance(metrics, list):
-            raise CampaignError('campaign.metrics: must be a list of metric names')
-        expanded = []
-        for m in metrics:
-            cols = [k for k in known if k == m or k.startswith(f'{m}[')]
-            if not cols:
-                raise CampaignError(f'campaign.metrics: unknown metric {m!r}; known: {known}')
-            expanded += cols
-        requirements = c.get('requirements') or {}
-        for m, bound in requirements.items():
-            if m not in known:
-                raise CampaignError(f'campaign.requirements.{m}: unknown metric; known: {known}')
-            if not isinstance(bound, dict) or not bound or set(bound) - {'min', 'max'} or not all(
-                    isinstance(v, (int, float)) and not isinstance(v, bool) for v in bound.values()):
-                raise CampaignError(f'campaign.requirements.{m}: expected {{min: x}} and/or {{max: x}}')
+        c = _campaign_section(path)
+        scenario_path, defaults, nominal = _campaign_scenario(c, path)
+        runs, seed, chunk, tol, series_every = _campaign_numbers(c, runs)
+        known = metric_names(tol, pointing=_points_an_axis(defaults))
+        metrics = _campaign_metrics(c, known)
+        requirements = _campaign_requirements(c, known)
         campaign = cls(path=path.resolve(), scenario_path=scenario_path, nominal=nominal,
                        defaults=defaults, runs=runs,
-                       seed=seed, chunk_size=chunk, tol_deg=float(tol), metrics=list(dict.fromkeys(expanded)),
-                       requirements={m: {k: float(v) for k, v in b.items()} for m, b in requirements.items()},
-                       dispersions=[], series_every=series_every)
+                       seed=seed, chunk_size=chunk, tol_deg=tol, metrics=metrics,
+                       requirements=requirements, dispersions=[], series_every=series_every)
         dispersions = c.get('dispersions') or {}
         if not isinstance(dispersions, dict):
             raise CampaignError('campaign.dispersions: must be a mapping <section>.<parameter>: {...}')
@@ -226,7 +260,6 @@ class Campaign:
     # --- dispersions ---------------------------------------------------------------------------
 
     def _target(self, where: str, target: str) -> tuple[str, str, Any]:
-        from adcs_sim.app.registry import NODES
         section, _, key = str(target).partition('.')
         if section not in self.nominal or section not in NODES:
             raise CampaignError(f'{where}: no section {section!r} in {self.scenario_path.name} '
@@ -318,7 +351,6 @@ class Campaign:
     def run_sections(self, index: int, inputs: dict[str, Any] | None = None) -> dict[str, dict[str, Any]]:
         """Validated sections of run ``index``; CampaignError naming the run and the key if the
         draw is impossible (e.g. a negative inertia). ``inputs`` as for :meth:`run_given`."""
-        from adcs_sim.app.registry import NODES
         inputs = self.draw(index) if inputs is None else inputs
         out = {}
         for section, given in self.run_given(index, inputs).items():
@@ -363,7 +395,6 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
 
     A pure function of its arguments (what a Dask worker executes).
     """
-    from adcs_sim.app.batch import BatchSimulation
     inputs = [campaign.draw(i) for i in indices]
     result = BatchSimulation.from_runs([campaign.run_sections(i, d) for i, d in zip(indices, inputs)]).run()
     rows = []
@@ -386,7 +417,6 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
 def error_series(result, j: int, every: int) -> dict:
     """Run ``j``'s error every ``every`` samples (deg, float32): the pointing error of a pointing
     run, else the eigenaxis attitude error; with its times (s)."""
-    from adcs_sim.app.analysis import attitude_errors_deg, pointing_error_deg
     run = result.run_data(j)
     with np.errstate(all='ignore'):
         error = pointing_error_deg(run) if run.pointing is not None else attitude_errors_deg(run)[0]
@@ -403,7 +433,6 @@ def _resolve_campaign(path: Path) -> Path:
     """A campaign path, or a bare file name found in the ``campaigns`` folder of the configs."""
     if path.exists() or path.is_absolute() or len(path.parts) != 1:
         return path
-    from adcs_sim.app.scenario_files import config_dirs
     for d in config_dirs():
         if (d / 'campaigns' / path.name).exists():
             return d / 'campaigns' / path.name

@@ -178,7 +178,7 @@ def summary_markdown(summary: dict) -> str:
 def write_histograms(campaign: Campaign, rows: list[dict], out: Path) -> list[Path]:
     from matplotlib.figure import Figure
 
-    from adcs_sim.app.report import save_figure
+    from adcs_sim.app.report.figures import save_figure
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     for m in campaign.metrics:
@@ -237,7 +237,7 @@ def write_series(rows: list[dict], out: Path, figure: bool = True) -> list[Path]
         return []
     from matplotlib.figure import Figure
 
-    from adcs_sim.app.report import DPI
+    from adcs_sim.app.report.figures import DPI
     kind = longest['kind']
     fig = Figure(figsize=(6.4, 4.0), layout='constrained')
     ax = fig.subplots()

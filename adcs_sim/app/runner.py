@@ -215,9 +215,9 @@ def main(argv=None) -> int:
     print('metrics:')
     print(format_metrics(metrics))
     if args.report:
-        from adcs_sim.app import report
-        run = report.load_run(out / 'bag')
-        print(f'report: {report.write_report(run, out / "report", args.tolerance_deg)}')
+        from adcs_sim.app.report import loading, single_run  # matplotlib only when a report is asked for
+        run = loading.load_run(out / 'bag')
+        print(f'report: {single_run.write_report(run, out / "report", args.tolerance_deg)}')
     return 0
 
 

@@ -30,8 +30,7 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT))
 
-from adcs_controllers.laws import inertia_free as inf  # noqa: E402
-from adcs_sim.app.analysis import RunData  # noqa: E402
+from adcs_sim.app.analysis import RunData, k0_metric  # noqa: E402
 from adcs_sim.app.batch import BatchSimulation  # noqa: E402
 from adcs_sim.app.registry import NODES  # noqa: E402
 from adcs_sim.app.scenario_files import validate_scenario  # noqa: E402
@@ -154,7 +153,7 @@ def delta_sweep() -> list[str]:
         variants = [{'controller': {'alpha': float(d), 'beta': float(round(1 - d, 10)), 'f': f}} for d in deltas]
         res, seen = batch_runs('m2r_umax1', variants, duration=SWEEP_T, observe_keys=('theta',))
         theta = seen['theta'].T  # (N, K)
-        table[f] = {r: inf.k0_metric(theta, 200, 0.03, r) * 0.1 for r in ('max', 'mean')}
+        table[f] = {r: k0_metric(theta, 200, 0.03, r) * 0.1 for r in ('max', 'mean')}
     def cell(v):
         return f'{v:.1f}' if v > 0 else f'> {SWEEP_T:g}'
     for i, d in enumerate(deltas):

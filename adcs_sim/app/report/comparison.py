@@ -1,0 +1,214 @@
+"""The comparison of several runs: ``comparison.csv``, ``comparison.md``, overlaid figures and,
+with published figures (:func:`load_reference`), a published-vs-ours table
+(:func:`write_comparison`)."""
+from __future__ import annotations
+
+import csv
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from adcs_sim.app.analysis import RunData, attitude_errors, run_metrics, settling_times
+from adcs_sim.app.report.figures import AXES, add_legend, log_positive, new_figure, save_figure, step_plot
+from adcs_sim.app.report.loading import Run, default_report_dir, fault_events, missing_topics
+from adcs_sim.app.report.markdown import METRIC_NOTES, fmt, md_escape, metric_note
+
+# Euler angle index (euler_213 order: about y, x, z) of θ1 (x), θ2 (y), θ3 (z).
+_EULER_INDEX = {'theta1_x': 1, 'theta2_y': 0, 'theta3_z': 2}
+
+
+def comparison_rows(run: RunData, bands=(1.0, 0.5), eigen_tol_deg: float = 0.5) -> dict:
+    """The comparison metrics of one run: ``{row key: value}`` (see :data:`COMPARISON_ROWS`)."""
+    rows = {}
+    for band, settled in settling_times(run, bands).items():
+        for label, i in _EULER_INDEX.items():
+            rows[f'settling_euler213_{label}_{band:g}deg_s'] = settled['euler213_per_axis'][i]
+        rows[f'settling_euler213_all_{band:g}deg_s'] = settled['euler213']
+    m = run_metrics(run, bands[-1], eigen_tol_deg)
+    rows[f'settling_eigenaxis_{eigen_tol_deg:g}deg_s'] = m[f'settling_eigenaxis_{eigen_tol_deg:g}deg_s']
+    rows['final_eigenaxis_error_deg'] = m['final_eigenaxis_error_deg']
+    rows['integrated_torque_Nms'] = m['integrated_torque_Nms']
+    rows['control_energy_N2m2s'] = m['control_energy_N2m2s']
+    for a, v in zip(AXES, m['peak_torque_Nm']):
+        rows[f'peak_torque_{a}_Nm'] = v
+    rows['peak_wheel_speed_rad_s'] = m['peak_wheel_speed_rad_s']
+    rows['thruster_impulse_Ns'] = m.get('thruster_impulse_Ns')  # n/a without thrusters/state
+    rows['missed_steps'] = m['missed_steps']
+    rows['duration_s'] = m['duration_s']
+    return rows
+
+
+COMPARISON_NOTES = {
+    'settling_euler213_theta1_x': 'settling of θ1 (about x) of the 2-1-3 Euler error (s)',
+    'settling_euler213_theta2_y': 'settling of θ2 (about y) of the 2-1-3 Euler error (s)',
+    'settling_euler213_theta3_z': 'settling of θ3 (about z) of the 2-1-3 Euler error (s)',
+    'settling_euler213_all': 'settling of all three 2-1-3 Euler angles (s)',
+    'thruster_impulse_Ns': 'total thruster impulse (N·s; n/a: no thrusters modelled yet)',
+    'peak_torque_': 'max |u_i| of the applied torque on this axis (N·m)',
+    **{k: v for k, v in METRIC_NOTES.items() if k not in ('peak_torque_Nm',)},
+}
+
+
+def _note_cmp(key: str) -> str:
+    return metric_note(key, COMPARISON_NOTES)
+
+
+def _csv_value(value) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return 'n/a'
+    if isinstance(value, float):
+        return 'inf' if math.isinf(value) else repr(value)
+    return str(value)
+
+
+def unique_names(runs: list[Run]) -> list[str]:
+    """Run names, made unique with the bag path where two runs share one."""
+    names = [r.name for r in runs]
+    if len(set(names)) == len(names):
+        return names
+    common = os.path.commonpath([os.path.abspath(r.path) for r in runs])
+    return [os.path.relpath(os.path.abspath(r.path), common) if names.count(r.name) > 1 else r.name
+            for r in runs]
+
+
+def default_comparison_dir(paths) -> Path:
+    """``comparison/`` in the folder holding all the runs (the common parent of their run folders)."""
+    return Path(os.path.commonpath([str(default_report_dir(p).parent) for p in paths])) / 'comparison'
+
+
+def load_reference(path) -> dict:
+    """Published figures to compare runs with: a YAML file ``{source: text, runs: {run name:
+    {comparison row: value}}}`` (rows as in ``comparison.csv``, e.g. ``integrated_torque_Nms``,
+    ``peak_torque_x_Nm``, ``settling_euler213_theta1_x_0.5deg_s``). Raises ValueError."""
+    try:
+        tree = yaml.safe_load(Path(path).read_text(encoding='utf-8'))
+    except (OSError, yaml.YAMLError) as exc:
+        raise ValueError(f'{path}: cannot read reference figures: {exc}') from None
+    if not isinstance(tree, dict) or not isinstance(tree.get('runs'), dict):
+        raise ValueError(f'{path}: expected `source:` and `runs: {{<run name>: {{<metric>: value}}}}`')
+    for name, values in tree['runs'].items():
+        if not isinstance(values, dict) or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in values.values()):
+            raise ValueError(f'{path}: runs.{name}: expected a mapping of metric names to numbers')
+    return tree
+
+
+def reference_rows(names: list[str], table: list[dict], reference: dict) -> list[tuple]:
+    """(run, metric, published, ours, relative difference) for every published figure of a run
+    being compared. ValueError for a metric name that is not a comparison row."""
+    out = []
+    for name, row in zip(names, table):
+        for key, published in (reference['runs'].get(name) or {}).items():
+            if key not in row:
+                raise ValueError(f'reference figure {name}.{key}: not a comparison metric; known: {list(row)}')
+            ours = row[key]
+            diff = (ours - published) / abs(published) if ours is not None and published else math.nan
+            out.append((name, key, float(published), ours, diff))
+    return out
+
+
+def write_comparison(runs: list[Run], out, tol_deg: float = 0.5,
+                     eigen_tol_deg: float | None = None, reference: dict | None = None) -> tuple[Path, Path]:
+    """Write ``comparison.csv``, ``comparison.md`` and overlaid figures; return (csv, md) paths.
+
+    ``reference`` (:func:`load_reference`): published figures; adds a "published vs ours" table
+    with the relative differences (also ``reference_comparison.csv``)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    eigen_tol_deg = tol_deg if eigen_tol_deg is None else eigen_tol_deg
+    bands = tuple(sorted({1.0, 0.5, float(tol_deg)}, reverse=True))
+    names = unique_names(runs)
+    table = [comparison_rows(r.data, bands, eigen_tol_deg) for r in runs]
+    keys = list(table[0])
+
+    csv_path = out / 'comparison.csv'
+    with open(csv_path, 'w', newline='') as f:
+        w = csv.writer(f)
+        w.writerow(['metric', *names])
+        for k in keys:
+            w.writerow([k, *(_csv_value(row[k]) for row in table)])
+
+    lines = [f'# Comparison of {len(runs)} runs', '', '| run | bag | recording |', '| --- | --- | --- |']
+    for name, r in zip(names, runs):
+        how = 'complete' if r.complete else (f'recovered from a {"damaged" if r.data.damaged else "truncated"} '
+                                             f'file ({r.message_count} messages)')
+        miss = missing_topics(r.data)
+        how += f'; missing topics: {", ".join(miss)}' if miss else ''
+        lines.append(f'| {md_escape(name)} | `{r.path}` | {how} |')
+    lines += ['', '## Metrics', '', 'Values as in `comparison.csv`; inf: not settled by the end of the run; '
+              'n/a: not available in that run.', '',
+              '| metric | ' + ' | '.join(md_escape(n) for n in names) + ' | meaning |',
+              '| --- | ' + ' | '.join('---' for _ in names) + ' | --- |']
+    for k in keys:
+        lines.append(f'| `{k}` | ' + ' | '.join(fmt(row[k]) for row in table)
+                     + f' | {md_escape(_note_cmp(k))} |')
+    if reference is not None:
+        published = reference_rows(names, table, reference)
+        with open(out / 'reference_comparison.csv', 'w', newline='') as f:
+            w = csv.writer(f)
+            w.writerow(['run', 'metric', 'published', 'ours', 'relative_difference'])
+            w.writerows([r[:3] + (_csv_value(r[3]), _csv_value(r[4])) for r in published])
+        lines += ['', '## Published figures vs ours', '', md_escape(str(reference.get('source', ''))), '',
+                  '| run | metric | published | ours | difference |', '| --- | --- | ---: | ---: | ---: |']
+        for name, key, pub, ours, diff in published:
+            lines.append(f'| {md_escape(name)} | `{key}` | {fmt(pub)} | {fmt(ours)} | '
+                         + ('n/a' if math.isnan(diff) else f'{100 * diff:+.1f} %') + ' |')
+    lines += ['', '## Figures', '']
+    for name, title, caption, fig in _comparison_figures(runs, names, eigen_tol_deg):
+        save_figure(fig, out, name)
+        lines += [f'### {title}', '', f'![{title}]({name}.png)', '', f'{caption} ([SVG]({name}.svg))', '']
+    md_path = out / 'comparison.md'
+    md_path.write_text('\n'.join(lines))
+    return csv_path, md_path
+
+
+def _comparison_figures(runs: list[Run], names: list[str], eigen_tol_deg: float):
+    def faults(ax, i, name, r):
+        for k, (t, fname, _) in enumerate(fault_events(r.data)):
+            ax.axvline(t, color=f'C{i}', linestyle=(0, (2, 2)), linewidth=1.2, alpha=0.9,
+                       label=f'fault in {name}' if k == 0 else None)
+
+    def style(i):  # colour and dash per run: runs with equal curves stay distinguishable
+        return {'color': f'C{i}', 'linestyle': ['-', '--', '-.', ':'][i % 4], 'linewidth': 1.6}
+
+    fig, (ax,) = new_figure(height=3.6)
+    for i, (name, r) in enumerate(zip(names, runs)):
+        _, eigen, _ = attitude_errors(r.data)
+        ax.plot(r.data.t, log_positive(eigen), **style(i), label=name)
+        faults(ax, i, name, r)
+    ax.set_yscale('log')
+    ax.axhline(eigen_tol_deg, color='0.3', linestyle=':', label=f'tolerance {eigen_tol_deg:g}°')
+    ax.set_ylabel('eigenaxis error (deg, log scale)')
+    ax.set_title('Eigenaxis attitude error')
+    add_legend(ax, loc='upper right')
+    yield 'compare_attitude_error', 'Eigenaxis attitude error', \
+        ('Eigenaxis attitude error (deg, log scale), one line per run (an exactly zero error is not drawn on '
+         'the log scale); dotted verticals: fault events, in the colour of their run.'), fig
+
+    fig, (ax,) = new_figure(height=3.6)
+    for i, (name, r) in enumerate(zip(names, runs)):
+        if r.data.u.size:
+            step_plot(ax, r.data.t_u, 1e3 * np.linalg.norm(r.data.u, axis=1), r.data.t_end, **style(i), label=name)
+        else:
+            ax.plot([], [], **style(i), label=f'{name} (no applied torque recorded)')
+        faults(ax, i, name, r)
+    ax.set_ylabel('‖u‖ (mN·m)')
+    ax.set_title('Applied control torque norm')
+    add_legend(ax, loc='upper right')
+    yield 'compare_torque_norm', 'Torque norm', 'Norm of the applied body torque ‖u‖ (mN·m), one line per run.', fig
+
+    fig, (ax,) = new_figure(height=3.6)
+    for i, (name, r) in enumerate(zip(names, runs)):
+        if r.data.wheel_speed.size:
+            ax.plot(r.data.t_wheels, np.linalg.norm(r.data.wheel_speed, axis=1), **style(i), label=name)
+        else:
+            ax.plot([], [], **style(i), label=f'{name} (no wheel states recorded)')
+        faults(ax, i, name, r)
+    ax.set_ylabel('‖Ω‖ (rad/s)')
+    ax.set_title('Wheel speed norm (all wheels, relative to the body)')
+    add_legend(ax, loc='upper right')
+    yield 'compare_wheel_speed_norm', 'Wheel speed norm', \
+        'Euclidean norm of the wheel speeds ‖Ω‖ (rad/s), one line per run.', fig

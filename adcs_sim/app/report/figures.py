@@ -1,0 +1,327 @@
+"""The figures of one run's report (:data:`FIGURES`: file name, title, builder) and the drawing
+helpers the comparison shares. :class:`matplotlib.figure.Figure` only (no pyplot, no GUI backend);
+each figure is saved as PNG and SVG (:func:`save_figure`)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
+
+from adcs_msgs_py import names as topics
+from adcs_sim.app.analysis import RunData
+from adcs_sim.app.report.loading import TORQUE_KEYS, commanded_torque, status_series, thruster_topics
+
+DPI = 110
+AXES = 'xyz'
+COLORS = {'x': 'C0', 'y': 'C1', 'z': 'C2', 'w': 'C3'}
+# Line styles per body axis: y wide and translucent, z dashed, so that equal curves (a symmetric
+# slew gives identical y and z responses) stay visible on top of each other.
+LINE = {'x': {'color': 'C0', 'linewidth': 1.6}, 'y': {'color': 'C1', 'linewidth': 3.2, 'alpha': 0.7},
+        'z': {'color': 'C2', 'linewidth': 1.6, 'linestyle': '--'}, 'w': {'color': 'C3', 'linewidth': 1.6}}
+FAULT_STYLE = {'color': 'red', 'linestyle': '--', 'linewidth': 1.2}
+MAX_TIMELINE_LEVELS = 12  # distinct values of a text status key drawn as a timeline
+
+
+def _line(i: int) -> dict:
+    """Style of the i-th of several series (wheels): the axis styles, then plain colours."""
+    return dict(LINE['xyz'[i]]) if i < 3 else {'color': f'C{i}', 'linewidth': 1.6}
+
+
+# --- figure helpers ---------------------------------------------------------------------------
+
+def new_figure(rows: int = 1, height: float = 2.6, width: float = 8.0, sharex: bool = True, ratios=None):
+    total = height * (sum(ratios) if ratios else rows)
+    fig = Figure(figsize=(width, 0.9 + total), layout='constrained')
+    axes = fig.subplots(rows, 1, sharex=sharex, squeeze=False,
+                        gridspec_kw={'height_ratios': ratios} if ratios else None)[:, 0]
+    for ax in axes:
+        ax.grid(True, alpha=0.35)
+    axes[-1].set_xlabel('time t (s)')
+    return fig, list(axes)
+
+
+def _mark_faults(axes, events, legend: bool = True) -> None:
+    for i, ax in enumerate(axes):
+        for t, name, _ in events:
+            label = f'fault: {name} (t = {t:g} s)' if legend and i == 0 else None
+            ax.axvline(t, **FAULT_STYLE, label=label)
+
+
+def add_legend(ax, **kw) -> None:
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize='small', **kw)
+
+
+def save_figure(fig: Figure, out: Path, name: str) -> list[Path]:
+    """Write ``fig`` as ``<name>.png`` and ``<name>.svg`` in ``out``; return the paths."""
+    paths = [out / f'{name}.png', out / f'{name}.svg']
+    fig.savefig(paths[0], dpi=DPI)
+    fig.set_layout_engine('none')  # keep the layout just computed: the SVG need not redo it
+    with matplotlib.rc_context({'svg.fonttype': 'none'}):  # text stays text: searchable, smaller
+        fig.savefig(paths[1], metadata={'Date': None})
+    return paths
+
+
+def step_plot(ax, t, y, t_end: float | None = None, **kw):
+    """Zero-order-held signal: each sample held to the next, the last one to ``t_end``."""
+    t, y = np.asarray(t, dtype=float), np.asarray(y)
+    if t_end is not None and t.size and t_end > t[-1]:
+        t, y = np.append(t, t_end), np.append(y, y[-1:], axis=0)
+    return ax.step(t, y, where='post', **kw)
+
+
+def log_positive(y: np.ndarray) -> np.ndarray:
+    """Values for a log axis: non-positive ones masked (NaN)."""
+    y = np.asarray(y, dtype=float).copy()
+    y[~(y > 0)] = np.nan
+    return y
+
+
+# --- the figures of one run --------------------------------------------------------------------
+# Each builder returns (Figure, caption) or a string: why the figure is skipped.
+
+@dataclass
+class Context:
+    run: RunData
+    events: list
+    tol_deg: float
+    eigen_tol_deg: float
+    metrics: dict          # run_metrics of the run at these tolerances
+    errors: tuple          # attitude_errors(run): computed once for all the figures
+
+
+def fig_attitude_error(c: Context):
+    _, eigen, _ = c.errors
+    fig, (ax,) = new_figure(height=3.4)
+    ax.plot(c.run.t, log_positive(eigen), color='C0', label='eigenaxis error')
+    ax.set_yscale('log')
+    ax.axhline(c.eigen_tol_deg, color='0.3', linestyle=':', label=f'tolerance {c.eigen_tol_deg:g}°')
+    ts = c.metrics[f'settling_eigenaxis_{c.eigen_tol_deg:g}deg_s']
+    if math.isfinite(ts):
+        ax.axvline(ts, color='C2', linestyle='-.', linewidth=1, label=f'settled to {c.eigen_tol_deg:g}° at {ts:.1f} s')
+    ax.set_ylabel('eigenaxis error (deg, log scale)')
+    ax.set_title('Attitude error: eigenaxis rotation angle of $q_e = q_{ref}^* \\otimes q$')
+    _mark_faults([ax], c.events)
+    add_legend(ax, loc='upper right')
+    return fig, 'Eigenaxis attitude error (deg, log scale), with the settling tolerance.'
+
+
+def fig_quaternion(c: Context):
+    fig, (ax,) = new_figure(height=3.2)
+    for i, (label, a) in enumerate([('$q_1$ (x)', 'x'), ('$q_2$ (y)', 'y'), ('$q_3$ (z)', 'z'),
+                                    ('$q_4$ (scalar)', 'w')]):
+        ax.plot(c.run.t, c.run.q[:, i], **LINE[a], label=label)
+    ax.set_ylabel('quaternion component (–)')
+    ax.set_title('Attitude quaternion, body in inertial ($q_1 q_2 q_3$ vector, $q_4$ scalar)')
+    _mark_faults([ax], c.events)
+    add_legend(ax, loc='best', ncol=2)
+    return fig, 'Attitude quaternion components (dimensionless; vector part first, scalar last).'
+
+
+EULER_LABELS = [r'$\theta_2$ about y (1st)', r'$\theta_1$ about x (2nd)', r'$\theta_3$ about z (3rd)']
+EULER_AXES = 'yxz'  # body axis of each angle, in sequence order
+
+
+def fig_euler(c: Context):
+    _, _, euler = c.errors
+    fig, (ax, ax_log) = new_figure(rows=2, height=2.6)
+    for i in range(3):
+        ax.plot(c.run.t, euler[:, i], **LINE[EULER_AXES[i]], label=EULER_LABELS[i])
+        ax_log.plot(c.run.t, log_positive(np.abs(euler[:, i])), **LINE[EULER_AXES[i]])
+    ax.set_ylabel('angle (deg)')
+    ax.set_title('2-1-3 Euler angles of the attitude error')
+    ax_log.set_yscale('log')
+    for tol, style in ((1.0, '--'), (c.tol_deg, ':')):
+        ax_log.axhline(tol, color='0.3', linestyle=style, linewidth=1, label=f'±{tol:g}°')
+    ax_log.set_ylabel('|angle| (deg, log scale)')
+    _mark_faults([ax, ax_log], c.events)
+    add_legend(ax, loc='upper right')
+    add_legend(ax_log, loc='upper right')
+    return fig, ('2-1-3 Euler angles of the attitude error (deg): signed (top) and absolute on a log '
+                 'scale with the ±1° and ±0.5° bands (bottom).')
+
+
+def fig_body_rates(c: Context):
+    fig, (ax,) = new_figure(height=3.2)
+    for i, a in enumerate(AXES):
+        ax.plot(c.run.t, c.run.w[:, i], **LINE[a], label=fr'$\omega_{a}$')
+    ax.set_ylabel('body rate (rad/s)')
+    ax.set_title('Body angular rate (body axes)')
+    _mark_faults([ax], c.events)
+    add_legend(ax, loc='best')
+    return fig, 'Body angular rate ω (rad/s, body axes).'
+
+
+def fig_torque(c: Context):
+    run = c.run
+    cmd = commanded_torque(run)
+    if not run.u.size and cmd is None:
+        return (f'no applied torque ({topics.APPLIED_TORQUE}) and no commanded torque (u_x, u_y, u_z on '
+                f'{topics.CONTROLLER_STATUS})')
+    fig, axes = new_figure(rows=3, height=1.9)
+    for i, (a, ax) in enumerate(zip(AXES, axes)):
+        if run.u.size:
+            step_plot(ax, run.t_u, 1e3 * run.u[:, i], run.t_end, color=COLORS[a], linewidth=3.0, alpha=0.7,
+                  label='applied')
+        if cmd is not None:
+            step_plot(ax, cmd[0], 1e3 * cmd[1][:, i], run.t_end, color='k', linestyle='--', linewidth=1,
+                  label='commanded')
+        ax.set_ylabel(f'$u_{a}$ (mN·m)')
+    axes[0].set_title('Control torque per body axis: commanded (controller) vs applied (actuators)')
+    _mark_faults(axes, c.events)
+    add_legend(axes[0], loc='upper right', ncol=3)
+    missing = []
+    if not run.u.size:
+        missing.append(f'no applied torque recorded ({topics.APPLIED_TORQUE})')
+    if cmd is None:
+        missing.append(f'no commanded torque recorded (u_x, u_y, u_z on {topics.CONTROLLER_STATUS})')
+    return fig, ('Control torque per body axis (mN·m): commanded by the controller (status values u_x, u_y, '
+                 f'u_z on `{topics.CONTROLLER_STATUS}`) and applied to the body (`{topics.APPLIED_TORQUE}`), '
+                 'held over each control period.' + (' ' + '; '.join(missing) + '.' if missing else ''))
+
+
+def fig_wheels(c: Context):
+    run = c.run
+    if not run.wheel_speed.size:
+        return f'no wheel states ({topics.WHEELS_STATE})'
+    fig, (ax_s, ax_t) = new_figure(rows=2, height=2.5)
+    for j, name in enumerate(run.wheel_names):
+        ax_s.plot(run.t_wheels, run.wheel_speed[:, j], **_line(j), label=name)
+        step_plot(ax_t, run.t_wheels, 1e3 * run.wheel_torque[:, j], **_line(j), label=name)
+    ax_s.set_ylabel('wheel speed (rad/s)')
+    ax_s.set_title('Reaction wheels: speed relative to the body (top), motor torque (bottom)')
+    ax_t.set_ylabel('motor torque (mN·m)')
+    _mark_faults([ax_s, ax_t], c.events)
+    add_legend(ax_s, loc='best')
+    add_legend(ax_t, loc='best')
+    return fig, 'Wheel speeds relative to the body (rad/s) and wheel motor torques (mN·m).'
+
+
+def fig_thrusters(c: Context):
+    run = c.run
+    if not run.thruster_on_time.size:
+        found = thruster_topics(run)
+        if found:
+            return f'thruster topic(s) {", ".join(found)} recorded, but no {topics.THRUSTERS_STATE} messages'
+        return f'no thruster topic recorded ({topics.THRUSTERS_STATE})'
+    fig, (ax_f, ax_i, ax_n) = new_figure(rows=3, height=2.4, ratios=[1.4, 1.0, 1.0])
+    n = len(run.thruster_names)
+    for j, name in enumerate(run.thruster_names):
+        # each firing as a bar over [t, t + on-time], one row per thruster
+        on = run.thruster_on_time[:, j] > 0.0
+        bars = list(zip(run.t_thrusters[on], run.thruster_on_time[on, j]))
+        ax_f.broken_barh(bars, (n - 1 - j - 0.4, 0.8), color=_line(j)['color'])
+        ax_i.plot(run.t_thrusters + _zoh_period(run), run.thruster_impulse[:, j], **_line(j), label=name)
+    ax_f.set_yticks(range(n), list(reversed(run.thruster_names)))
+    ax_f.set_ylim(-0.6, n - 0.4)
+    ax_f.set_ylabel('firing')
+    ax_f.set_title('Thrusters: firings (top), cumulated impulse (middle), firings so far (bottom)')
+    ax_i.set_ylabel('impulse (N·s)')
+    add_legend(ax_i, loc='upper left')
+    count = np.cumsum(np.count_nonzero(run.thruster_on_time > 0.0, axis=1))
+    step_plot(ax_n, run.t_thrusters, count, color='C4')
+    ax_n.set_ylabel('firings (thruster-periods)')
+    ax_n.yaxis.set_major_locator(MaxNLocator(integer=True))
+    _mark_faults((ax_f, ax_i, ax_n), c.events)
+    m = c.metrics
+    return fig, (f'Thruster firings (bars: on-time from each period\'s start), cumulated impulse per thruster (N·s) '
+                 f'and the number of firings so far: {m.get("thruster_firings", 0)} firings, '
+                 f'{m.get("thruster_impulse_Ns", float("nan")):.4g} N·s in all ({topics.THRUSTERS_STATE}).')
+
+
+def _zoh_period(run) -> float:
+    """The step length of the thruster series (impulses are at the step ends)."""
+    t = run.t_thrusters
+    return float(np.median(np.diff(t))) if t.size > 1 else 0.0
+
+
+def fig_phase(c: Context):
+    qe, _, _ = c.errors
+    qe = qe * np.where(qe[:, 3:4] < 0, -1.0, 1.0)  # the shortest-path sign (q4 >= 0)
+    fig = Figure(figsize=(8.0, 4.6), layout='constrained')
+    ax = fig.subplots()
+    ax.grid(True, alpha=0.35)
+    for i, a in enumerate(AXES):
+        ax.plot(qe[:, i], c.run.w[:, i], **LINE[a], label=fr'$q_{i + 1}$ vs $\omega_{a}$')
+        ax.plot(qe[0, i], c.run.w[0, i], 'o', color=COLORS[a], markersize=6)
+        ax.plot(qe[-1, i], c.run.w[-1, i], 'x', color=COLORS[a], markersize=8)
+    for t, name, _ in c.events:
+        k = min(np.searchsorted(c.run.t, t), len(c.run.t) - 1)
+        ax.plot(qe[k, :3], c.run.w[k], '*', color='red', markersize=11,
+                label=f'fault: {name} (t = {t:g} s)')
+    ax.plot([], [], 'o', color='0.4', label='start')
+    ax.plot([], [], 'x', color='0.4', label='end')
+    ax.axhline(0, color='0.5', linewidth=0.8)
+    ax.axvline(0, color='0.5', linewidth=0.8)
+    ax.set_xlabel('error quaternion component $q_i$ (–)')
+    ax.set_ylabel(r'body rate $\omega_i$ (rad/s)')
+    ax.set_title(r'Phase portrait: $q_i$ vs $\omega_i$, i = 1, 2, 3')
+    add_legend(ax, loc='best')
+    return fig, 'Phase portraits: error quaternion component q_i vs body rate ω_i (rad/s), i = 1..3.'
+
+
+def fig_controller_status(c: Context):
+    series = {k: v for k, v in status_series(c.run).items() if k.rsplit('/', 1)[-1] not in TORQUE_KEYS}
+    if not series:
+        if c.run.controller_status:
+            return 'the controller publishes no status values besides the commanded torque'
+        return f'no controller status ({topics.CONTROLLER_STATUS})'
+    text = [k for k, (_, v) in series.items() if v.dtype == object]
+    # A text value that changes all the time (a message) is no timeline: left out, and said so.
+    chatty = {k: len(set(series[k][1].tolist())) for k in text}
+    chatty = {k: n for k, n in chatty.items() if n > MAX_TIMELINE_LEVELS}
+    text = [k for k in text if k not in chatty]
+    numeric = [k for k, (_, v) in series.items() if v.dtype != object]
+    keys = text + numeric
+    if not keys:
+        return ('the controller status has only text values with too many distinct values for a timeline: '
+                + ', '.join(f'{k} ({n})' for k, n in chatty.items()))
+    fig, axes = new_figure(rows=len(keys), height=1.6, ratios=[0.6] * len(text) + [1.0] * len(numeric))
+    for ax, key in zip(axes, keys):
+        t, v = series[key]
+        if v.dtype == object:
+            levels = list(dict.fromkeys(v.tolist()))
+            idx = np.array([levels.index(x) for x in v])
+            step_plot(ax, t, idx, color='C4', linewidth=2)
+            ax.set_yticks(range(len(levels)), levels)
+            ax.set_ylim(-0.5, len(levels) - 0.5)
+            ax.set_ylabel(f'{key} (timeline)')
+        else:
+            step_plot(ax, t, v, color='C0')
+            finite = v[np.isfinite(v)]
+            if finite.size and np.all(finite == np.round(finite)):  # counts: integer ticks
+                lo, hi = int(finite.min()), int(finite.max())
+                if hi - lo < 4:  # a few values: every integer, a count from 0 without negatives
+                    ticks = np.arange(max(lo - 1, 0) if lo >= 0 else lo - 1, hi + 2)
+                    ax.set_yticks(ticks)
+                    ax.set_ylim(ticks[0] - 0.25, ticks[-1] + 0.25)
+                else:
+                    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+            ax.set_ylabel(f'{key}\n(as published)')
+    axes[0].set_title(f'Controller status values ({topics.CONTROLLER_STATUS}; u_x, u_y, u_z are in the torque figure)')
+    _mark_faults(axes, c.events)
+    add_legend(axes[0], loc='upper right')
+    return fig, (f'Controller status values on `{topics.CONTROLLER_STATUS}`: '
+                 + ', '.join(f'`{k}`' + (' (timeline)' if k in text else '') for k in keys)
+                 + '. The commanded torque u_x, u_y, u_z is in the torque figure.'
+                 + (' Not plotted (more than {} distinct text values): {}.'.format(
+                     MAX_TIMELINE_LEVELS, ', '.join(f'`{k}` ({n})' for k, n in chatty.items())) if chatty else ''))
+
+
+# (file name, title, builder)
+FIGURES = [
+    ('attitude_error', 'Eigenaxis attitude error', fig_attitude_error),
+    ('quaternion', 'Quaternion components', fig_quaternion),
+    ('euler_213', '2-1-3 Euler angles', fig_euler),
+    ('body_rates', 'Body rates', fig_body_rates),
+    ('torque', 'Commanded vs applied torque', fig_torque),
+    ('wheels', 'Wheel speeds and motor torques', fig_wheels),
+    ('thrusters', 'Thruster firing', fig_thrusters),
+    ('phase_portrait', 'Phase portraits', fig_phase),
+    ('controller_status', 'Controller status', fig_controller_status),
+]

@@ -1,0 +1,158 @@
+"""Loading a run for a report: a bag -> :class:`Run` (or a one-line :class:`BagError`), where its
+report goes, and the series the report derives from it (controller status values, the commanded
+torque, fault events, missing topics). No matplotlib here."""
+from __future__ import annotations
+
+import os
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from mcap.exceptions import McapError
+
+from adcs_msgs_py import names as topics
+from adcs_sim.app.analysis import RunData
+
+ERROR_LEVEL = 2  # diagnostic_msgs/DiagnosticStatus.ERROR
+# Status keys of the commanded torque (plotted in the torque figure, not with the other status values).
+TORQUE_KEYS = ('u_x', 'u_y', 'u_z')
+
+# Exceptions that mean "this input is not a readable bag" (reported in one line, no traceback).
+BAG_ERRORS: tuple[type[BaseException], ...] = (OSError, ValueError, EOFError, struct.error, McapError)
+try:
+    from rosbags.highlevel import AnyReaderError
+    from rosbags.rosbag2 import ReaderError
+    from rosbags.serde import SerdeError
+    BAG_ERRORS += (AnyReaderError, ReaderError, SerdeError)
+except ImportError:  # pragma: no cover - other rosbags versions
+    pass
+
+
+def bag_folder(path) -> Path | None:
+    """The bag folder of ``path`` (the folder itself, or the folder of a ``<folder>_0.mcap`` file)."""
+    path = Path(os.path.abspath(path))
+    if path.is_dir():
+        return path
+    parent = path.parent
+    if (parent / 'metadata.yaml').exists() or path.stem.startswith(parent.name + '_'):
+        return parent
+    return None
+
+
+def run_name(path) -> str:
+    """A run's name: the run folder holding ``bag/`` (``runs/<name>/bag``), else the bag's name."""
+    folder = bag_folder(path)
+    if folder is None:
+        return Path(path).stem
+    return folder.parent.name if folder.name == 'bag' and folder.parent.name else folder.name
+
+
+def default_report_dir(path) -> Path:
+    """``<bag>/../report``: a ``report`` folder beside the bag folder."""
+    folder = bag_folder(path)
+    if folder is None:
+        p = Path(os.path.abspath(path))
+        return p.parent / f'{p.stem}-report'
+    return folder.parent / 'report'
+
+
+@dataclass
+class Run:
+    """A loaded run: the bag, its name and its time series."""
+
+    path: Path
+    name: str
+    data: RunData
+
+    @property
+    def complete(self) -> bool:
+        """False when the bag was recovered from a truncated file (writer killed, no summary)."""
+        return not self.data.truncated
+
+    @property
+    def message_count(self) -> int:
+        """Messages read from the bag (all topics)."""
+        return int(self.data.message_count)
+
+
+class BagError(Exception):
+    """An input that is not a readable bag of the graph (the message is one line)."""
+
+
+def load_run(path, name: str | None = None) -> Run:
+    """Check and read a bag; raises :class:`BagError` (one-line message) if it cannot be used."""
+    try:
+        data = RunData.from_bag(path)
+    except BAG_ERRORS as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        reason = reason[len(str(path)) + 2:] if reason.startswith(f'{path}: ') else reason
+        raise BagError(reason) from None
+    return Run(Path(path), name or run_name(path), data)
+
+
+# --- derived series ---------------------------------------------------------------------------
+
+def status_series(run: RunData) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Controller status values per key: ``{key: (t, values)}``, values float where all parse, else str.
+
+    Keys are prefixed ``<status name>/`` when several controllers publish.
+    """
+    records = run.controller_status
+    several = len({name for _, name, _ in records}) > 1
+    raw: dict[str, tuple[list, list]] = {}
+    for t, name, values in records:
+        for key, value in values.items():
+            ts, vs = raw.setdefault(f'{name}/{key}' if several else key, ([], []))
+            ts.append(t)
+            vs.append(value)
+    out = {}
+    for key, (ts, vs) in raw.items():
+        try:
+            arr = np.array(vs, dtype=float)
+        except ValueError:
+            arr = np.array(vs, dtype=object)
+        out[key] = (np.array(ts, dtype=float), arr)
+    return out
+
+
+def commanded_torque(run: RunData) -> tuple[np.ndarray, np.ndarray] | None:
+    """(t, u (N, 3)) from the controller's status values ``u_x, u_y, u_z``, or None."""
+    series = status_series(run)
+    for prefix in [''] + sorted({k.rsplit('/', 1)[0] + '/' for k in series if '/' in k}):
+        keys = [prefix + k for k in TORQUE_KEYS]
+        if all(k in series and series[k][1].dtype != object for k in keys):
+            t = series[keys[0]][0]
+            if all(series[k][0].shape == t.shape for k in keys):
+                return t, np.column_stack([series[k][1] for k in keys])
+    return None
+
+
+def fault_events(run: RunData) -> list[tuple[float, str, str]]:
+    """(t, name, message) of every fault onset: an ERROR status whose previous same-name status was not."""
+    last: dict[str, int] = {}
+    events = []
+    for t, level, name, message in sorted(run.faults, key=lambda r: r[0]):
+        if level == ERROR_LEVEL and last.get(name) != ERROR_LEVEL:
+            events.append((float(t), name, message))
+        last[name] = level
+    return events
+
+
+def has_wheels(scenario: dict | None) -> bool:
+    """Whether the scenario's spacecraft has reaction wheels (True when there is no scenario)."""
+    if scenario is None:
+        return True
+    dyn = (scenario.get('dynamics') or {}).get('ros__parameters') or {}
+    return bool(isinstance(dyn, dict) and (dyn.get('wheels') or {}).get('names'))
+
+
+def missing_topics(run: RunData) -> list[str]:
+    """Topics of the graph with no message in the bag (``RunData.missing_topics``); ``wheels/state``
+    only when the spacecraft has wheels."""
+    wheels = has_wheels(run.scenario)
+    return [t for t in run.missing_topics if wheels or t != topics.WHEELS_STATE]
+
+
+def thruster_topics(run: RunData) -> list[str]:
+    return sorted(t for t in run.topic_counts if 'thruster' in t)
