@@ -1,7 +1,7 @@
 """M2rController: seed 001's inertia-free motion-to-rest law (eq. 11-25) on the graph.
 
 Commands the external torquers (``torque_cmd``); the gains are checked at start against the torque
-bound of Proposition 1 or 2 for the torquer limit. The law: laws/inertia_free.py."""
+bound of Proposition 1 or 2 for the torquer limit. The law: laws/motion_to_rest.py."""
 from __future__ import annotations
 
 from adcs_controllers.families import M2R

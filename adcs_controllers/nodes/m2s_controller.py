@@ -3,7 +3,7 @@
 Commands the external torquers (``torque_cmd``) with cutoff or scaling saturation, the varying
 adaptation gain and extremum tracking as configured. The compensator's estimator states live in
 the law object and are integrated between state messages (continuous time). The law:
-laws/inertia_free.py."""
+laws/motion_to_spin.py (saturation and VAG: laws/saturation.py)."""
 from __future__ import annotations
 
 from adcs_controllers.families import M2S
