@@ -215,9 +215,13 @@ def explain(scenario: Path, duration: float | None = None) -> str:
     """A scenario's resolved parameters, section by section: key, value, unit (``-``: none stated)
     and where the value comes from (``file``, ``default`` or ``--duration``). Validates the whole
     file first (raises ParameterError naming the key, as ``adcs-run`` does)."""
-    validated = validate_scenario(scenario, duration)
-    given = load_params_file(str(scenario))
-    lines = [f'scenario {scenario}: {len(validated)} section(s), all valid']
+    return explain_sections(validate_scenario(scenario, duration), load_params_file(str(scenario)),
+                            str(scenario), duration)
+
+
+def explain_sections(validated: dict, given: dict, label: str, duration: float | None = None) -> str:
+    """:func:`explain` of sections already validated (``given``: what the file set, per section)."""
+    lines = [f'scenario {label}: {len(validated)} section(s), all valid']
     for name, values in validated.items():
         schema = NODES[name].schema
         lines += ['', f'[{name}]  {schema.doc}']
