@@ -18,6 +18,7 @@ import pytest
 import yaml
 from conftest import make_scenario
 
+from adcs_sim.app.api import campaign_results
 from adcs_sim.app.montecarlo import main, read_results, results_table
 
 
@@ -109,3 +110,12 @@ def test_read_results_prefers_parquet_and_falls_back_to_csv(campaign_out, tmp_pa
     for name in ('run', 'pd_controller.kd', 'integrated_torque_Nms', 'settling_euler213_0.5deg_s'):
         a, b = np.asarray(from_csv[name].to_pylist(), float), np.asarray(table[name].to_pylist(), float)
         assert np.array_equal(a, b, equal_nan=True), name
+
+
+def test_the_api_reads_a_campaign(campaign_out):
+    table = campaign_results(campaign_out)
+    assert table.num_rows == 12 and table.column('run').to_pylist() == list(range(12))
+    pytest.importorskip('pandas')
+    frame = campaign_results(campaign_out, pandas=True)
+    assert list(frame.columns) == table.column_names
+    assert np.array_equal(frame['pd_controller.kd'].to_numpy(), table.column('pd_controller.kd').to_numpy())

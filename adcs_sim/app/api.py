@@ -36,11 +36,12 @@ from adcs_msgs_py.params import BUILTIN_PARAMETERS, ParameterError, load_params_
 from adcs_sim.app import report
 from adcs_sim.app.analysis import RunData, attitude_errors, run_metrics
 from adcs_sim.app.batch import BatchResult, BatchSimulation
+from adcs_sim.app.montecarlo import read_results
 from adcs_sim.app.parameters import explain_sections
 from adcs_sim.app.runner import run_scenario
 from adcs_sim.app.scenario_files import resolve_scenario, validate_sections
 
-__all__ = ['Scenario', 'RunResult', 'BatchRuns', 'RunData', 'ParameterError', 'load_run']
+__all__ = ['Scenario', 'RunResult', 'BatchRuns', 'RunData', 'ParameterError', 'load_run', 'campaign_results']
 
 
 def _plain(value: Any) -> Any:
@@ -407,3 +408,24 @@ def load_run(bag: str | Path) -> RunResult:
     RunResult
     """
     return RunResult(RunData.from_bag(bag), Path(bag))
+
+
+def campaign_results(folder: str | Path, pandas: bool = False):
+    """An ``adcs-montecarlo`` output folder's results table (one row per run).
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        The campaign's output folder (``--out``): ``results.parquet`` is read, or ``results.csv``
+        if the folder has none.
+    pandas : bool, optional
+        Return a pandas DataFrame (needs pandas) instead of a pyarrow Table.
+
+    Returns
+    -------
+    pyarrow.Table or pandas.DataFrame
+        Columns ``run``, ``status``, ``reason``, the dispersed inputs (``dynamics.inertia[0]``, ...)
+        and the metrics; ``table.column('integrated_torque_Nms').to_numpy()`` gives one as an array.
+    """
+    table = read_results(folder)
+    return table.to_pandas() if pandas else table
