@@ -301,7 +301,11 @@ class RunResult:
             pandas is not installed.
         """
         # pandas is optional (the package does not depend on it): imported only when asked for.
-        import pandas as pd
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError('RunResult.dataframe() needs pandas (pip install pandas); the arrays are '
+                              'in RunResult.data') from None
         run = self.data
         _, eigen, euler = attitude_errors(run)
         state = {**{f'q_{a}': run.q[:, i] for i, a in enumerate('xyzw')},
