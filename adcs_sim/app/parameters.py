@@ -172,8 +172,9 @@ def _section_markdown(name: str, schema: Schema, usage: dict[str, list[str]], ha
              f'Role: {info.role}; node module `{info.module}`; '
              + (f'in {len(having)} scenario(s) of `config/`.' if having else 'in no scenario of `config/`.')]
     if schema.cross_check is not None:
-        lines += ['', f'Whole-section check: `{schema.cross_check.__module__}.{schema.cross_check.__name__}` '
-                  '(lengths of the per-item arrays agree, and the checks that span several keys).']
+        check = schema.cross_check
+        what = ' '.join((check.__doc__ or '').split()) or 'the checks that span several keys.'
+        lines += ['', f'Whole-section check (`{check.__module__}.{check.__name__}`, after the keys\' own): {what}']
     lines += ['', '| key | type | default | unit | check | batch | meaning | set in |',
               '| --- | --- | --- | --- | --- | --- | --- | --- |']
     for p in schema.params:
