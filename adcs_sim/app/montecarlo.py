@@ -11,6 +11,10 @@ Output folder (``--out``, default ``runs/<campaign>_<timestamp>``):
 
 * ``results.csv`` — one row per run: index, status (``ok``, ``failed``: diverged, ``violated``:
   outside the campaign's ``requirements``), reason, dispersed inputs, metrics;
+* ``results.parquet`` — the same table, columnar (pyarrow; typed columns: ``run`` int64, ``status``
+  and ``reason`` strings, inputs and metrics float64, integer inputs int64): a 100 000-run table
+  loads in a fraction of a second (``benchmarks/parquet_load.py``); read it with
+  :func:`read_results`, ``pyarrow.parquet.read_table`` or ``pandas.read_parquet``;
 * ``summary.json`` / ``summary.md`` — per metric: count, mean, std, min, percentiles (5, 50, 95),
   max, and the runs that failed or violated a requirement with their inputs;
 * ``replay/run_<i>.yaml`` — for each of those runs, a complete scenario file: replay it alone on
@@ -38,6 +42,9 @@ from datetime import datetime
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.csv as pacsv
+import pyarrow.parquet as pq
 
 from adcs_sim.app.campaign import Campaign, CampaignError, run_chunk
 
@@ -112,6 +119,38 @@ def write_results_csv(rows: list[dict], path: Path) -> None:
         for r in rows:
             writer.writerow([r['run'], r['status'], r['reason'], *map(repr, _input_values(r['inputs'])),
                              *(repr(r['metrics'][m]) for m in metrics)])
+
+
+def results_table(rows: list[dict]) -> pa.Table:
+    """The rows of ``results.csv`` as a typed Arrow table (same columns, same order, same values:
+    CSV's ``repr`` of a float64 reads back to the same float64)."""
+    metrics = list(rows[0]['metrics'])
+    inputs = list(zip(*(_input_values(r['inputs']) for r in rows))) if rows[0]['inputs'] else []
+    columns: dict[str, pa.Array] = {
+        'run': pa.array([r['run'] for r in rows], pa.int64()),
+        'status': pa.array([r['status'] for r in rows], pa.string()),
+        'reason': pa.array([r['reason'] for r in rows], pa.string()),
+    }
+    for name, values in zip(_input_columns(rows), inputs):
+        integer = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in values)
+        columns[name] = pa.array([int(v) if integer else float(v) for v in values],
+                                 pa.int64() if integer else pa.float64())
+    for m in metrics:
+        columns[m] = pa.array([float(r['metrics'][m]) for r in rows], pa.float64())
+    return pa.table(columns)
+
+
+def write_results_parquet(rows: list[dict], path: Path) -> None:
+    pq.write_table(results_table(rows), path, compression='zstd')
+
+
+def read_results(folder: str | Path) -> pa.Table:
+    """A campaign output folder's results: ``results.parquet``, or ``results.csv`` if it has none
+    (an output of an older version), as an Arrow table (``.to_pandas()`` with pandas)."""
+    folder = Path(folder)
+    if (folder / 'results.parquet').exists():
+        return pq.read_table(folder / 'results.parquet')
+    return pacsv.read_csv(folder / 'results.csv')
 
 
 def summarize(campaign: Campaign, rows: list[dict]) -> dict:
@@ -210,6 +249,7 @@ def write_outputs(campaign: Campaign, rows: list[dict], out: Path, figures: bool
     out.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(campaign.path, out / 'campaign.yaml')
     write_results_csv(rows, out / 'results.csv')
+    write_results_parquet(rows, out / 'results.parquet')
     summary = summarize(campaign, rows)
     (out / 'summary.json').write_text(json.dumps(summary, indent=2, default=_json_default) + '\n')
     (out / 'summary.md').write_text(summary_markdown(summary))

@@ -1,4 +1,4 @@
-"""``adcs-run [scenario.yaml] [--out DIR] [--duration S]``: one scenario, end to end.
+"""``adcs-run [scenario.yaml] [--out DIR] [--duration S] [--explain]``: one scenario, end to end.
 
 1. Validates every section of the scenario file with its node's schema (nothing starts if one
    is wrong; the message names the key). An unknown section is an error.
@@ -37,6 +37,7 @@ from pathlib import Path
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app.analysis import RunData, format_metrics, jsonable_metrics, run_metrics
 from adcs_sim.app.graph import Graph, Progress, graph_env, lease_domain, recorded_state
+from adcs_sim.app.parameters import explain
 from adcs_sim.app.registry import NODES
 from adcs_sim.app.scenario_files import DEFAULT_SCENARIO, RunError, config_dirs, resolve_scenario, validate_scenario
 from adcs_sim.nodes.recorder import READY_LINE
@@ -201,9 +202,15 @@ def main(argv=None) -> int:
                         help='start a controller that dies mid-run again, up to N times (it rejoins '
                              'the lockstep loop; the steps without it are missed steps); default 0: '
                              'a node that dies stops the run')
+    parser.add_argument('--explain', action='store_true',
+                        help="print the scenario's resolved parameters (defaults included) with units, "
+                             'section by section, and exit without starting anything')
     args = parser.parse_args(argv)
     try:
         scenario = resolve_scenario(args.scenario)
+        if args.explain:
+            print(explain(scenario, args.duration))
+            return 0
         out = args.out or Path('runs') / f'{scenario.stem}-{datetime.now():%Y%m%d-%H%M%S}'
         print(f'adcs-run: {scenario} -> {out}', flush=True)
         metrics = run_scenario(scenario, out, args.duration, not args.no_progress and sys.stderr.isatty(),

@@ -48,7 +48,12 @@ def resolve_scenario(name: str | None) -> Path:
 
 def validate_scenario(path: Path, duration: float | None = None) -> dict:
     """Validate every section; return {section: validated params}. Raises ParameterError."""
-    sections = load_params_file(str(path))
+    return validate_sections(load_params_file(str(path)), path, duration)
+
+
+def validate_sections(sections: dict, path, duration: float | None = None) -> dict:
+    """:func:`validate_scenario` of sections already read (``{section: {dotted.key: value}}``, as
+    :func:`adcs_msgs_py.params.load_params_file` returns them); ``path`` names them in messages."""
     unknown = [s for s in sections if s not in NODES]
     if unknown:
         raise ParameterError(unknown[0], f'unknown node section {unknown[0]!r} in {path}; '

@@ -189,17 +189,20 @@ def fig_wheels(c: Context):
     run = c.run
     if not run.wheel_speed.size:
         return f'no wheel states ({topics.WHEELS_STATE})'
-    fig, (ax_s, ax_t) = new_figure(rows=2, height=2.5)
+    torque = run.wheel_torque.size > 0   # a batch engine's run has the speeds only
+    fig, axes = new_figure(rows=2 if torque else 1, height=2.5)
     for j, name in enumerate(run.wheel_names):
-        ax_s.plot(run.t_wheels, run.wheel_speed[:, j], **_line(j), label=name)
-        step_plot(ax_t, run.t_wheels, 1e3 * run.wheel_torque[:, j], **_line(j), label=name)
-    ax_s.set_ylabel('wheel speed (rad/s)')
-    ax_s.set_title('Reaction wheels: speed relative to the body (top), motor torque (bottom)')
-    ax_t.set_ylabel('motor torque (mN·m)')
-    _mark_faults([ax_s, ax_t], c.events)
-    add_legend(ax_s, loc='best')
-    add_legend(ax_t, loc='best')
-    return fig, 'Wheel speeds relative to the body (rad/s) and wheel motor torques (mN·m).'
+        axes[0].plot(run.t_wheels, run.wheel_speed[:, j], **_line(j), label=name)
+        if torque:
+            step_plot(axes[1], run.t_wheels, 1e3 * run.wheel_torque[:, j], **_line(j), label=name)
+    axes[0].set_ylabel('wheel speed (rad/s)')
+    axes[0].set_title('Reaction wheels: speed relative to the body'
+                      + (' (top), motor torque (bottom)' if torque else ''))
+    axes[-1].set_ylabel('motor torque (mN·m)' if torque else 'wheel speed (rad/s)')
+    _mark_faults(axes, c.events)
+    for ax in axes:
+        add_legend(ax, loc='best')
+    return fig, 'Wheel speeds relative to the body (rad/s)' + (' and wheel motor torques (mN·m).' if torque else '.')
 
 
 def fig_thrusters(c: Context):

@@ -1,0 +1,437 @@
+"""Python API for scripts and notebooks: load a scenario, override parameters, run it, analyse it.
+
+The same code as the command-line tools, without them: :class:`Scenario` reads and validates a
+scenario file (:mod:`adcs_sim.app.scenario_files`), :meth:`Scenario.run_graph` runs it through the
+ROS 2 node graph as ``adcs-run`` does (:func:`adcs_sim.app.runner.run_scenario`: one process per
+node, lockstep, recorded to a bag), :meth:`Scenario.run_batch` through the batch engine
+(:class:`adcs_sim.app.batch.BatchSimulation`: no ROS, N runs at once). Either gives
+:class:`RunResult` objects: the run's time series as numpy arrays (:class:`RunData`, the analysis
+library's), as a pandas DataFrame where pandas is installed, the metrics
+(:func:`adcs_sim.app.analysis.run_metrics`) and the report's figures (:data:`adcs_sim.app.report.figures.FIGURES`).
+
+Examples
+--------
+>>> from adcs_sim.app.api import Scenario
+>>> slew = Scenario.load('microsat_pd_slew.yaml').override({'dynamics.duration': 120.0})
+>>> batch = slew.run_batch()
+>>> batch[0].metrics()['integrated_torque_Nms']  # doctest: +SKIP
+>>> graph = slew.run_graph('runs/pd_slew')  # ROS 2 processes, loopback only  # doctest: +SKIP
+
+See ``docs/examples/pd_slew.py`` for a complete script.
+"""
+from __future__ import annotations
+
+import copy
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from matplotlib.figure import Figure
+
+from adcs_msgs_py.params import BUILTIN_PARAMETERS, ParameterError, load_params_file, unflatten
+from adcs_sim.app.analysis import RunData, attitude_errors, run_metrics
+from adcs_sim.app.batch import BatchResult, BatchSimulation
+from adcs_sim.app.montecarlo import read_results
+from adcs_sim.app.parameters import explain_sections
+from adcs_sim.app.report.figures import FIGURES, Context
+from adcs_sim.app.report.loading import Run, fault_events, run_name
+from adcs_sim.app.report.single_run import write_report
+from adcs_sim.app.runner import run_scenario
+from adcs_sim.app.scenario_files import resolve_scenario, validate_sections
+
+__all__ = ['Scenario', 'RunResult', 'BatchRuns', 'RunData', 'ParameterError', 'load_run', 'campaign_results']
+
+
+def _plain(value: Any) -> Any:
+    """numpy scalars and arrays -> Python numbers and lists (what a params file can hold)."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+def _split_overrides(overrides: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """``{'section.dotted.key': value}`` or ``{'section': {'dotted.key': value}}`` -> per section."""
+    out: dict[str, dict[str, Any]] = {}
+    for key, value in overrides.items():
+        if isinstance(value, Mapping):
+            out.setdefault(key, {}).update({k: _plain(v) for k, v in value.items()})
+            continue
+        section, _, name = str(key).partition('.')
+        if not name:
+            raise ParameterError(str(key), "an override is 'section.key' (e.g. 'dynamics.duration') "
+                                 'or {section: {key: value}}')
+        out.setdefault(section, {})[name] = _plain(value)
+    return out
+
+
+@dataclass
+class Scenario:
+    """A validated scenario: the parameters as given (per section) and as validated.
+
+    Build one with :meth:`load`; :meth:`override` returns a new, validated copy. The scenario is
+    never changed in place.
+
+    Attributes
+    ----------
+    source : pathlib.Path
+        The file it was read from (overrides are not written back to it).
+    given : dict
+        ``{section: {dotted.key: value}}``: what the file (and the overrides) set.
+    validated : dict
+        ``{section: {dotted.key: value}}``: every parameter of every section, defaults included,
+        as the nodes and the batch engine receive them.
+    """
+
+    source: Path
+    given: dict[str, dict[str, Any]]
+    validated: dict[str, dict[str, Any]] = field(repr=False)
+
+    @classmethod
+    def load(cls, scenario: str | Path, overrides: Mapping[str, Any] | None = None) -> 'Scenario':
+        """Read and validate a scenario file.
+
+        Parameters
+        ----------
+        scenario : str or pathlib.Path
+            A path, or the bare name of a file in ``config/`` (e.g. ``'microsat_pd_slew.yaml'``).
+        overrides : mapping, optional
+            Parameters to change, as in :meth:`override`.
+
+        Returns
+        -------
+        Scenario
+
+        Raises
+        ------
+        adcs_sim.app.scenario_files.RunError
+            No such file.
+        ParameterError
+            A section or key is unknown, a value has the wrong type or is refused by its check
+            (the message names the key, as ``adcs-run`` prints it).
+        """
+        path = resolve_scenario(str(scenario))
+        given = load_params_file(str(path))
+        loaded = cls(path, given, validate_sections(given, path))
+        return loaded.override(overrides) if overrides else loaded
+
+    def override(self, overrides: Mapping[str, Any]) -> 'Scenario':
+        """A copy with some parameters changed, validated whole.
+
+        Parameters
+        ----------
+        overrides : mapping
+            Dotted keys prefixed by their section, ``{'dynamics.duration': 60.0, 'pd_controller.kp':
+            0.003}``, or nested per section, ``{'dynamics': {'duration': 60.0}}``. A section the
+            scenario does not have is added (e.g. a ``fault_injector``).
+
+        Returns
+        -------
+        Scenario
+
+        Raises
+        ------
+        ParameterError
+            An unknown section or key, or a value its check refuses.
+        """
+        given = copy.deepcopy(self.given)
+        for section, values in _split_overrides(overrides).items():
+            given.setdefault(section, {}).update(values)
+        return Scenario(self.source, given, validate_sections(given, self.source))
+
+    def __getitem__(self, key: str) -> Any:
+        """The validated value of ``'section.dotted.key'`` (e.g. ``scenario['dynamics.duration']``)."""
+        section, _, name = key.partition('.')
+        return self.validated[section][name]
+
+    def to_yaml(self) -> str:
+        """The scenario as a ROS 2 params file.
+
+        Returns
+        -------
+        str
+            YAML, one ``ros__parameters`` section per node: the given parameters, overrides
+            included (the defaults are left to the schemas, as in a hand-written file).
+        """
+        tree = {section: {'ros__parameters': unflatten({k: _plain(v) for k, v in values.items()
+                                                        if k not in BUILTIN_PARAMETERS})}
+                for section, values in self.given.items()}
+        return yaml.safe_dump(tree, sort_keys=False)
+
+    def write(self, path: str | Path) -> Path:
+        """Write the scenario as a params file that ``adcs-run`` runs.
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The file to write (:meth:`to_yaml`'s text).
+
+        Returns
+        -------
+        pathlib.Path
+        """
+        path = Path(path)
+        path.write_text(self.to_yaml(), encoding='utf-8')
+        return path
+
+    def explain(self) -> str:
+        """What ``adcs-run --explain`` prints for this scenario.
+
+        Returns
+        -------
+        str
+            Section by section, every resolved value (defaults included) with its unit and its
+            source (``file``: given, overrides included; ``default``: the schema's).
+        """
+        return explain_sections(self.validated, self.given, f'{self.source} (overrides included)')
+
+    def run_batch(self, variants: Sequence[Mapping[str, Any]] | None = None, progress=None) -> 'BatchRuns':
+        """Run the scenario on the batch engine (numpy, no ROS): one run, or one per variant.
+
+        Parameters
+        ----------
+        variants : sequence of mappings, optional
+            One run per entry, each the overrides of :meth:`override` applied to this scenario
+            (e.g. ``[{'dynamics.inertia': [12, 14, 10]}, {'dynamics.inertia': [13, 14, 10]}]``).
+            Default: one run of the scenario as it is. Only parameters declared batch-dispersible
+            (``docs/parameters.md``, column *batch*) may differ between variants.
+        progress : callable, optional
+            ``progress(steps_done)`` after each control step.
+
+        Returns
+        -------
+        BatchRuns
+            ``batch[i]`` is run ``i`` as a :class:`RunResult`; ``batch.result`` the raw arrays.
+        """
+        runs = [self.validated] if not variants else [self.override(v).validated for v in variants]
+        result = BatchSimulation.from_runs(runs).run(progress=progress)
+        return BatchRuns(result, [copy.deepcopy(r) for r in runs])
+
+    def run_graph(self, out: str | Path, progress: bool = False, tol_deg: float = 0.5,
+                  restarts: int = 0) -> 'RunResult':
+        """Run the scenario through the ROS 2 node graph, as ``adcs-run`` does, and read its bag.
+
+        Each node is its own process on a freshly leased ``ROS_DOMAIN_ID``, discovery limited to
+        this machine; the recorder writes ``<out>/bag``.
+
+        Parameters
+        ----------
+        out : str or pathlib.Path
+            Output folder (must not exist or be empty): ``bag/``, ``logs/``, ``metrics.json``,
+            ``scenario.yaml``.
+        progress : bool, optional
+            Show the progress bar in simulated time.
+        tol_deg : float, optional
+            Settling band of ``metrics.json`` (deg).
+        restarts : int, optional
+            How many times a controller that dies mid-run is started again.
+
+        Returns
+        -------
+        RunResult
+            The recorded run (:attr:`RunResult.bag` is the bag folder).
+
+        Raises
+        ------
+        adcs_sim.app.scenario_files.RunError
+            A node failed, or the output folder is not empty.
+        """
+        out = Path(out)
+        with tempfile.TemporaryDirectory(prefix='adcs_api_') as tmp:
+            path = self.write(Path(tmp) / self.source.name)
+            run_scenario(path, out, progress=progress, tol_deg=tol_deg, restarts=restarts)
+        return load_run(out / 'bag')
+
+
+@dataclass
+class RunResult:
+    """One run's time series and what can be computed from them.
+
+    Attributes
+    ----------
+    data : RunData
+        The arrays (SI units, seconds): ``t``, ``q`` (N, 4) ``[x, y, z, w]``, ``w`` (N, 3) rad/s,
+        ``t_u`` and ``u`` (applied body torque, N m, held from each ``t_u``), ``wheel_names``,
+        ``t_wheels``, ``wheel_speed`` (rad/s), ``q_ref`` and the rest of
+        :class:`adcs_sim.app.analysis.RunData`.
+    bag : pathlib.Path or None
+        The bag it was read from (graph runs), None for a batch run.
+    """
+
+    data: RunData
+    bag: Path | None = None
+
+    def metrics(self, tol_deg: float = 0.5, eigen_tol_deg: float | None = None) -> dict:
+        """The metrics ``adcs-run`` and ``adcs-analyze`` print (:func:`adcs_sim.app.analysis.run_metrics`).
+
+        Parameters
+        ----------
+        tol_deg : float, optional
+            Settling band of the 2-1-3 Euler errors (deg).
+        eigen_tol_deg : float, optional
+            Settling band of the eigenaxis error (deg; default ``tol_deg``).
+
+        Returns
+        -------
+        dict
+            ``{metric name: value}``, e.g. ``settling_euler213_0.5deg_s``, ``integrated_torque_Nms``.
+        """
+        return run_metrics(self.data, tol_deg, eigen_tol_deg)
+
+    def dataframe(self):
+        """The time series as one pandas DataFrame indexed by time ``t`` (s).
+
+        Columns: ``q_x q_y q_z q_w`` (true attitude), ``w_x w_y w_z`` (rad/s), ``eigenaxis_error_deg``,
+        ``euler213_y_deg euler213_x_deg euler213_z_deg`` (signed 2-1-3 errors, sequence order),
+        ``u_x u_y u_z`` (applied torque, N m; NaN at the last state, after the last command) and
+        ``wheel_speed.<name>`` (rad/s) per wheel. Needs pandas (not a dependency of the package).
+
+        Returns
+        -------
+        pandas.DataFrame
+
+        Raises
+        ------
+        ImportError
+            pandas is not installed.
+        """
+        # pandas is optional (the package does not depend on it): imported only when asked for.
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError('RunResult.dataframe() needs pandas (pip install pandas); the arrays are '
+                              'in RunResult.data') from None
+        run = self.data
+        _, eigen, euler = attitude_errors(run)
+        state = {**{f'q_{a}': run.q[:, i] for i, a in enumerate('xyzw')},
+                 **{f'w_{a}': run.w[:, i] for i, a in enumerate('xyz')},
+                 'eigenaxis_error_deg': eigen,
+                 **{f'euler213_{a}_deg': euler[:, i] for i, a in enumerate('yxz')}}
+        frames = [pd.DataFrame(state, index=pd.Index(run.t, name='t'))]
+        if run.u.size:
+            frames.append(pd.DataFrame({f'u_{a}': run.u[:, i] for i, a in enumerate('xyz')},
+                                       index=pd.Index(run.t_u, name='t')))
+        if run.wheel_speed.size:
+            frames.append(pd.DataFrame({f'wheel_speed.{n}': run.wheel_speed[:, i]
+                                        for i, n in enumerate(run.wheel_names)},
+                                       index=pd.Index(run.t_wheels, name='t')))
+        return pd.concat(frames, axis=1).sort_index()
+
+    def figures(self, tol_deg: float = 0.5, eigen_tol_deg: float | None = None) -> dict[str, Figure]:
+        """The report's figures of this run (those it has data for), as matplotlib Figures.
+
+        Parameters
+        ----------
+        tol_deg, eigen_tol_deg : float, optional
+            Settling bands drawn on the figures, as in :meth:`metrics`.
+
+        Returns
+        -------
+        dict
+            ``{name: matplotlib.figure.Figure}`` in :data:`adcs_sim.app.report.figures.FIGURES` order
+            (``attitude_error``, ``euler_213``, ``body_rates``, ``torque``, ``wheels``, ...). Save
+            one with ``fig.savefig('x.png')``; in a notebook, display it as the cell's value.
+        """
+        eigen_tol_deg = tol_deg if eigen_tol_deg is None else eigen_tol_deg
+        ctx = Context(self.data, fault_events(self.data), tol_deg, eigen_tol_deg,
+                             run_metrics(self.data, tol_deg, eigen_tol_deg), attitude_errors(self.data))
+        out = {}
+        for name, _, builder in FIGURES:
+            drawn = builder(ctx)
+            if not isinstance(drawn, str):   # a string says why the figure is skipped
+                out[name] = drawn[0]
+        return out
+
+    def write_report(self, out: str | Path, tol_deg: float = 0.5) -> Path:
+        """``adcs-analyze``'s report (``report.md`` and figures) of a graph run.
+
+        Parameters
+        ----------
+        out : str or pathlib.Path
+            The folder to write into.
+        tol_deg : float, optional
+            Settling band of the metrics (deg).
+
+        Returns
+        -------
+        pathlib.Path
+            The ``report.md`` written.
+
+        Raises
+        ------
+        ValueError
+            The run has no bag (a batch run): use :meth:`figures`.
+        """
+        if self.bag is None:
+            raise ValueError('a batch run has no bag to report on; use figures() and metrics()')
+        return write_report(Run(self.bag, run_name(self.bag), self.data), out, tol_deg)
+
+
+@dataclass
+class BatchRuns(Sequence):
+    """The runs of one batch: ``batch[i]`` is a :class:`RunResult`.
+
+    Attributes
+    ----------
+    result : adcs_sim.app.batch.BatchResult
+        The raw arrays with a leading run axis: ``t`` (K + 1,), ``q`` (N, K + 1, 4), ``w``,
+        ``u`` (N, K, 3), ``wheel_speed``, ``n_steps`` and ``failure`` (why a run stopped early).
+    sections : list of dict
+        The validated sections of each run.
+    """
+
+    result: BatchResult
+    sections: list
+
+    def __len__(self) -> int:
+        return self.result.n_runs
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(len(self)))]
+        if not -len(self) <= i < len(self):
+            raise IndexError(f'run {i} of a batch of {len(self)}')
+        return RunResult(self.result.run_data(i % len(self)))
+
+
+def load_run(bag: str | Path) -> RunResult:
+    """A recorded run (any bag of the graph) as a :class:`RunResult`.
+
+    Parameters
+    ----------
+    bag : str or pathlib.Path
+        A bag folder (``runs/<run>/bag``, ``bags/<name>/bag``) or an ``.mcap`` file.
+
+    Returns
+    -------
+    RunResult
+    """
+    return RunResult(RunData.from_bag(bag), Path(bag))
+
+
+def campaign_results(folder: str | Path, pandas: bool = False):
+    """An ``adcs-montecarlo`` output folder's results table (one row per run).
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        The campaign's output folder (``--out``): ``results.parquet`` is read, or ``results.csv``
+        if the folder has none.
+    pandas : bool, optional
+        Return a pandas DataFrame (needs pandas) instead of a pyarrow Table.
+
+    Returns
+    -------
+    pyarrow.Table or pandas.DataFrame
+        Columns ``run``, ``status``, ``reason``, the dispersed inputs (``dynamics.inertia[0]``, ...)
+        and the metrics; ``table.column('integrated_torque_Nms').to_numpy()`` gives one as an array.
+    """
+    table = read_results(folder)
+    return table.to_pandas() if pandas else table
