@@ -2,7 +2,7 @@
 publishes on the latched ``faults`` topic (pure, no ROS; the node is :mod:`adcs_sim.nodes.fault_injector`)."""
 from __future__ import annotations
 
-from adcs_core.faults import FAULT_ERROR_MODES
+from adcs_core.faults import FAULT_ERROR_MODES, FaultState
 from adcs_msgs_py.blocks import startup_params
 from adcs_msgs_py.params import Param, ParameterError, Schema
 
@@ -71,7 +71,7 @@ def fault_schedule(v: dict) -> list[tuple[int, dict[str, tuple[str, float, float
     state = {w: ('nominal', 0.0, 0.0) for w in wheels}
     out = [(0, dict(state))]
     for t_ns, _, wheel, mode, value in events:
-        state[wheel] = (mode, float(value) if mode in ('degraded', 'bias') else 0.0, t_ns / 1e9)
+        state[wheel] = FaultState(mode, float(value) if mode in ('degraded', 'bias') else 0.0, t_ns / 1e9)
         if out[-1][0] == t_ns and len(out) > 1:
             out[-1] = (t_ns, dict(state))
         else:
