@@ -28,7 +28,7 @@ from collections.abc import Callable, Iterable, Mapping
 from typing import NamedTuple, TypeVar
 
 from adcs_msgs_py.conversions import InvalidMessage
-from adcs_msgs_py.names import format_publishers, parse_publishers  # noqa: F401 (re-exported)
+from adcs_msgs_py.names import RUN_NODES, format_publishers, parse_publishers  # noqa: F401 (re-exported)
 
 T = TypeVar('T')
 
@@ -119,7 +119,10 @@ class PublisherVetting:
         self._node = node
         ns = node.get_namespace()
         self.allowed = {node.resolve_topic_name(t): frozenset(_full_name(ns, n) for n in names)
-                        for t, names in allowed.items()}
+                        for t, names in allowed.items() if t != RUN_NODES}
+        # every node of the run (RUN_NODES entry): whose subscriptions the start-up handshake counts
+        self.run_nodes = (frozenset(_full_name(ns, n) for n in allowed[RUN_NODES])
+                          if RUN_NODES in allowed else None)
         self.on_intrusion = on_intrusion
         self.vetted: dict[str, set[str]] = {}      # topic -> GIDs of admitted publishers
         self.matched: dict[str, int] = {}          # topic -> matched publishers at the last look
@@ -151,6 +154,23 @@ class PublisherVetting:
         if not ok:
             self.refused[topic] += 1
         return ok
+
+    def subscribers(self, topic: str) -> tuple[int, int]:
+        """``(of the run, others)``: the subscriptions to ``topic`` in the graph, by node (one
+        whose node name has not arrived yet counts as another's)."""
+        infos = self._node.get_subscriptions_info_by_topic(topic)
+        own = sum(_full_name(i.node_namespace, i.node_name) in self.run_nodes for i in infos)
+        return own, len(infos) - own
+
+    def sweep(self, subs) -> None:
+        """Look every vetted subscription of ``subs`` up in the graph, message or not, count
+        changed or not (one publisher leaving as another joins keeps the count): for a node that
+        must record an intruder that sent nothing through it (the recorder, periodically)."""
+        for sub in subs:
+            topic = sub.topic_name
+            allowed = self.allowed.get(topic)
+            if allowed is not None and topic not in self.compromised:
+                self._inspect(topic, allowed, sub.get_publisher_count())
 
     def _inspect(self, topic: str, allowed: frozenset[str], matched: int) -> None:
         """Look the topic's publishers up in the graph (waiting up to GRAPH_SETTLE_S for every

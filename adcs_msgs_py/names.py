@@ -23,6 +23,7 @@ DYNAMICS_STATUS = 'dynamics/status'
 # Command topics a controller may answer a state with (what the dynamics node can wait for).
 COMMAND_TOPICS = (WHEELS_CMD, TORQUE_CMD, THRUSTERS_CMD)
 
+RUN_NODES = '*'  # the startup.publishers entry naming every node of the run (whose subscriptions count)
 INTRUSIONS = 'intrusions'  # written by the recorder into the bag: publishers the run does not allow
 QUARANTINE_PREFIX = 'quarantine'  # the recorder keeps a compromised topic's messages under quarantine/<topic>
 

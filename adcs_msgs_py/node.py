@@ -162,11 +162,21 @@ class AdcsNode(Node):
             self.wait_acked(publishers, timeout)
 
     def wait_for_publishers(self, required: dict, timeout: float) -> None:
-        """Wait until each publisher has at least the given number of matched subscriptions."""
+        """Wait until each publisher has at least the given number of matched subscriptions. When
+        the node knows the run's nodes (``startup.publishers``), of THEIR subscriptions: a
+        foreign subscriber (an eavesdropper) must not make the count and start the run before a
+        node of it can receive (it would miss the first state)."""
         for pub, count in required.items():
             if count > 0:
                 self.wait_for(f'{count} subscriber(s) on {pub.topic_name}',
-                              lambda p=pub, c=count: p.get_subscription_count() >= c, timeout)
+                              lambda p=pub, c=count: self._subscribed(p, c), timeout)
+
+    def _subscribed(self, pub, count: int) -> bool:
+        matched = pub.get_subscription_count()
+        if matched < count or self.vetting.run_nodes is None:
+            return matched >= count
+        own, others = self.vetting.subscribers(pub.topic_name)
+        return own >= count and matched >= count + others
 
     def close(self) -> None:
         """Release resources (files); called once on the way out, whatever happened."""

@@ -21,7 +21,7 @@ import json
 import sys
 from pathlib import Path
 
-from adcs_sim.app.analysis import format_metrics, jsonable_metrics, run_metrics
+from adcs_sim.app.analysis import bag_intrusions, format_metrics, jsonable_metrics, run_metrics
 
 
 def _report_dir(out: Path | None, path: str, name: str, several: bool) -> Path:
@@ -59,6 +59,10 @@ def main(argv=None) -> int:
             print(f'adcs-analyze: {path}: {exc}', file=sys.stderr)
             status = 1
     results = {p: run_metrics(r.data, args.tolerance_deg, args.eigen_tolerance_deg) for p, r in runs.items()}
+    for path in runs:   # a compromised run's numbers are not the run's alone: said, and non-zero
+        for line in bag_intrusions(path):
+            print(f'adcs-analyze: {path}: WARNING: run compromised: {line}', file=sys.stderr)
+            status = 1
     if args.json:
         print(json.dumps({p: jsonable_metrics(m) for p, m in results.items()}, indent=2))
     else:

@@ -33,6 +33,7 @@ from adcs_sim.bag.schema import RECORDER_SCHEMA
 IGNORED_TOPICS = ('/rosout', '/parameter_events')
 STOP_REQUESTED = threading.Event()  # set by SIGINT / SIGTERM in the recorder process
 READY_LINE = 'recorder: ready'
+DRAIN_MAX_S = 10.0  # < the runner's stop timeout (adcs_sim.app.graph.STOP_TIMEOUT_S)
 
 
 def message_class(type_name: str):
@@ -88,6 +89,8 @@ class RecorderNode(AdcsNode):
         self.create_timer(p['flush_period'], self.bag.flush)
         if self.record_all:
             self.create_timer(p['discovery_period'], self._discover)
+        if self.vetting.active:   # an intruder is recorded even if nothing it sends comes through
+            self.create_timer(p['discovery_period'], self._sweep)
         print(READY_LINE, flush=True)
 
     def _subscribe(self, name: str, msg_type, qos: QoSProfile, offered: QoSProfile) -> None:
@@ -135,9 +138,12 @@ class RecorderNode(AdcsNode):
     def run(self, executor) -> None:
         while not (self.stopping or STOP_REQUESTED.is_set()):
             executor.spin_once(timeout_sec=0.1)
-        # Drain: keep taking what DDS already delivered until a quiet period.
+        # Drain: keep taking what DDS already delivered until a quiet period, but never longer
+        # than DRAIN_MAX_S (a publisher that floods, an intruder, would keep it from closing the bag
+        # before the runner's stop timeout kills it).
         quiet_until = time.monotonic() + 0.3
-        while time.monotonic() < quiet_until:
+        give_up = time.monotonic() + DRAIN_MAX_S
+        while time.monotonic() < min(quiet_until, give_up):
             before = self.received
             executor.spin_once(timeout_sec=0.05)
             if self.received != before:
@@ -173,7 +179,14 @@ class RecorderNode(AdcsNode):
             self.bag.write(quarantine, data)
             self.received += 1
 
+    def _sweep(self) -> None:
+        self.vetting.sweep(self.subs.values())
+
     def close(self) -> None:
+        try:   # a last look before the bag is closed
+            self._sweep()
+        except Exception as exc:  # noqa: BLE001 - closing the bag comes first
+            self.get_logger().error(f'last look for intruders failed: {exc}')
         summary = {}
         if self.rejects.total:
             summary['recorder.rejected_messages'] = str(self.rejects.total)
