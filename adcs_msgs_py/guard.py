@@ -33,7 +33,7 @@ from adcs_msgs_py.names import RUN_NODES, format_publishers, parse_publishers  #
 T = TypeVar('T')
 
 WARN_THROTTLE_S = 5.0
-GRAPH_SETTLE_S = 2.0   # how long a new publisher may stay unnamed in the graph cache (discovery)
+GRAPH_SETTLE_S = 5.0   # how long a new publisher may stay unnamed in the graph cache (discovery, under load)
 UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'  # what rmw reports before a participant's node names arrive
 
 

@@ -12,6 +12,7 @@ named by ``adcs-run``'s non-zero exit; the bag says so.
 """
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import time
@@ -200,3 +201,25 @@ def test_rogue_publisher_is_detected_not_applied_and_named(tmp_path, monkeypatch
     analyzed = subprocess.run([sys.executable, '-m', 'adcs_sim.app.analyze', str(bag), '--no-report'],
                               capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert analyzed.returncode != 0 and 'run compromised' in analyzed.stderr and '/rogue' in analyzed.stderr
+
+
+# --- DDS Security (SROS2) -------------------------------------------------------------------------
+
+def test_the_pypi_fast_dds_build_has_no_dds_security(ros_domain, tmp_path):
+    """What the README says: the pinned PyPI Fast DDS (ros-fastrtps 2.14.5, used by
+    ros-rmw-fastrtps-cpp 8.4.3) is built without -DSECURITY=ON, so an enclave (SROS2) cannot be
+    used: rcl finds the enclave, then the rmw refuses to create the participant. If a later wheel
+    ships the security plugins this fails, and ``adcs-run --secure`` becomes possible."""
+    enclave = tmp_path / 'keystore' / 'enclaves' / 'probe'
+    enclave.mkdir(parents=True)
+    for name in ('identity_ca.cert.pem', 'cert.pem', 'key.pem', 'governance.p7s', 'permissions.p7s',
+                 'permissions_ca.cert.pem'):
+        (enclave / name).write_text('')
+    env = ros_domain.env({**os.environ, 'ROS_SECURITY_ENABLE': 'true', 'ROS_SECURITY_STRATEGY': 'Enforce',
+                          'ROS_SECURITY_KEYSTORE': str(tmp_path / 'keystore')})
+    probe = ('import rclpy\nfrom rclpy.context import Context\nc = Context()\n'
+             "rclpy.init(context=c, args=['--ros-args', '--enclave', '/probe'])\n"
+             "rclpy.create_node('probe', context=c)\n")
+    result = subprocess.run([sys.executable, '-c', probe], env=env, capture_output=True, text=True, timeout=60)
+    assert result.returncode != 0
+    assert "doesn't have the security libraries" in result.stderr and 'SECURITY=ON' in result.stderr
