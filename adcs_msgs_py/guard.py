@@ -134,9 +134,10 @@ class PublisherVetting:
     def active(self) -> bool:
         return bool(self.allowed)
 
-    def admit(self, sub, info: Mapping | None = None) -> bool:
-        """Whether the message just taken on ``sub`` (with message info ``info``) may be applied."""
-        topic = sub.topic_name
+    def admit(self, sub, info: Mapping | None = None, topic: str | None = None) -> bool:
+        """Whether the message just taken on ``sub`` (with message info ``info``) may be applied
+        (``topic``: its resolved name, if the caller has it at hand)."""
+        topic = topic or sub.topic_name
         allowed = self.allowed.get(topic)
         if allowed is None:
             return True

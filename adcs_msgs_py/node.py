@@ -117,10 +117,12 @@ class AdcsNode(Node):
         s = topics.TOPICS.get(name)
         sub = None
         vetting, rejects = self.vetting, self.rejects
+        resolved = self.resolve_topic_name(name)
+        vetted = resolved in vetting.allowed
 
         def on_message(msg, info) -> None:
-            if vetting.active and not vetting.admit(sub, info):
-                self.on_refused(sub.topic_name, msg)
+            if vetted and not vetting.admit(sub, info, resolved):
+                self.on_refused(resolved, msg)
                 return
             rejects.guarded(name, callback, msg)
 

@@ -31,6 +31,16 @@ def _report_dir(out: Path | None, path: str, name: str, several: bool) -> Path:
     return out / name if several else out
 
 
+def _warn_compromised(paths) -> int:
+    """A compromised run's numbers are not the run's alone (its bag has ``intrusions``): said on
+    stderr, and exit status 1."""
+    lines = [f'adcs-analyze: {path}: WARNING: run compromised: {line}' for path in paths
+             for line in bag_intrusions(path)]
+    for line in lines:
+        print(line, file=sys.stderr)
+    return 1 if lines else 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog='adcs-analyze', description=__doc__.splitlines()[0])
     parser.add_argument('bags', nargs='+', help='bag folder(s) or .mcap file(s)')
@@ -59,10 +69,7 @@ def main(argv=None) -> int:
             print(f'adcs-analyze: {path}: {exc}', file=sys.stderr)
             status = 1
     results = {p: run_metrics(r.data, args.tolerance_deg, args.eigen_tolerance_deg) for p, r in runs.items()}
-    for path in runs:   # a compromised run's numbers are not the run's alone: said, and non-zero
-        for line in bag_intrusions(path):
-            print(f'adcs-analyze: {path}: WARNING: run compromised: {line}', file=sys.stderr)
-            status = 1
+    status = max(status, _warn_compromised(runs))
     if args.json:
         print(json.dumps({p: jsonable_metrics(m) for p, m in results.items()}, indent=2))
     else:
