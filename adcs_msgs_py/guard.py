@@ -8,11 +8,14 @@
   callback is counted as a rejection of that message, never raised into the executor.
 * :class:`PublisherVetting`: the graph knows which node may publish on each topic a node listens
   to (``startup.publishers``, set by the runner from the scenario's sections). Before a message is
-  applied, the subscription's matched-publisher count is compared with the publishers already
-  vetted (an O(1) call); when it grew, the graph is looked up (node name, namespace and endpoint
-  GID of every publisher) and a publisher of a node that may not publish there is an
+  applied, the subscription's matched-publisher count is compared with the last look (an O(1)
+  call); when it changed, or the graph did not then list every matched publisher, the graph is
+  looked up (node name, namespace and endpoint GID of every publisher; waiting up to
+  GRAPH_SETTLE_S for their node names) and a publisher of a node that may not publish there is an
   :class:`Intruder`. A DDS reader matches a writer before it accepts any sample from it, so the
-  intruder is found before its first message is applied.
+  intruder is found before its first message is applied (but for a writer matched and not yet in
+  the graph cache: a window of the discovery's own latency). Node names are not authenticated:
+  a rogue that takes an allowed node's name is not told apart from it (that needs DDS Security).
 
   rclpy 7.1 (Jazzy) gives a callback the message info without the publisher's GID (added to
   rclpy in ros2/rclpy#1466, not in Jazzy's 7.1.x), so a message cannot be attributed to one
@@ -126,6 +129,7 @@ class PublisherVetting:
         self.on_intrusion = on_intrusion
         self.vetted: dict[str, set[str]] = {}      # topic -> GIDs of admitted publishers
         self.matched: dict[str, int] = {}          # topic -> matched publishers at the last look
+        self.listed: dict[str, int] = {}           # topic -> publishers the graph listed then
         self.compromised: set[str] = set()         # topics with an intruder and no per-message GID
         self.intruders: dict[str, Intruder] = {}   # gid -> intruder (every one found)
         self.refused: Counter[str] = Counter()     # messages not applied, per topic
@@ -149,7 +153,10 @@ class PublisherVetting:
                 self._inspect(topic, allowed, matched)
             ok = gid in self.vetted.get(topic, ())
         else:   # a publisher came or went since the last look: look again
-            if topic not in self.compromised and matched != self.matched.get(topic):
+            # (or the graph did not list every matched one then: one may have been discovered
+            # since, an intruder among them)
+            if topic not in self.compromised and (matched != self.matched.get(topic)
+                                                  or self.listed.get(topic, 0) < matched):
                 self._inspect(topic, allowed, matched)
             ok = topic not in self.compromised
         if not ok:
@@ -179,11 +186,13 @@ class PublisherVetting:
         deadline = time.monotonic() + GRAPH_SETTLE_S
         while True:
             infos = self._node.get_publishers_info_by_topic(topic)
-            settled = len(infos) >= matched and all(i.node_name != UNKNOWN_NODE for i in infos)
-            if settled or time.monotonic() > deadline:
+            # The graph lists an endpoint when it is discovered (as a reader matches it), its node
+            # name when the participant's ros_discovery_info arrives. (Matched counts are no guide:
+            # a stopped node stays matched for a while after it left the graph.)
+            if all(i.node_name != UNKNOWN_NODE for i in infos) or time.monotonic() > deadline:
                 break
             time.sleep(0.005)
-        self.matched[topic] = matched
+        self.matched[topic], self.listed[topic] = matched, len(infos)
         vetted = self.vetted[topic] = set()
         new = []
         for info in infos:
@@ -193,8 +202,6 @@ class PublisherVetting:
             elif gid not in self.intruders:
                 self.intruders[gid] = Intruder(topic, node, gid)
                 new.append(self.intruders[gid])
-        if len(infos) < matched:   # matched but never listed: nobody can vouch for it
-            new.append(Intruder(topic, '(unlisted)', ''))
         if new:
             self.compromised.add(topic)
             if self.on_intrusion is not None:

@@ -25,6 +25,7 @@ from conftest import ROOT
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import UNKNOWN_NODE, PublisherVetting
+from adcs_sim import bag as bagio
 from adcs_sim.app.analysis import RunData, bag_intrusions
 from adcs_sim.app.batch import BatchSimulation
 from adcs_sim.app.runner import allowed_publishers
@@ -89,7 +90,7 @@ def test_vetting_waits_for_a_publishers_name_and_filters_by_gid_when_rclpy_gives
     assert not vetting.admit(sub, {'publisher_gid': bytes([2] * 16)})   # the rogue's
     assert vetting.admit(sub, {'publisher_gid': {'data': [1] * 16}})    # topic still usable
     assert [i.node for i in found] == ['/rogue']
-    # a matched publisher still unnamed when the settle time is out is not vouched for
+    # a publisher still unnamed when the settle time is out is not vouched for
     graph2, found2 = FakeGraph(), []
     vetting2 = PublisherVetting(graph2, {'state': ['dynamics']}, found2.extend)
     graph2.add('/state', UNKNOWN_NODE, 5)
@@ -111,6 +112,8 @@ RUN_LIMIT_S = 240   # wall seconds: the run ends at the detection; this only tur
 
 
 def _rogue_message(topic: str, t_ns: int):
+    if topic == topics.APPLIED_TORQUE:
+        return cv.vector_to_msg(t_ns, [123.0, 456.0, 789.0])
     if topic == topics.WHEELS_CMD:
         return cv.wheel_cmd_to_msg(t_ns, ['rw_x', 'rw_y', 'rw_z'], effort=[MAX_TORQUE] * 3)
     if topic == topics.STATE:
@@ -119,7 +122,7 @@ def _rogue_message(topic: str, t_ns: int):
     return cv.faults_to_msg(0, {w: FaultState('failed') for w in ('rw_x', 'rw_y', 'rw_z')}, 0, 1)
 
 
-def _run_with_rogue(tmp_path, monkeypatch, topic: str, start_s: float = 2.0):
+def _run_with_rogue(tmp_path, monkeypatch, topic: str, start_s: float = 2.0, duration_s: float = DURATION_S):
     """adcs-run of the PD slew (long enough never to end first: DURATION_S) and, once its clock passes
     ``start_s``, a rogue node in this process publishing on ``topic`` for every state."""
     import rclpy
@@ -130,7 +133,7 @@ def _run_with_rogue(tmp_path, monkeypatch, topic: str, start_s: float = 2.0):
 
     out = tmp_path / 'run'
     runner = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.runner', str(ROOT / 'config/microsat_pd_slew.yaml'),
-                               '--out', str(out), '--duration', str(DURATION_S), '--no-progress'],
+                               '--out', str(out), '--duration', str(duration_s), '--no-progress'],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     try:
         line = ''
@@ -146,6 +149,8 @@ def _run_with_rogue(tmp_path, monkeypatch, topic: str, start_s: float = 2.0):
             executor = SingleThreadedExecutor(context=context)
             executor.add_node(node)
             rogue = {}
+            if start_s <= 0:   # there before the run's nodes
+                rogue['pub'] = node.create_publisher(topics.spec(topic).msg_type, topic, topics.spec(topic).qos)
 
             def on_clock(msg):
                 t_ns = cv.ns_from_stamp(msg.clock)
@@ -157,14 +162,17 @@ def _run_with_rogue(tmp_path, monkeypatch, topic: str, start_s: float = 2.0):
                 elif 'pub' in rogue and topic == topics.STATE:   # a spoofed state every step
                     rogue['pub'].publish(_rogue_message(topic, t_ns))
 
-            def on_state(msg):   # a maximum-torque command answering every state, stamped with it
-                if 'pub' in rogue and topic == topics.WHEELS_CMD:
-                    rogue['pub'].publish(_rogue_message(topic, cv.ns_from_stamp(msg.header.stamp)))
+            def on_state(msg):   # a maximum-torque command (or a record) answering every state, stamped with it
+                rogue['t_ns'] = cv.ns_from_stamp(msg.header.stamp)
+                if 'pub' in rogue and topic in (topics.WHEELS_CMD, topics.APPLIED_TORQUE):
+                    rogue['pub'].publish(_rogue_message(topic, rogue['t_ns']))
             node.create_subscription(Clock, topics.CLOCK, on_clock, topics.QOS_CLOCK)
             node.create_subscription(Odometry, topics.STATE, on_state, topics.QOS_LOCKSTEP)
             deadline = time.monotonic() + RUN_LIMIT_S
             while runner.poll() is None and time.monotonic() < deadline:
                 executor.spin_once(timeout_sec=0.1)
+                if topic == topics.APPLIED_TORQUE and 'pub' in rogue:   # a stream, states or not
+                    rogue['pub'].publish(_rogue_message(topic, rogue.get('t_ns', 0)))
             node.destroy_node()
         finally:
             rclpy.try_shutdown(context=context)
@@ -201,6 +209,22 @@ def test_rogue_publisher_is_detected_not_applied_and_named(tmp_path, monkeypatch
     analyzed = subprocess.run([sys.executable, '-m', 'adcs_sim.app.analyze', str(bag), '--no-report'],
                               capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert analyzed.returncode != 0 and 'run compromised' in analyzed.stderr and '/rogue' in analyzed.stderr
+
+
+def test_a_spoofed_record_is_quarantined_not_analysed(tmp_path, monkeypatch):
+    """actuators/torque is only recorded (nobody applies it): the run goes on, but the injected
+    torques (issue 17: peak torque [123, 456, 789], exit 0) never reach the analysed topic; the
+    recorder keeps everything of the compromised topic under quarantine/, and the run exits
+    non-zero naming the intruder."""
+    code, err, out = _run_with_rogue(tmp_path, monkeypatch, topics.APPLIED_TORQUE, start_s=0.0, duration_s=20.0)
+    assert code != 0 and 'run compromised' in err and '/rogue' in err and '/actuators/torque' in err, err
+    bag = out / 'bag'
+    recorded = {name: [m.vector.x for _, _, m in bagio.read_messages(bag, {name})]
+                for name in ('/actuators/torque', '/quarantine/actuators/torque')}
+    assert 123.0 not in recorded['/actuators/torque']
+    assert 123.0 in recorded['/quarantine/actuators/torque']
+    run = RunData.from_bag(bag)
+    assert len(run.t) == 21 and not np.any(run.u == 123.0)
 
 
 # --- DDS Security (SROS2) -------------------------------------------------------------------------
