@@ -8,7 +8,8 @@ Inf, huge values, negative and out-of-range stamps, wrong lengths, unknown and r
 unknown fault modes, garbage key/values, and (for the recorder's raw subscriptions) arbitrary
 bytes. For each message, when the interface's conversion refuses it the node's rejection count
 grows by one. Then the fuzzed graph runs its lockstep loop to the end (the dynamics node, the PD
-controller, the recorder and the fault injector of the PD slew) and the recorded state is finite.
+controller, the recorder and the fault injector of the PD slew), the plant state is finite and the
+recorder closes a readable bag.
 """
 from __future__ import annotations
 
@@ -214,6 +215,9 @@ def test_the_fuzzed_graph_runs_to_the_end(graphs):
     counts = rec.bag.topics
     graph.spin_until(lambda: counts['/dynamics/status'].count >= 2 and counts['/state'].count >= steps + 1)
     rec.close()
+    assert np.all(np.isfinite(dyn.x))   # the plant: only validated commands reached it
+    # the bag reads back (it also holds the fuzzed messages the recorder was given and accepted:
+    # the recorder records what comes with a valid stamp, it does not judge content)
     run = RunData.from_bag(bag_dir)
-    assert len(run.t) >= steps + 1 and np.all(np.isfinite(run.q)) and np.all(np.isfinite(run.w))
+    assert len(run.t) >= steps + 1
     assert 'recorder.rejected_messages' in (bag_dir / 'metadata.yaml').read_text()
