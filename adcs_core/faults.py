@@ -12,12 +12,29 @@ applied at the next step boundary and counted as *late*.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
+
+class FaultState(NamedTuple):
+    """One actuator's fault state in a snapshot: ``mode`` (FAULT_ERROR_MODES or FAULT_OK_MODES),
+    ``value`` (degraded torque limit or bias torque, N m; 0 otherwise) and ``time`` (s) of its
+    last event. A snapshot is ``{actuator name: FaultState}``: the schedule's
+    (:func:`adcs_sim.truth.fault_schedule.fault_schedule`) and a ``faults`` message's
+    (:func:`adcs_msgs_py.conversions.faults_from_msg`) alike."""
+
+    mode: str
+    value: float = 0.0
+    time: float = 0.0
+
+
+NOMINAL = FaultState('nominal')
+
 
 class FaultTracker:
     """Received fault snapshots and which one applies at a step."""
 
     def __init__(self) -> None:
-        self.snapshots: dict[int, tuple[int, dict]] = {}  # event index -> (t_ns, {name: (mode, value)})
+        self.snapshots: dict[int, tuple[int, dict]] = {}  # event index -> (t_ns, {name: FaultState})
         self.events: int | None = None
         self.applied = -1           # index of the snapshot in force
         self._current: int | None = None

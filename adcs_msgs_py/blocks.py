@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from adcs_core.inertia import check_inertia, inertia_matrix
+from adcs_msgs_py.names import parse_publishers
 from adcs_msgs_py.params import Param, ParameterError, all_non_negative, all_positive, non_negative, positive
 
 UNIT_TOLERANCE = 1e-3  # an initial quaternion further than this from unit norm is refused
@@ -129,12 +130,24 @@ def check_thrusters(v: dict) -> None:
                              f'got {np.shape(v["thrusters.max_force"])[-1:]}')
 
 
+def _check_publishers(entries) -> str | None:
+    try:
+        parse_publishers(entries)
+    except ValueError as exc:
+        return str(exc)
+    return None
+
+
 def startup_params() -> list[Param]:
     return [
         Param('startup.expect_recorder', 'bool', default=False,
               doc='wait until a recorder is subscribed to every topic this node publishes'),
         Param('startup.timeout', 'double', default=60.0, check=positive,
               doc='wall seconds to wait for the graph to connect before giving up'),
+        Param('startup.publishers', 'string_array', default=[], check=_check_publishers,
+              doc='which nodes may publish on each topic this node listens to, as '
+                  '"topic=node[,node...]" ("faults=": nobody); a publisher of another node is an '
+                  'intruder (adcs_msgs_py.guard); the runner sets it from the scenario; empty: not checked'),
     ]
 
 

@@ -9,6 +9,7 @@ catch it through :class:`adcs_msgs_py.guard.RejectCounter`, which counts and war
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -20,7 +21,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from adcs_core.attitude import quat_norm
-from adcs_core.faults import FAULT_ERROR_MODES, FAULT_OK_MODES
+from adcs_core.faults import FAULT_ERROR_MODES, FAULT_OK_MODES, FaultState
 
 NS_PER_S = 1_000_000_000
 # A quaternion whose norm is further than this from 1 is rejected (not silently renormalised).
@@ -48,6 +49,33 @@ def stamp_from_ns(t_ns: int) -> Time:
 def ns_from_stamp(stamp: Time) -> int:
     """builtin_interfaces/Time -> integer nanoseconds."""
     return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
+
+
+def checked_stamp(topic: str, stamp: Time) -> int:
+    """A received ``builtin_interfaces/Time`` -> integer nanoseconds; InvalidMessage for a stamp
+    simulated time never has: negative seconds, or nanoseconds outside [0, 1e9)."""
+    return _checked_ns(topic, int(stamp.sec), int(stamp.nanosec))
+
+
+def _checked_ns(topic: str, sec: int, nanosec: int) -> int:
+    if sec < 0 or not 0 <= nanosec < NS_PER_S:
+        raise InvalidMessage(f'{topic}: stamp out of range (sec {sec}, nanosec {nanosec})')
+    return sec * NS_PER_S + nanosec
+
+
+def clock_from_msg(msg: Clock) -> int:
+    """A received ``/clock`` -> simulated time (ns); InvalidMessage for an out-of-range stamp."""
+    return checked_stamp('/clock', msg.clock)
+
+
+def checked_cdr_stamp(topic: str, data: bytes) -> int:
+    """Stamp (ns) of a serialized message whose first field is a ``builtin_interfaces/Time`` (every
+    topic of the graph), read from the CDR bytes (4-byte encapsulation header, int32 sec, uint32
+    nanosec) and checked as :func:`checked_stamp`; InvalidMessage for too short a message."""
+    if len(data) < 12:
+        raise InvalidMessage(f'{topic}: {len(data)} bytes, too short for a stamped message')
+    sec, nanosec = struct.unpack_from('<iI' if data[1] & 1 else '>iI', data, 4)
+    return _checked_ns(topic, sec, nanosec)
 
 
 def ns_from_seconds(t: float) -> int:
@@ -108,7 +136,7 @@ def state_from_msg(msg: Odometry) -> tuple[int, np.ndarray, np.ndarray]:
     q = checked_quaternion('state.pose.orientation', (o.x, o.y, o.z, o.w))
     a = msg.twist.twist.angular
     w = _finite('state.twist.angular', (a.x, a.y, a.z), 3)
-    return ns_from_stamp(msg.header.stamp), q, w
+    return checked_stamp('state', msg.header.stamp), q, w
 
 
 # --- wheels -------------------------------------------------------------------------------
@@ -140,7 +168,7 @@ def _joint_state_from_msg(topic: str, msg: JointState):
     """(t_ns, names, position, velocity, effort) of a per-actuator JointState, each array finite
     and one value per name (else InvalidMessage naming ``topic`` and the field)."""
     n = len(msg.name)
-    return (ns_from_stamp(msg.header.stamp), list(msg.name), _finite(f'{topic}.position', msg.position, n),
+    return (checked_stamp(topic, msg.header.stamp), list(msg.name), _finite(f'{topic}.position', msg.position, n),
             _finite(f'{topic}.velocity', msg.velocity, n), _finite(f'{topic}.effort', msg.effort, n))
 
 
@@ -198,7 +226,7 @@ def wheel_cmd_from_msg(msg: JointState, known: Mapping[str, int]) -> tuple[int, 
     else:
         values, mode = _finite('wheels/cmd.velocity', msg.velocity, len(names)), 'speed'
     index = np.array([known[n] for n in names], dtype=int)
-    return ns_from_stamp(msg.header.stamp), index, values, mode
+    return checked_stamp('wheels/cmd', msg.header.stamp), index, values, mode
 
 
 # --- thrusters (seed 002) --------------------------------------------------------------------
@@ -230,7 +258,7 @@ def thruster_cmd_from_msg(msg: JointState, known: Mapping[str, int]) -> tuple[in
     if any(v < 0.0 for v in on_time):
         raise InvalidMessage(f'thrusters/cmd.effort: negative on-time in {on_time.tolist()}')
     index = np.array([known[n] for n in names], dtype=int)
-    return ns_from_stamp(msg.header.stamp), index, on_time
+    return checked_stamp('thrusters/cmd', msg.header.stamp), index, on_time
 
 
 def thruster_state_to_msg(t_ns: int, names: Sequence[str], impulse, on_time, force,
@@ -259,7 +287,7 @@ def vector_to_msg(t_ns: int, v, frame_id: str = BODY_FRAME) -> Vector3Stamped:
 def vector_from_msg(msg: Vector3Stamped, name: str = 'torque_cmd') -> tuple[int, np.ndarray]:
     """geometry_msgs/Vector3Stamped -> (t_ns, vector); raises InvalidMessage."""
     v = msg.vector
-    return ns_from_stamp(msg.header.stamp), _finite(f'{name}.vector', (v.x, v.y, v.z), 3)
+    return checked_stamp(name, msg.header.stamp), _finite(f'{name}.vector', (v.x, v.y, v.z), 3)
 
 
 # --- status (DiagnosticArray) ----------------------------------------------------------------
@@ -294,14 +322,14 @@ def status_values(status: DiagnosticStatus) -> dict[str, object]:
 
 
 
-def faults_to_msg(t_ns: int, snapshot: Mapping[str, tuple], event: int, events: int) -> DiagnosticArray:
+def faults_to_msg(t_ns: int, snapshot: Mapping[str, FaultState], event: int, events: int) -> DiagnosticArray:
     """The fault state of every actuator at ``t_ns``: one status per actuator (name = actuator,
     level ERROR for a fault and OK for nominal/recovered, message = mode) with key/values
     ``mode``, ``value``, ``time`` (of its last event, s) and the schedule position ``event`` of
     ``events`` (so a subscriber knows when it has the whole schedule)."""
     msg = DiagnosticArray()
     msg.header.stamp = stamp_from_ns(t_ns)
-    for name, (mode, value, t) in snapshot.items():
+    for name, (mode, value, t) in snapshot.items():   # FaultState fields
         level = 'ERROR' if mode in FAULT_ERROR_MODES else 'OK'
         status = DiagnosticStatus(level=STATUS_LEVELS[level], name=name, message=mode,
                                   hardware_id='fault_injector')
@@ -314,24 +342,50 @@ def faults_to_msg(t_ns: int, snapshot: Mapping[str, tuple], event: int, events: 
 
 
 def faults_from_msg(msg: DiagnosticArray, known: Mapping[str, int]
-                    ) -> tuple[int, int, int, dict[str, tuple[str, float]]]:
-    """``(t_ns, event, events, {actuator: (mode, value)})`` of a ``faults`` message; ValueError
-    for an unknown actuator or mode, a non-finite value or a missing key."""
-    out: dict[str, tuple[str, float]] = {}
-    event = events = -1
+                    ) -> tuple[int, int, int, dict[str, FaultState]]:
+    """``(t_ns, event, events, {actuator: FaultState})`` of a ``faults`` message; InvalidMessage
+    for an out-of-range stamp, no status, an unknown or repeated actuator, an unknown mode, a
+    non-finite or (degraded) negative value, or a schedule position that is missing, out of
+    ``0 <= event < events <= MAX_FAULT_EVENTS`` or differs between the statuses."""
+    t_ns = checked_stamp('faults', msg.header.stamp)
+    if not msg.status:
+        raise InvalidMessage('faults: no actuator status')
+    out: dict[str, FaultState] = {}
+    positions = set()
     for status in msg.status:
-        if status.name not in known:
-            raise ValueError(f'faults: unknown actuator {status.name!r} (known: {sorted(known)})')
-        values = {kv.key: kv.value for kv in status.values}
-        mode = values.get('mode', status.message)
-        if mode not in FAULT_ERROR_MODES + FAULT_OK_MODES:
-            raise ValueError(f'faults: unknown mode {mode!r} for {status.name!r}')
-        try:
-            value = float(values.get('value', '0'))
-            event, events = int(values.get('event', '-1')), int(values.get('events', '-1'))
-        except ValueError as exc:
-            raise ValueError(f'faults: bad value for {status.name!r}: {exc}') from None
-        if not math.isfinite(value):
-            raise ValueError(f'faults: non-finite value {value!r} for {status.name!r}')
-        out[status.name] = (mode, value)
-    return ns_from_stamp(msg.header.stamp), event, events, out
+        name, state, position = _fault_status(status, known)
+        if name in out:
+            raise InvalidMessage(f'faults: actuator {name!r} named twice')
+        out[name] = state
+        positions.add(position)
+    if len(positions) != 1:
+        raise InvalidMessage(f'faults: the statuses disagree on the schedule position {sorted(positions)}')
+    event, events = positions.pop()
+    return t_ns, event, events, out
+
+
+MAX_FAULT_EVENTS = 100  # snapshots in a schedule: the depth of the latched faults topic
+
+
+def _fault_status(status: DiagnosticStatus, known: Mapping[str, int]) -> tuple[str, FaultState, tuple[int, int]]:
+    """``(actuator, FaultState, (event, events))`` of one status of a ``faults`` message."""
+    name = status.name
+    if name not in known:
+        raise InvalidMessage(f'faults: unknown actuator {name!r} (known: {sorted(known)})')
+    values = {kv.key: kv.value for kv in status.values}
+    mode = values.get('mode', status.message)
+    if mode not in FAULT_ERROR_MODES + FAULT_OK_MODES:
+        raise InvalidMessage(f'faults: unknown mode {mode!r} for {name!r}')
+    try:
+        value, t = float(values.get('value', '0')), float(values.get('time', '0'))
+        event, events = int(values['event']), int(values['events'])
+    except (KeyError, ValueError, OverflowError) as exc:
+        raise InvalidMessage(f'faults: bad or missing key/value for {name!r}: {exc}') from None
+    if not math.isfinite(value) or (mode == 'degraded' and value < 0.0):
+        raise InvalidMessage(f'faults: value {value!r} is not valid for {name!r} ({mode})')
+    if not (math.isfinite(t) and t >= 0.0):
+        raise InvalidMessage(f'faults: event time {t!r} of {name!r} is not a finite time >= 0')
+    if not 0 <= event < events <= MAX_FAULT_EVENTS:
+        raise InvalidMessage(f'faults: schedule position {event} of {events} for {name!r} is out of '
+                             f'0 <= event < events <= {MAX_FAULT_EVENTS}')
+    return name, FaultState(mode, value, t), (event, events)

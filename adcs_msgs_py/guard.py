@@ -1,20 +1,43 @@
-"""Reject, count and warn: how a node survives a bad message.
+"""Reject, count and warn: how a node survives a bad message, and keeps out a foreign publisher.
 
-A node wraps each conversion of an incoming message in :meth:`RejectCounter.accept`; an
-:class:`~adcs_msgs_py.conversions.InvalidMessage` is counted per topic and logged as a throttled
-warning, and the callback simply returns. Nothing downstream ever sees a NaN.
+* :class:`RejectCounter`: a node wraps each conversion of an incoming message in
+  :meth:`RejectCounter.accept`; an :class:`~adcs_msgs_py.conversions.InvalidMessage` is counted
+  per topic and logged as a throttled warning, and the callback simply returns. Nothing
+  downstream ever sees a NaN. :meth:`RejectCounter.guarded` is the last line of every
+  subscription callback (:meth:`adcs_msgs_py.node.AdcsNode.subscription`): whatever escapes the
+  callback is counted as a rejection of that message, never raised into the executor.
+* :class:`PublisherVetting`: the graph knows which node may publish on each topic a node listens
+  to (``startup.publishers``, set by the runner from the scenario's sections). Before a message is
+  applied, the subscription's matched-publisher count is compared with the last look (an O(1)
+  call); when it changed, or the graph did not then list every matched publisher, the graph is
+  looked up (node name, namespace and endpoint GID of every publisher; waiting up to
+  GRAPH_SETTLE_S for their node names) and a publisher of a node that may not publish there is an
+  :class:`Intruder`. A DDS reader matches a writer before it accepts any sample from it, so the
+  intruder is found before its first message is applied (but for a writer matched and not yet in
+  the graph cache: a window of the discovery's own latency). Node names are not authenticated:
+  a rogue that takes an allowed node's name is not told apart from it (that needs DDS Security).
+
+  rclpy 7.1 (Jazzy) gives a callback the message info without the publisher's GID (added to
+  rclpy in ros2/rclpy#1466, not in Jazzy's 7.1.x), so a message cannot be attributed to one
+  publisher: once an intruder is matched on a topic, no message on it can be trusted and the topic
+  is *compromised* (nothing more is applied from it). Where the info carries ``publisher_gid``,
+  messages are filtered one by one instead, and the topic stays usable.
 """
 from __future__ import annotations
 
+import time
 from collections import Counter
-from collections.abc import Callable
-from typing import TypeVar
+from collections.abc import Callable, Iterable, Mapping
+from typing import NamedTuple, TypeVar
 
 from adcs_msgs_py.conversions import InvalidMessage
+from adcs_msgs_py.names import RUN_NODES, format_publishers, parse_publishers  # noqa: F401 (re-exported)
 
 T = TypeVar('T')
 
 WARN_THROTTLE_S = 5.0
+GRAPH_SETTLE_S = 5.0   # how long a new publisher may stay unnamed in the graph cache (discovery, under load)
+UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'  # what rmw reports before a participant's node names arrive
 
 
 class RejectCounter:
@@ -43,3 +66,143 @@ class RejectCounter:
         except InvalidMessage as exc:
             self.reject(topic, str(exc))
             return None
+
+    def guarded(self, topic: str, callback: Callable[[object], None], msg) -> None:
+        """``callback(msg)``; any exception it raises is a rejection of ``msg`` (counted, warned),
+        never an exception out of the executor. (KeyboardInterrupt and the executor's shutdown
+        are BaseExceptions: they go through.)"""
+        try:
+            callback(msg)
+        except Exception as exc:  # noqa: BLE001 - the validation boundary: nothing escapes a callback
+            self.reject(topic, f'{type(exc).__name__}: {exc}')
+
+
+# --- publishers -----------------------------------------------------------------------------
+
+class Intruder(NamedTuple):
+    """A publisher on a topic that its node may not publish on."""
+
+    topic: str
+    node: str          # fully qualified node name (namespace/name)
+    gid: str           # endpoint GID, hex
+
+    def describe(self) -> str:
+        return f'node {self.node} (publisher GID {self.gid}) on {self.topic}'
+
+
+class IntrusionDetected(RuntimeError):
+    """Raised by :meth:`PublisherVetting.admit` when the node stops on an intrusion."""
+
+    def __init__(self, intruders: list[Intruder], allowed: Iterable[str]) -> None:
+        self.intruders = intruders
+        names = ', '.join(sorted(allowed)) or 'no node'
+        super().__init__('; '.join(i.describe() for i in intruders) + f' (allowed: {names})')
+
+
+def _gid_hex(gid) -> str:
+    if isinstance(gid, Mapping):   # a future rclpy may give {'implementation_identifier', 'data'}
+        gid = gid.get('data', b'')
+    return bytes(gid).hex()
+
+
+def _full_name(namespace: str, name: str) -> str:
+    return f'{namespace.rstrip("/")}/{name}'
+
+
+class PublisherVetting:
+    """Which publishers a node admits on each of its vetted topics (see the module doc).
+
+    ``allowed``: ``{topic: node names}`` with topics as the node names them (relative names are
+    resolved in the node's namespace, as are the allowed node names). ``on_intrusion(intruders)``
+    is called once per newly found intruder set (the recorder records it; the other nodes stop).
+    """
+
+    def __init__(self, node, allowed: Mapping[str, Iterable[str]],
+                 on_intrusion: Callable[[list[Intruder]], None] | None = None) -> None:
+        self._node = node
+        ns = node.get_namespace()
+        self.allowed = {node.resolve_topic_name(t): frozenset(_full_name(ns, n) for n in names)
+                        for t, names in allowed.items() if t != RUN_NODES}
+        # every node of the run (RUN_NODES entry): whose subscriptions the start-up handshake counts
+        self.run_nodes = (frozenset(_full_name(ns, n) for n in allowed[RUN_NODES])
+                          if RUN_NODES in allowed else None)
+        self.on_intrusion = on_intrusion
+        self.vetted: dict[str, set[str]] = {}      # topic -> GIDs of admitted publishers
+        self.matched: dict[str, int] = {}          # topic -> matched publishers at the last look
+        self.listed: dict[str, int] = {}           # topic -> publishers the graph listed then
+        self.compromised: set[str] = set()         # topics with an intruder and no per-message GID
+        self.intruders: dict[str, Intruder] = {}   # gid -> intruder (every one found)
+        self.refused: Counter[str] = Counter()     # messages not applied, per topic
+
+    @property
+    def active(self) -> bool:
+        return bool(self.allowed)
+
+    def admit(self, sub, info: Mapping | None = None, topic: str | None = None) -> bool:
+        """Whether the message just taken on ``sub`` (with message info ``info``) may be applied
+        (``topic``: its resolved name, if the caller has it at hand)."""
+        topic = topic or sub.topic_name
+        allowed = self.allowed.get(topic)
+        if allowed is None:
+            return True
+        gid = info.get('publisher_gid') if info else None
+        matched = sub.get_publisher_count()
+        if gid is not None:   # per-message attribution (rclpy with MessageInfo.publisher_gid)
+            gid = _gid_hex(gid)
+            if gid not in self.vetted.get(topic, ()) and gid not in self.intruders:
+                self._inspect(topic, allowed, matched)
+            ok = gid in self.vetted.get(topic, ())
+        else:   # a publisher came or went since the last look: look again
+            # (or the graph did not list every matched one then: one may have been discovered
+            # since, an intruder among them)
+            if topic not in self.compromised and (matched != self.matched.get(topic)
+                                                  or self.listed.get(topic, 0) < matched):
+                self._inspect(topic, allowed, matched)
+            ok = topic not in self.compromised
+        if not ok:
+            self.refused[topic] += 1
+        return ok
+
+    def subscribers(self, topic: str) -> tuple[int, int]:
+        """``(of the run, others)``: the subscriptions to ``topic`` in the graph, by node (one
+        whose node name has not arrived yet counts as another's)."""
+        infos = self._node.get_subscriptions_info_by_topic(topic)
+        own = sum(_full_name(i.node_namespace, i.node_name) in self.run_nodes for i in infos)
+        return own, len(infos) - own
+
+    def sweep(self, subs) -> None:
+        """Look every vetted subscription of ``subs`` up in the graph, message or not, count
+        changed or not (one publisher leaving as another joins keeps the count): for a node that
+        must record an intruder that sent nothing through it (the recorder, periodically)."""
+        for sub in subs:
+            topic = sub.topic_name
+            allowed = self.allowed.get(topic)
+            if allowed is not None and topic not in self.compromised:
+                self._inspect(topic, allowed, sub.get_publisher_count())
+
+    def _inspect(self, topic: str, allowed: frozenset[str], matched: int) -> None:
+        """Look the topic's publishers up in the graph (waiting up to GRAPH_SETTLE_S for every
+        matched one to be listed with its node name) and sort them into vetted and intruders."""
+        deadline = time.monotonic() + GRAPH_SETTLE_S
+        while True:
+            infos = self._node.get_publishers_info_by_topic(topic)
+            # The graph lists an endpoint when it is discovered (as a reader matches it), its node
+            # name when the participant's ros_discovery_info arrives. (Matched counts are no guide:
+            # a stopped node stays matched for a while after it left the graph.)
+            if all(i.node_name != UNKNOWN_NODE for i in infos) or time.monotonic() > deadline:
+                break
+            time.sleep(0.005)
+        self.matched[topic], self.listed[topic] = matched, len(infos)
+        vetted = self.vetted[topic] = set()
+        new = []
+        for info in infos:
+            gid, node = _gid_hex(info.endpoint_gid), _full_name(info.node_namespace, info.node_name)
+            if node in allowed:
+                vetted.add(gid)
+            elif gid not in self.intruders:
+                self.intruders[gid] = Intruder(topic, node, gid)
+                new.append(self.intruders[gid])
+        if new:
+            self.compromised.add(topic)
+            if self.on_intrusion is not None:
+                self.on_intrusion(new)

@@ -2,6 +2,10 @@
 
 :mod:`adcs_msgs_py.topics` pairs each name with its message type and QoS.
 """
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+
 CLOCK = '/clock'
 STATE = 'state'
 TRUTH_STATE = 'truth/state'
@@ -18,4 +22,35 @@ DYNAMICS_STATUS = 'dynamics/status'
 
 # Command topics a controller may answer a state with (what the dynamics node can wait for).
 COMMAND_TOPICS = (WHEELS_CMD, TORQUE_CMD, THRUSTERS_CMD)
+
+RUN_NODES = '*'  # the startup.publishers entry naming every node of the run (whose subscriptions count)
+INTRUSIONS = 'intrusions'  # written by the recorder into the bag: publishers the run does not allow
+QUARANTINE_PREFIX = 'quarantine'  # the recorder keeps a compromised topic's messages under quarantine/<topic>
+
+# Who may publish on each topic a node of the graph listens to, by role (the scenario's sections
+# say which nodes of each role run; a node's name is its section's name). An empty tuple: nobody.
+PUBLISHER_ROLES: dict[str, tuple[str, ...]] = {
+    CLOCK: ('dynamics',), STATE: ('dynamics',), TRUTH_STATE: ('dynamics',), WHEELS_STATE: ('dynamics',),
+    THRUSTERS_STATE: ('dynamics',), APPLIED_TORQUE: ('dynamics',), DYNAMICS_STATUS: ('dynamics',),
+    WHEELS_CMD: ('controller',), TORQUE_CMD: ('controller',), THRUSTERS_CMD: ('controller',),
+    CONTROLLER_STATUS: ('controller',), FAULTS: ('faults',), REFERENCE: (),
+}
+
+
+def parse_publishers(entries: Iterable[str]) -> dict[str, frozenset[str]]:
+    """``['topic=node,node', 'faults=']`` -> ``{topic: {node, ...}}`` (an empty list: nobody may
+    publish there); ValueError naming a malformed entry."""
+    out: dict[str, frozenset[str]] = {}
+    for entry in entries:
+        topic, sep, nodes = entry.partition('=')
+        if not sep or not topic.strip():
+            raise ValueError(f'{entry!r} is not "topic=node[,node...]"')
+        out[topic.strip()] = frozenset(n.strip() for n in nodes.split(',') if n.strip())
+    return out
+
+
+def format_publishers(allowed: Mapping[str, Iterable[str]]) -> list[str]:
+    """Inverse of :func:`parse_publishers`."""
+    return [f'{topic}={",".join(sorted(nodes))}' for topic, nodes in sorted(allowed.items())]
+
 

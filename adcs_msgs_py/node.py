@@ -27,10 +27,12 @@ from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 
 from adcs_msgs_py import topics
+from adcs_msgs_py.guard import Intruder, IntrusionDetected, PublisherVetting, RejectCounter, parse_publishers
 from adcs_msgs_py.params import ParameterError, Schema, load_params_file
 
 EXIT_BAD_PARAMETERS = 2
 EXIT_GRAPH_TIMEOUT = 3
+EXIT_INTRUSION = 4   # a publisher the run does not allow was matched on a topic this node applies
 
 
 class GraphTimeout(RuntimeError):
@@ -72,6 +74,30 @@ class AdcsNode(Node):
         given = {name: _plain(p.value) for name, p in self.get_parameters_by_prefix('').items()
                  if p.type_ != p.Type.NOT_SET}
         self.params = schema.validate(given)
+        self.rejects = RejectCounter(self.get_logger())
+        self.vetting = PublisherVetting(self, parse_publishers(self.params.get('startup.publishers', [])),
+                                        self.on_intrusion)
+
+    # --- the validation boundary of every incoming message ----------------------------------
+
+    #: A node that acts on what it receives stops (exit status EXIT_INTRUSION) when an intruder is
+    #: matched on one of its topics: without the publisher's GID in the message info (rclpy 7.1)
+    #: no further message on that topic can be attributed. The recorder records instead.
+    stop_on_intrusion = True
+
+    def on_intrusion(self, intruders: list[Intruder]) -> None:
+        """An intruder was matched on a vetted topic (before any of its messages was applied)."""
+        for intruder in intruders:
+            self.get_logger().error(f'intrusion: {intruder.describe()} may not publish there; '
+                                    'its messages are not applied')
+        if self.stop_on_intrusion:
+            topic = intruders[0].topic
+            raise IntrusionDetected(intruders, self.vetting.allowed.get(topic, ()))
+
+    def on_refused(self, topic: str, msg) -> None:  # noqa: ARG002
+        """A message on a compromised topic (or from an intruder's GID): not applied."""
+        self.get_logger().warning(f'message on compromised topic {topic} not applied '
+                                  f'({self.vetting.refused[topic]} so far)', throttle_duration_sec=5.0)
 
     # Endpoints are created without rclpy's default QoS-event handlers: each adds a waitable to
     # every spin of the lockstep loop (a lean node spins in ~140 us instead of ~250 us). A QoS
@@ -83,11 +109,27 @@ class AdcsNode(Node):
                                      event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
 
     def subscription(self, name: str, callback, qos=None, msg_type=None, raw: bool = False):
-        """Subscription to a graph topic (the interface's type and subscriber QoS unless given)."""
+        """Subscription to a graph topic (the interface's type and subscriber QoS unless given).
+
+        ``callback(msg)`` runs behind the validation boundary: only messages of admitted
+        publishers (:class:`~adcs_msgs_py.guard.PublisherVetting`) reach it, and whatever it
+        raises is counted as a rejected message (:meth:`~adcs_msgs_py.guard.RejectCounter.guarded`)."""
         s = topics.TOPICS.get(name)
-        return self.create_subscription(
-            msg_type or s.msg_type, name, callback, qos or topics.subscriber_qos(s.qos), raw=raw,
+        sub = None
+        vetting, rejects = self.vetting, self.rejects
+        resolved = self.resolve_topic_name(name)
+        vetted = resolved in vetting.allowed
+
+        def on_message(msg, info) -> None:
+            if vetted and not vetting.admit(sub, info, resolved):
+                self.on_refused(resolved, msg)
+                return
+            rejects.guarded(name, callback, msg)
+
+        sub = self.create_subscription(
+            msg_type or s.msg_type, name, on_message, qos or topics.subscriber_qos(s.qos), raw=raw,
             event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
+        return sub
 
     def wait_for(self, what: str, ready: Callable[[], bool], timeout: float) -> None:
         """Block until ``ready()`` or raise GraphTimeout naming ``what`` after ``timeout`` s."""
@@ -122,11 +164,21 @@ class AdcsNode(Node):
             self.wait_acked(publishers, timeout)
 
     def wait_for_publishers(self, required: dict, timeout: float) -> None:
-        """Wait until each publisher has at least the given number of matched subscriptions."""
+        """Wait until each publisher has at least the given number of matched subscriptions. When
+        the node knows the run's nodes (``startup.publishers``), of THEIR subscriptions: a
+        foreign subscriber (an eavesdropper) must not make the count and start the run before a
+        node of it can receive (it would miss the first state)."""
         for pub, count in required.items():
             if count > 0:
                 self.wait_for(f'{count} subscriber(s) on {pub.topic_name}',
-                              lambda p=pub, c=count: p.get_subscription_count() >= c, timeout)
+                              lambda p=pub, c=count: self._subscribed(p, c), timeout)
+
+    def _subscribed(self, pub, count: int) -> bool:
+        matched = pub.get_subscription_count()
+        if matched < count or self.vetting.run_nodes is None:
+            return matched >= count
+        own, others = self.vetting.subscribers(pub.topic_name)
+        return own >= count and matched >= count + others
 
     def close(self) -> None:
         """Release resources (files); called once on the way out, whatever happened."""
@@ -175,6 +227,9 @@ def main_for(node_class: type[AdcsNode], args=None, handle_signals: bool = True)
     except GraphTimeout as exc:
         print(f'error: {exc}', file=sys.stderr, flush=True)
         status = EXIT_GRAPH_TIMEOUT
+    except IntrusionDetected as exc:
+        print(f'error: run compromised: {exc}', file=sys.stderr, flush=True)
+        status = EXIT_INTRUSION
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from adcs_core.attitude import matvec
-from adcs_core.faults import FAULT_UNUSABLE_MODES
+from adcs_core.faults import FAULT_UNUSABLE_MODES, NOMINAL
 
 
 def wheel_allocation_matrix(axes: np.ndarray, available: np.ndarray | None = None) -> np.ndarray:
@@ -86,10 +86,10 @@ class Actuation:
         self.allocation = wheel_allocation_matrix(self.axes, self.available)
 
     def follow_faults(self, snapshot) -> bool:
-        """Allocate over the wheels a fault snapshot ``{wheel name: (mode, ...)}`` leaves usable
+        """Allocate over the wheels a fault snapshot ``{wheel name: FaultState}`` leaves usable
         (not ``failed`` or ``stuck``; a wheel it does not name stays usable). Returns whether the
         usable wheels changed (the node and the batch engine then tell the law)."""
-        available = np.array([snapshot.get(n, ('nominal',))[0] not in FAULT_UNUSABLE_MODES
+        available = np.array([snapshot.get(n, NOMINAL).mode not in FAULT_UNUSABLE_MODES
                               for n in self.wheel_names])
         if np.array_equal(available, self.available):
             return False

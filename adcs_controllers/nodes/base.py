@@ -38,7 +38,6 @@ from adcs_controllers.laws.base import LawOutputRejected, checked_control
 from adcs_core.faults import FaultTracker
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
-from adcs_msgs_py.guard import RejectCounter
 from adcs_msgs_py.node import AdcsNode
 
 
@@ -81,7 +80,6 @@ class ControllerNode(AdcsNode):
         p = self.params
         self.law, self.actuation = self.family.build(p)
         self.actuator = p['actuator']
-        self.rejects = RejectCounter(self.get_logger())
         if self.actuator == 'wheels':
             self.wheel_names = self.actuation.wheel_names
         self.pub_cmd = self.publisher(topics.WHEELS_CMD if self.actuator == 'wheels' else topics.TORQUE_CMD)

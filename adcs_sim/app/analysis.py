@@ -52,6 +52,8 @@ from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213, poi
 from adcs_msgs_py import names as topics
 from adcs_sim.bag.batches import ColumnReader
 from adcs_sim.bag.columns import decode_batch, decode_diagnostics
+from adcs_sim.bag.reader import read_raw
+from adcs_sim.bag.storage import typestore
 
 NS = 1e-9
 
@@ -550,3 +552,20 @@ def format_metrics(metrics: dict) -> str:
         return str(v)
     width = max(len(k) for k in metrics)
     return '\n'.join(f'  {k:<{width}}  {fmt(v)}' for k, v in metrics.items())
+
+
+def bag_intrusions(bag) -> list[str]:
+    """What the recorder wrote on ``intrusions`` (publishers the run did not allow: the run is
+    compromised, adcs_msgs_py.guard): one line per intruder (node, topic, GID, who was allowed)."""
+    out = []
+    try:
+        for topic, type_name, _, data in read_raw(bag):
+            if topic.rsplit('/', 1)[-1] != topics.INTRUSIONS:
+                continue
+            for status in typestore().deserialize_cdr(data, type_name).status:
+                kv = {v.key: v.value for v in status.values}
+                out.append(f'intruder node {kv.get("node", "?")} published on {kv.get("topic", "?")} '
+                           f'(GID {kv.get("gid", "?")}; allowed: {kv.get("allowed", "?")})')
+    except (OSError, ValueError):
+        pass
+    return list(dict.fromkeys(out))

@@ -24,7 +24,7 @@ import json
 import sys
 from pathlib import Path
 
-from adcs_sim.app.analysis import format_metrics, jsonable_metrics, run_metrics
+from adcs_sim.app.analysis import bag_intrusions, format_metrics, jsonable_metrics, run_metrics
 from adcs_sim.app.report.loading import BagError, default_report_dir, load_run
 
 
@@ -51,6 +51,16 @@ def _load(paths: list[str]) -> tuple[dict, int]:
     return runs, status
 
 
+def _warn_compromised(paths) -> int:
+    """A compromised run's numbers are not the run's alone (its bag has ``intrusions``): said on
+    stderr, and exit status 1."""
+    lines = [f'adcs-analyze: {path}: WARNING: run compromised: {line}' for path in paths
+             for line in bag_intrusions(path)]
+    for line in lines:
+        print(line, file=sys.stderr)
+    return 1 if lines else 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog='adcs-analyze', description=__doc__.splitlines()[0])
     parser.add_argument('bags', nargs='+', help='bag folder(s) or .mcap file(s)')
@@ -71,6 +81,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     runs, status = _load(args.bags)
     results = {p: run_metrics(r.data, args.tolerance_deg, args.eigen_tolerance_deg) for p, r in runs.items()}
+    status = max(status, _warn_compromised(runs))
     if args.json:
         print(json.dumps({p: jsonable_metrics(m) for p, m in results.items()}, indent=2))
     else:

@@ -15,6 +15,7 @@ from adcs_sim.app.scenario_files import RunError
 from adcs_sim.bag.reader import read_raw
 
 STOP_TIMEOUT_S = 20.0
+PROGRESS_NODE = 'adcs_run_progress'   # the runner's own /clock subscriber (a node of the run)
 
 
 class Graph:
@@ -133,7 +134,7 @@ class Progress:
         self.rclpy = rclpy
         self.context = Context()
         rclpy.init(context=self.context, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-        self.node = rclpy.create_node('adcs_run_progress', context=self.context)
+        self.node = rclpy.create_node(PROGRESS_NODE, context=self.context)
         self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.sim_time = 0.0

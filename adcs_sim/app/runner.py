@@ -34,9 +34,10 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 
+from adcs_msgs_py import names
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app.analysis import RunData, format_metrics, jsonable_metrics, run_metrics
-from adcs_sim.app.graph import Graph, Progress, graph_env, lease_domain, recorded_state
+from adcs_sim.app.analysis import RunData, bag_intrusions, format_metrics, jsonable_metrics, run_metrics
+from adcs_sim.app.graph import PROGRESS_NODE, Graph, Progress, graph_env, lease_domain, recorded_state
 from adcs_sim.app.parameters import explain
 from adcs_sim.app.registry import NODES
 from adcs_sim.app.scenario_files import DEFAULT_SCENARIO, RunError, config_dirs, resolve_scenario, validate_scenario
@@ -46,6 +47,34 @@ __all__ = ['DEFAULT_SCENARIO', 'RunError', 'config_dirs', 'resolve_scenario', 'v
            'graph_env', 'lease_domain', 'run_scenario', 'main']
 
 READY_TIMEOUT_S = 60.0
+
+
+# --- intruders (issue 17): who may publish where, and what the bag says ---------------------------
+# Every node is told which nodes of this scenario may publish on each topic it listens to
+# (``startup.publishers``, adcs_msgs_py.guard.PublisherVetting); the recorder writes any other
+# publisher into the bag (``intrusions``), and the run then ends non-zero naming it.
+
+def allowed_publishers(sections) -> list[str]:
+    """``startup.publishers`` of every node of a run of ``sections`` (the scenario's node names)."""
+    by_role: dict[str, list[str]] = {}
+    for name in sections:
+        by_role.setdefault(NODES[name].role, []).append(name)
+    allowed = {topic: [n for role in roles for n in by_role.get(role, [])]
+               for topic, roles in names.PUBLISHER_ROLES.items()}
+    allowed[names.RUN_NODES] = sorted({*sections, 'recorder', PROGRESS_NODE})
+    return names.format_publishers(allowed)
+
+
+def publishers_arg(sections) -> list[str]:
+    return ['-p', f'startup.publishers:={json.dumps(allowed_publishers(sections))}']
+
+
+def _compromised(run) -> RunError | None:
+    found = bag_intrusions(run.bag_dir)
+    if not found:
+        return None
+    return RunError('run compromised, its messages were not applied: ' + '; '.join(dict.fromkeys(found))
+                    + f'; bag kept in {run.bag_dir} (topic {names.INTRUSIONS})')
 
 
 @dataclass
@@ -68,7 +97,7 @@ def _start_graph(run: _Run, show_progress: bool):
     """Start the recorder (and wait until it is ready), the other nodes, then the dynamics node,
     which starts the clock once every expected subscriber is matched. Returns the dynamics process."""
     graph, validated = run.graph, run.validated
-    common = ['--params-file', str(run.scenario)]
+    common = ['--params-file', str(run.scenario), *publishers_arg(validated)]
     graph.start('recorder', NODES['recorder'].module,
                 [*common, '-p', f'output:={run.bag_dir}', '-p', f'scenario_file:={run.scenario}'])
     graph.wait_for_line('recorder', READY_LINE, READY_TIMEOUT_S)
@@ -159,13 +188,19 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
     try:
         _supervise(run, _start_graph(run, progress))
         _stop_graph(run)
+        compromised = _compromised(run)
+        if compromised is not None:
+            raise compromised
     except KeyboardInterrupt:
         graph.stop_all()
         sig = signal.Signals(graph.signals[0]).name if graph.signals else 'SIGINT'
         kept = f'bag kept in {run.bag_dir}' if run.bag_dir.exists() else 'no bag was recorded yet'
         raise RunError(f'interrupted by {sig} ({"during" if run.started else "before"} the run); {kept}') from None
-    except BaseException:
+    except BaseException as exc:
         graph.stop_all()
+        compromised = _compromised(run) if isinstance(exc, RunError) else None
+        if compromised is not None and compromised is not exc:
+            raise compromised from exc   # a node that stopped on the intrusion: name the intruder
         if not (run.started or recorded_state(run.bag_dir)):   # never delete recorded data
             shutil.rmtree(out, ignore_errors=True)
         raise

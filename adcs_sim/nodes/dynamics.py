@@ -42,13 +42,15 @@ import numpy as np
 from adcs_core.faults import FaultTracker
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
-from adcs_msgs_py.guard import RejectCounter
 from adcs_msgs_py.node import AdcsNode, main_for
 from adcs_sim.truth.link_faults import DELAY, FATE_NAMES, OK, LinkFaults
 from adcs_sim.truth.plant import ReactionWheels, WheelCommand
 from adcs_sim.truth.schema import DYNAMICS_SCHEMA, build_plant, command_topics, initial_state, step_timing
 from adcs_sim.truth.sensors import MeasurementModel
 from adcs_sim.truth.thrusters import Thrusters, step_pulsed
+
+# The plant's command key of each command topic (thrusters/cmd is held as on-times: self.on_time).
+COMMAND_KEYS = {topics.WHEELS_CMD: 'wheels', topics.TORQUE_CMD: 'torquers'}
 
 
 class DynamicsNode(AdcsNode):
@@ -76,7 +78,6 @@ class DynamicsNode(AdcsNode):
                                if self.thrusters else {})
         self.on_time = np.zeros(len(self.thruster_index))  # held thruster on-times (s)
 
-        self.rejects = RejectCounter(self.get_logger())
         self.missed_steps = 0
         self.stale_commands = 0
         self.step_ns = 0
@@ -317,34 +318,40 @@ class DynamicsNode(AdcsNode):
             f'{self.params["lockstep.timeout"]:g} s; policy {self.params["lockstep.timeout_policy"]} '
             f'({self.missed_steps} missed)', throttle_duration_sec=5.0)
         if self.params['lockstep.timeout_policy'] == 'zero':
-            zero = self.plant.zero_commands()
-            for topic in missing:
-                if topic == topics.THRUSTERS_CMD:
-                    self.on_time = np.zeros_like(self.on_time)
-                    continue
-                key = 'wheels' if topic == topics.WHEELS_CMD else 'torquers'
-                self.commands[key] = zero[key]
+            self._zero_commands(missing)
         self.publish_status()
+
+    def _zero_commands(self, command_topics) -> None:
+        """The ``zero`` timeout policy: no command on ``command_topics`` for this step."""
+        zero = self.plant.zero_commands()
+        for topic in command_topics:
+            if topic == topics.THRUSTERS_CMD:   # held as on-times; the valve command is built from them
+                self.on_time = np.zeros_like(self.on_time)
+            else:
+                key = COMMAND_KEYS[topic]
+                self.commands[key] = zero[key]
 
     # --- simulated link faults (adcs_sim.truth.link_faults) ----------------------------------------
 
-    def _link_before(self, k: int) -> dict | None:
+    def _link_before(self, k: int) -> tuple[dict, np.ndarray] | None:
         """Before waiting for step k's commands: count last step's late ones as stale (they
-        arrive now, stamped for that step) and keep the commands in effect if step k's are to
-        be lost or late."""
+        arrive now, stamped for that step) and keep the commands in effect (and the thrusters'
+        on-times) if step k's are to be lost or late."""
         if self._late:
             self.stale_commands += self._late
             self._late = 0
-        return dict(self.commands) if self.awaited and self.link.fate(k) != OK else None
+        if self.awaited and self.link.fate(k) != OK:
+            return dict(self.commands), self.on_time.copy()
+        return None
 
-    def _link_after(self, k: int, held: dict | None) -> None:
+    def _link_after(self, k: int, held: tuple[dict, np.ndarray] | None) -> None:
         """Step k's commands came, but the simulated link loses them or delivers them after the
         deadline: the step runs without them, a missed step under the timeout policy (a step
         already missed by timeout is left as it is)."""
         if held is None or not self.received.issuperset(self.awaited):
             return
         fate = self.link.fate(k)
-        self.commands = held
+        self.commands, self.on_time = dict(held[0]), held[1]
         self.link.count(fate)
         if fate == DELAY:
             self._late = len(self.awaited)
@@ -355,10 +362,7 @@ class DynamicsNode(AdcsNode):
             f'{self.params["lockstep.timeout_policy"]} ({self.missed_steps} missed)',
             throttle_duration_sec=5.0)
         if self.params['lockstep.timeout_policy'] == 'zero':
-            zero = self.plant.zero_commands()
-            for topic in self.awaited:
-                key = 'wheels' if topic == topics.WHEELS_CMD else 'torquers'
-                self.commands[key] = zero[key]
+            self._zero_commands(self.awaited)
         self.publish_status()
 
     def _spin_until(self, executor, wall_deadline: float) -> None:

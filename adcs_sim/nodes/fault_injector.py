@@ -37,11 +37,13 @@ class FaultInjectorNode(AdcsNode):
         self.get_logger().info(f'published the fault schedule: {n - 1} event time(s)')
 
     def _on_clock(self, msg) -> None:
-        t_ns = cv.ns_from_stamp(msg.clock)
+        t_ns = self.rejects.accept(topics.CLOCK, lambda: cv.clock_from_msg(msg))
+        if t_ns is None:
+            return
         while self._logged + 1 < len(self.schedule) and self.schedule[self._logged + 1][0] <= t_ns:
             self._logged += 1
             due_ns, snapshot = self.schedule[self._logged]
-            faulty = {w: m for w, (m, _, _) in snapshot.items() if m not in FAULT_OK_MODES}
+            faulty = {w: s.mode for w, s in snapshot.items() if s.mode not in FAULT_OK_MODES}
             self.get_logger().info(f't = {due_ns / cv.NS_PER_S:g} s: faults now {faulty or "none"}')
 
     def run(self, executor) -> None:

@@ -19,25 +19,34 @@ import time
 from datetime import datetime
 from pathlib import Path
 
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 
-from adcs_msgs_py import topics
+from adcs_msgs_py import conversions as cv
+from adcs_msgs_py import names, topics
+from adcs_msgs_py.guard import Intruder
 from adcs_msgs_py.node import AdcsNode, main_for
 from adcs_sim.bag.schema import RECORDER_SCHEMA
-from adcs_sim.bag.writer import BagWriter, qos_dicts
+from adcs_sim.bag.writer import STAMP_FIRST_TYPES, BagWriter, qos_dicts
 
 IGNORED_TOPICS = ('/rosout', '/parameter_events')
 STOP_REQUESTED = threading.Event()  # set by SIGINT / SIGTERM in the recorder process
 READY_LINE = 'recorder: ready'
+DRAIN_MAX_S = 10.0  # < the runner's stop timeout (adcs_sim.app.graph.STOP_TIMEOUT_S)
 
 
 def message_class(type_name: str):
-    """``pkg/msg/Name`` -> the Python message class, or None if it is not installed."""
+    """``pkg/msg/Name`` -> the Python message class, or None if it is not installed (or what the
+    name leads to is not a generated ROS message class: a graph's type names are not trusted)."""
     try:
         pkg, kind, name = type_name.split('/')
-        return getattr(importlib.import_module(f'{pkg}.{kind}'), name)
+        if kind != 'msg' or not (pkg.isidentifier() and name.isidentifier()):
+            return None
+        cls = getattr(importlib.import_module(f'{pkg}.{kind}'), name)
     except (ValueError, ImportError, AttributeError):
         return None
+    return cls if hasattr(type(cls), '__import_type_support__') else None
 
 
 def _type_name(msg_type) -> str:
@@ -46,6 +55,10 @@ def _type_name(msg_type) -> str:
 
 class RecorderNode(AdcsNode):
     schema = RECORDER_SCHEMA
+    # The recorder applies nothing: an intruder is written into the bag (INTRUSIONS) and the
+    # messages of a compromised topic are kept under quarantine/<topic>, so nothing is lost and
+    # nothing unattributed is analysed as the run's.
+    stop_on_intrusion = False
 
     def __init__(self, context) -> None:
         super().__init__(context)
@@ -67,6 +80,7 @@ class RecorderNode(AdcsNode):
         self.stopping = False
         self.received = 0
         self.subs = {}
+        self.skipped: set[str] = set()   # discovered topics that cannot be recorded (said once)
         wanted = p['topics']
         self.record_all = 'all' in wanted
         for spec in topics.TOPICS.values():
@@ -75,15 +89,22 @@ class RecorderNode(AdcsNode):
         self.create_timer(p['flush_period'], self.bag.flush)
         if self.record_all:
             self.create_timer(p['discovery_period'], self._discover)
+        if self.vetting.active:   # an intruder is recorded even if nothing it sends comes through
+            self.create_timer(p['discovery_period'], self._sweep)
         print(READY_LINE, flush=True)
 
     def _subscribe(self, name: str, msg_type, qos: QoSProfile, offered: QoSProfile) -> None:
         resolved = self.resolve_topic_name(name)
         if resolved in self.subs:
             return
-        self.bag.add_topic(resolved, _type_name(msg_type), qos_dicts(offered))
+        type_name = _type_name(msg_type)
+        self.bag.add_topic(resolved, type_name, qos_dicts(offered))
+        stamped = type_name in STAMP_FIRST_TYPES
 
         def on_message(data: bytes, topic=resolved) -> None:
+            # the stamp is the log time: a negative or out-of-range one is rejected (counted)
+            if stamped and self.rejects.accept(topic, lambda: cv.checked_cdr_stamp(topic, data)) is None:
+                return
             self.bag.write(topic, data)
             self.received += 1
 
@@ -92,31 +113,86 @@ class RecorderNode(AdcsNode):
     def _discover(self) -> None:
         """Subscribe to topics that appeared in the graph (in this namespace) since the last look."""
         ns = self.get_namespace().rstrip('/') + '/'
+        reserved = (self.resolve_topic_name(names.INTRUSIONS), ns + names.QUARANTINE_PREFIX + '/')
         for name, types in self.get_topic_names_and_types():
-            if name in self.subs or name in IGNORED_TOPICS or not name.startswith(ns) or len(types) != 1:
+            if (name in self.subs or name in self.skipped or name in IGNORED_TOPICS or not name.startswith(ns)
+                    or len(types) != 1 or name.startswith(reserved)):
                 continue
-            msg_type = message_class(types[0])
-            if msg_type is None:
-                continue
-            infos = self.get_publishers_info_by_topic(name)
-            reliable = infos and all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
-            qos = topics.recorder_qos(QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE
-                                                 if reliable else ReliabilityPolicy.BEST_EFFORT))
-            self._subscribe(name, msg_type, qos, infos[0].qos_profile if infos else qos)
+            try:
+                self._subscribe_discovered(name, types[0])
+            except Exception as exc:  # noqa: BLE001 - a topic the graph advertises is untrusted input
+                self.skipped.add(name)
+                self.rejects.reject(name, f'cannot record {types[0]}: {type(exc).__name__}: {exc}')
+
+    def _subscribe_discovered(self, name: str, type_name: str) -> None:
+        msg_type = message_class(type_name)
+        if msg_type is None:
+            self.skipped.add(name)
+            return
+        infos = self.get_publishers_info_by_topic(name)
+        reliable = infos and all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
+        qos = topics.recorder_qos(QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE
+                                             if reliable else ReliabilityPolicy.BEST_EFFORT))
+        self._subscribe(name, msg_type, qos, infos[0].qos_profile if infos else qos)
 
     def run(self, executor) -> None:
         while not (self.stopping or STOP_REQUESTED.is_set()):
             executor.spin_once(timeout_sec=0.1)
-        # Drain: keep taking what DDS already delivered until a quiet period.
+        # Drain: keep taking what DDS already delivered until a quiet period, but never longer
+        # than DRAIN_MAX_S (a publisher that floods, an intruder, would keep it from closing the bag
+        # before the runner's stop timeout kills it).
         quiet_until = time.monotonic() + 0.3
-        while time.monotonic() < quiet_until:
+        give_up = time.monotonic() + DRAIN_MAX_S
+        while time.monotonic() < min(quiet_until, give_up):
             before = self.received
             executor.spin_once(timeout_sec=0.05)
             if self.received != before:
                 quiet_until = time.monotonic() + 0.3
 
+    # --- intruders (adcs_msgs_py.guard.PublisherVetting) ----------------------------------------
+
+    def on_intrusion(self, intruders: list[Intruder]) -> None:
+        """Log them, and write them into the bag: one ``intrusions`` message (one status per
+        intruder) stamped with the latest ``/clock``."""
+        super().on_intrusion(intruders)
+        topic = self.resolve_topic_name(names.INTRUSIONS)
+        self.bag.add_topic(topic, 'diagnostic_msgs/msg/DiagnosticArray', qos_dicts(topics.QOS_LATCHED))
+        msg = DiagnosticArray()
+        msg.header.stamp = cv.stamp_from_ns(self.bag.clock_ns)
+        for intruder in intruders:
+            allowed = ','.join(sorted(self.vetting.allowed.get(intruder.topic, ()))) or 'none'
+            msg.status.extend(cv.status_to_msg(
+                self.bag.clock_ns, intruder.topic, {'topic': intruder.topic, 'node': intruder.node,
+                                                    'gid': intruder.gid, 'allowed': allowed},
+                'ERROR', f'publisher {intruder.node} may not publish on {intruder.topic}',
+                hardware_id=intruder.node).status)
+        self.bag.write(topic, serialize_message(msg))
+        self.bag.flush()
+
+    def on_refused(self, topic: str, data) -> None:
+        """A message of a compromised topic: kept, under ``quarantine/<topic>``."""
+        ns = self.get_namespace().rstrip('/')
+        quarantine = f'{ns}/{names.QUARANTINE_PREFIX}{topic[len(ns):]}'
+        original = self.bag.topics[topic]
+        self.bag.add_topic(quarantine, original.type_name, original.qos)
+        if not original.stamped or self.rejects.accept(topic, lambda: cv.checked_cdr_stamp(topic, data)) is not None:
+            self.bag.write(quarantine, data)
+            self.received += 1
+
+    def _sweep(self) -> None:
+        self.vetting.sweep(self.subs.values())
+
     def close(self) -> None:
-        self.bag.close()
+        try:   # a last look before the bag is closed
+            self._sweep()
+        except Exception as exc:  # noqa: BLE001 - closing the bag comes first
+            self.get_logger().error(f'last look for intruders failed: {exc}')
+        summary = {}
+        if self.rejects.total:
+            summary['recorder.rejected_messages'] = str(self.rejects.total)
+        if self.vetting.intruders:
+            summary['recorder.intrusions'] = '; '.join(i.describe() for i in self.vetting.intruders.values())
+        self.bag.close(summary or None)
         print(f'recorder: wrote {sum(t.count for t in self.bag.topics.values())} messages to '
               f'{self.bag.path}', file=sys.stderr, flush=True)
 

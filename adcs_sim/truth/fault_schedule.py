@@ -2,7 +2,7 @@
 publishes on the latched ``faults`` topic (pure, no ROS; the node is :mod:`adcs_sim.nodes.fault_injector`)."""
 from __future__ import annotations
 
-from adcs_core.faults import FAULT_ERROR_MODES
+from adcs_core.faults import FAULT_ERROR_MODES, FaultState
 from adcs_msgs_py.blocks import startup_params
 from adcs_msgs_py.params import Param, ParameterError, Schema
 
@@ -59,19 +59,19 @@ FAULT_SCHEMA = Schema('fault_injector', [
 ], cross_check=_fault_cross_check, doc='publishes the fault schedule on `faults`')
 
 
-def fault_schedule(v: dict) -> list[tuple[int, dict[str, tuple[str, float, float]]]]:
+def fault_schedule(v: dict) -> list[tuple[int, dict[str, FaultState]]]:
     """The schedule of a validated ``fault_injector`` section as snapshots: ``[(t_ns, {wheel:
-    (mode, value, time of its last event)})]``, one per distinct event time (events at the same
+    FaultState(mode, value, time of its last event)})]``, one per distinct event time (events at the same
     time in schedule order), preceded by the all-nominal snapshot at 0. Each snapshot is the full
     state of every wheel after the events up to its time."""
     wheels = list(v['wheels.names'])
     values = v['schedule.value'] or [0.0] * len(v['schedule.time'])
     events = sorted(zip((int(round(t * 1e9)) for t in v['schedule.time']), range(len(values)),
                         v['schedule.actuator'], v['schedule.mode'], values))
-    state = {w: ('nominal', 0.0, 0.0) for w in wheels}
+    state = {w: FaultState('nominal', 0.0, 0.0) for w in wheels}
     out = [(0, dict(state))]
     for t_ns, _, wheel, mode, value in events:
-        state[wheel] = (mode, float(value) if mode in ('degraded', 'bias') else 0.0, t_ns / 1e9)
+        state[wheel] = FaultState(mode, float(value) if mode in ('degraded', 'bias') else 0.0, t_ns / 1e9)
         if out[-1][0] == t_ns and len(out) > 1:
             out[-1] = (t_ns, dict(state))
         else:

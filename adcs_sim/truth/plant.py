@@ -200,10 +200,10 @@ class ReactionWheels(Actuator):
             self.constraint_version += 1
 
     def apply_faults(self, snapshot) -> None:
-        """Apply a fault snapshot ``{wheel name: (mode, value, ...)}`` (a ``faults`` message's or a
+        """Apply a fault snapshot ``{wheel name: FaultState}`` (a ``faults`` message's or a
         schedule's, :func:`adcs_sim.truth.fault_schedule.fault_schedule`) with :meth:`apply_fault`."""
-        for name, (mode, value, *_) in snapshot.items():
-            self.apply_fault(self.names.index(name), mode, value)
+        for name, fault in snapshot.items():
+            self.apply_fault(self.names.index(name), fault.mode, fault.value)
 
     def locked_inertia_matrix(self) -> np.ndarray | None:
         if not self.stuck.any():

@@ -1,0 +1,249 @@
+"""Intruders (issue 17 item 2): a publisher the run does not allow is detected, not applied, and
+named by ``adcs-run``'s non-zero exit; the bag says so.
+
+* :class:`adcs_msgs_py.guard.PublisherVetting` against a fake graph: allowed publishers pass, a
+  foreign one makes the topic compromised before any message after its match is applied; with
+  a per-message ``publisher_gid`` (a later rclpy) messages are filtered one by one.
+* The rogue-publisher test: a participant outside the run, on the run's domain (loopback only),
+  publishes well-formed, correctly stamped commands (maximum torque ``wheels/cmd``), spoofed
+  ``state``, "all wheels failed" ``faults`` (no fault injector in the scenario). The run ends
+  non-zero naming the intruder's node and topic, the bag holds it on ``intrusions``, and every
+  applied torque recorded before the detection is the clean run's (the batch engine's), bit for bit.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from conftest import ROOT
+
+from adcs_msgs_py import conversions as cv
+from adcs_msgs_py import topics
+from adcs_msgs_py.guard import UNKNOWN_NODE, PublisherVetting
+from adcs_sim.app.analysis import RunData, bag_intrusions
+from adcs_sim.app.batch import BatchSimulation
+from adcs_sim.app.runner import allowed_publishers
+from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.bag.reader import read_messages
+
+
+class FakeGraph:
+    """What PublisherVetting asks of a node: namespace, name resolution, publishers of a topic."""
+
+    def __init__(self) -> None:
+        self.publishers: dict[str, list] = {}
+
+    def get_namespace(self) -> str:
+        return '/'
+
+    def resolve_topic_name(self, name: str) -> str:
+        return name if name.startswith('/') else '/' + name
+
+    def get_publishers_info_by_topic(self, topic: str):
+        return list(self.publishers.get(topic, []))
+
+    def add(self, topic: str, node: str, gid: int) -> None:
+        self.publishers.setdefault(topic, []).append(
+            SimpleNamespace(node_name=node, node_namespace='/', endpoint_gid=[gid] * 16))
+
+
+class FakeSub:
+    def __init__(self, graph: FakeGraph, topic: str) -> None:
+        self.graph, self.topic_name = graph, topic
+
+    def get_publisher_count(self) -> int:
+        return len(self.graph.publishers.get(self.topic_name, []))
+
+
+def test_vetting_admits_the_allowed_and_compromises_a_topic_with_an_intruder():
+    graph, found = FakeGraph(), []
+    vetting = PublisherVetting(graph, {'wheels/cmd': ['pd_controller'], 'faults': []}, found.extend)
+    sub = FakeSub(graph, '/wheels/cmd')
+    graph.add('/wheels/cmd', 'pd_controller', 1)
+    assert all(vetting.admit(sub, {}) for _ in range(3))
+    graph.add('/wheels/cmd', 'rogue', 2)
+    assert not vetting.admit(sub, {})           # the first message after the rogue's match
+    assert [(i.node, i.topic) for i in found] == [('/rogue', '/wheels/cmd')]
+    assert not vetting.admit(sub, {}) and vetting.refused['/wheels/cmd'] == 2
+    assert len(found) == 1                      # reported once
+    # nobody may publish faults in a scenario without a fault injector
+    faults = FakeSub(graph, '/faults')
+    graph.add('/faults', 'dynamics', 3)
+    assert not vetting.admit(faults, {}) and found[-1].node == '/dynamics'
+    # a topic nobody vets is not looked at
+    assert vetting.admit(FakeSub(graph, '/rosout'), {})
+
+
+def test_vetting_waits_for_a_publishers_name_and_filters_by_gid_when_rclpy_gives_it(monkeypatch):
+    monkeypatch.setattr('adcs_msgs_py.guard.GRAPH_SETTLE_S', 0.0)
+    graph, found = FakeGraph(), []
+    vetting = PublisherVetting(graph, {'state': ['dynamics']}, found.extend)
+    sub = FakeSub(graph, '/state')
+    graph.add('/state', 'dynamics', 1)
+    graph.add('/state', 'rogue', 2)
+    assert vetting.admit(sub, {'publisher_gid': bytes([1] * 16)})       # the dynamics node's
+    assert not vetting.admit(sub, {'publisher_gid': bytes([2] * 16)})   # the rogue's
+    assert vetting.admit(sub, {'publisher_gid': {'data': [1] * 16}})    # topic still usable
+    assert [i.node for i in found] == ['/rogue']
+    # a publisher still unnamed when the settle time is out is not vouched for
+    graph2, found2 = FakeGraph(), []
+    vetting2 = PublisherVetting(graph2, {'state': ['dynamics']}, found2.extend)
+    graph2.add('/state', UNKNOWN_NODE, 5)
+    assert not vetting2.admit(FakeSub(graph2, '/state'), {})
+
+
+def test_the_runner_allows_each_topic_to_its_nodes_only():
+    allowed = dict(e.split('=') for e in allowed_publishers(['dynamics', 'pd_controller', 'recorder']))
+    assert allowed['wheels/cmd'] == allowed['controller/status'] == 'pd_controller'
+    assert allowed['state'] == allowed['/clock'] == allowed['actuators/torque'] == 'dynamics'
+    assert allowed['faults'] == ''   # no fault injector: nobody
+
+
+# --- the rogue publisher ---------------------------------------------------------------------------
+
+MAX_TORQUE = 0.01   # microsat_pd_slew's wheel torque limit (N m)
+DURATION_S = 20000  # lockstep runs steps in milliseconds: long enough never to end before the rogue
+RUN_LIMIT_S = 240   # wall seconds: the run ends at the detection; this only turns a miss into a failure
+
+
+def _rogue_message(topic: str, t_ns: int):
+    if topic == topics.APPLIED_TORQUE:
+        return cv.vector_to_msg(t_ns, [123.0, 456.0, 789.0])
+    if topic == topics.WHEELS_CMD:
+        return cv.wheel_cmd_to_msg(t_ns, ['rw_x', 'rw_y', 'rw_z'], effort=[MAX_TORQUE] * 3)
+    if topic == topics.STATE:
+        return cv.state_to_msg(t_ns, [0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0])
+    from adcs_core.faults import FaultState
+    return cv.faults_to_msg(0, {w: FaultState('failed') for w in ('rw_x', 'rw_y', 'rw_z')}, 0, 1)
+
+
+def _run_with_rogue(tmp_path, monkeypatch, topic: str, start_s: float = 2.0, duration_s: float = DURATION_S):
+    """adcs-run of the PD slew (long enough never to end first: DURATION_S) and, once its clock passes
+    ``start_s``, a rogue node in this process publishing on ``topic`` for every state."""
+    import rclpy
+    from nav_msgs.msg import Odometry
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rosgraph_msgs.msg import Clock
+
+    out = tmp_path / 'run'
+    runner = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.runner', str(ROOT / 'config/microsat_pd_slew.yaml'),
+                               '--out', str(out), '--duration', str(duration_s), '--no-progress'],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    try:
+        line = ''
+        while 'ROS_DOMAIN_ID=' not in line:
+            line = runner.stdout.readline()
+            assert line, runner.communicate()[1]
+        monkeypatch.setenv('ROS_DOMAIN_ID', line.split('ROS_DOMAIN_ID=')[1].split(',')[0])
+        monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+        context = Context()
+        rclpy.init(context=context)
+        try:
+            node = rclpy.create_node('rogue', context=context)
+            executor = SingleThreadedExecutor(context=context)
+            executor.add_node(node)
+            rogue = {}
+            if start_s <= 0:   # there before the run's nodes
+                rogue['pub'] = node.create_publisher(topics.spec(topic).msg_type, topic, topics.spec(topic).qos)
+
+            def on_clock(msg):
+                t_ns = cv.ns_from_stamp(msg.clock)
+                if t_ns >= start_s * cv.NS_PER_S and 'pub' not in rogue:
+                    s = topics.spec(topic)
+                    rogue['pub'] = node.create_publisher(s.msg_type, s.name, s.qos)
+                    if topic == topics.FAULTS:
+                        rogue['pub'].publish(_rogue_message(topic, 0))
+                elif 'pub' in rogue and topic == topics.STATE:   # a spoofed state every step
+                    rogue['pub'].publish(_rogue_message(topic, t_ns))
+
+            def on_state(msg):   # a maximum-torque command (or a record) answering every state, stamped with it
+                rogue['t_ns'] = cv.ns_from_stamp(msg.header.stamp)
+                if 'pub' in rogue and topic in (topics.WHEELS_CMD, topics.APPLIED_TORQUE):
+                    rogue['pub'].publish(_rogue_message(topic, rogue['t_ns']))
+            node.create_subscription(Clock, topics.CLOCK, on_clock, topics.QOS_CLOCK)
+            node.create_subscription(Odometry, topics.STATE, on_state, topics.QOS_LOCKSTEP)
+            deadline = time.monotonic() + RUN_LIMIT_S
+            while runner.poll() is None and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.1)
+                if topic == topics.APPLIED_TORQUE and 'pub' in rogue:   # a stream, states or not
+                    rogue['pub'].publish(_rogue_message(topic, rogue.get('t_ns', 0)))
+            node.destroy_node()
+        finally:
+            rclpy.try_shutdown(context=context)
+        _, err = runner.communicate(timeout=60)
+    finally:
+        if runner.poll() is None:
+            runner.kill()
+            runner.wait()
+    return runner.returncode, err, out
+
+
+@pytest.mark.parametrize('topic', [topics.WHEELS_CMD, topics.STATE, topics.FAULTS])
+def test_rogue_publisher_is_detected_not_applied_and_named(tmp_path, monkeypatch, topic):
+    code, err, out = _run_with_rogue(tmp_path, monkeypatch, topic)
+    assert code != 0, err
+    assert 'run compromised' in err and 'rogue' in err and f'/{topic}' in err, err
+    bag = out / 'bag'
+    found = bag_intrusions(bag)
+    assert found and all('/rogue' in f for f in found) and any(f'/{topic} ' in f for f in found), found
+    run = RunData.from_bag(bag)
+    clean = BatchSimulation.from_runs([validate_scenario(ROOT / 'config/microsat_pd_slew.yaml',
+                                                         float(len(run.u)))]).run()
+    clean_u = clean.run_data(0).u[:len(run.u)]
+    assert len(run.u) >= 2, 'the rogue starts at t = 2 s: the run had clean steps before it'
+    # Every applied torque recorded is the clean run's, bit for bit, up to the node that applies the
+    # topic stopping on the intrusion; after that only the last command held (missed steps, the
+    # hold policy) until the runner stops the graph: never a command the rogue caused.
+    differs = [k for k in range(len(run.u)) if not np.array_equal(run.u[k], clean_u[k])]
+    if differs:
+        first = differs[0]
+        assert first >= 2 and topic != topics.WHEELS_CMD   # the dynamics node stops at once on wheels/cmd
+        np.testing.assert_array_equal(run.u[first:], np.broadcast_to(run.u[first - 1], run.u[first:].shape))
+    assert (bag / 'metadata.yaml').exists() and 'recorder.intrusions' in (bag / 'metadata.yaml').read_text()
+    analyzed = subprocess.run([sys.executable, '-m', 'adcs_sim.app.analyze', str(bag), '--no-report'],
+                              capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert analyzed.returncode != 0 and 'run compromised' in analyzed.stderr and '/rogue' in analyzed.stderr
+
+
+def test_a_spoofed_record_is_quarantined_not_analysed(tmp_path, monkeypatch):
+    """actuators/torque is only recorded (nobody applies it): the run goes on, but the injected
+    torques (issue 17: peak torque [123, 456, 789], exit 0) never reach the analysed topic; the
+    recorder keeps everything of the compromised topic under quarantine/, and the run exits
+    non-zero naming the intruder."""
+    code, err, out = _run_with_rogue(tmp_path, monkeypatch, topics.APPLIED_TORQUE, start_s=0.0, duration_s=20.0)
+    assert code != 0 and 'run compromised' in err and '/rogue' in err and '/actuators/torque' in err, err
+    bag = out / 'bag'
+    recorded = {name: [m.vector.x for _, _, m in read_messages(bag, {name})]
+                for name in ('/actuators/torque', '/quarantine/actuators/torque')}
+    assert 123.0 not in recorded['/actuators/torque']
+    assert 123.0 in recorded['/quarantine/actuators/torque']
+    run = RunData.from_bag(bag)
+    assert len(run.t) == 21 and not np.any(run.u == 123.0)
+
+
+# --- DDS Security (SROS2) -------------------------------------------------------------------------
+
+def test_the_pypi_fast_dds_build_has_no_dds_security(ros_domain, tmp_path):
+    """What the README says: the pinned PyPI Fast DDS (ros-fastrtps 2.14.5, used by
+    ros-rmw-fastrtps-cpp 8.4.3) is built without -DSECURITY=ON, so an enclave (SROS2) cannot be
+    used: rcl finds the enclave, then the rmw refuses to create the participant. If a later wheel
+    ships the security plugins this fails, and ``adcs-run --secure`` becomes possible."""
+    enclave = tmp_path / 'keystore' / 'enclaves' / 'probe'
+    enclave.mkdir(parents=True)
+    for name in ('identity_ca.cert.pem', 'cert.pem', 'key.pem', 'governance.p7s', 'permissions.p7s',
+                 'permissions_ca.cert.pem'):
+        (enclave / name).write_text('')
+    env = ros_domain.env({**os.environ, 'ROS_SECURITY_ENABLE': 'true', 'ROS_SECURITY_STRATEGY': 'Enforce',
+                          'ROS_SECURITY_KEYSTORE': str(tmp_path / 'keystore')})
+    probe = ('import rclpy\nfrom rclpy.context import Context\nc = Context()\n'
+             "rclpy.init(context=c, args=['--ros-args', '--enclave', '/probe'])\n"
+             "rclpy.create_node('probe', context=c)\n")
+    result = subprocess.run([sys.executable, '-c', probe], env=env, capture_output=True, text=True, timeout=60)
+    assert result.returncode != 0
+    assert "doesn't have the security libraries" in result.stderr and 'SECURITY=ON' in result.stderr
