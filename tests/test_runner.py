@@ -73,7 +73,7 @@ def test_runner_interrupted_mid_run_leaves_readable_bag_and_no_orphans(tmp_path,
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == 1
-    assert 'interrupted' in err
+    assert 'interrupted' in err and 'during the run' in err, err
     assert not [pid for pid in children if _alive(pid)]
     assert (bag / 'metadata.yaml').exists()  # the recorder closed the bag
     run = RunData.from_bag(bag)

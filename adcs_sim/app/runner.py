@@ -85,7 +85,7 @@ def _start_graph(run: _Run, show_progress: bool):
         dyn_args += ['-p', f'duration:={float(run.duration)!r}']
     graph.check()
     dynamics = graph.start('dynamics', NODES['dynamics'].module, dyn_args)
-    run.progress = Progress(validated['dynamics']['duration'], show_progress)
+    run.progress = Progress(validated['dynamics']['duration'], show_progress, graph.env)
     return dynamics
 
 
@@ -160,6 +160,7 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
         _stop_graph(run)
     except KeyboardInterrupt:
         graph.stop_all()
+        run.started = run.started or recorded_state(run.bag_dir)   # /clock may not have reached us yet
         sig = signal.Signals(graph.signals[0]).name if graph.signals else 'SIGINT'
         kept = f'bag kept in {run.bag_dir}' if run.bag_dir.exists() else 'no bag was recorded yet'
         raise RunError(f'interrupted by {sig} ({"during" if run.started else "before"} the run); {kept}') from None
