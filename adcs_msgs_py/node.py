@@ -27,7 +27,7 @@ from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 
 from adcs_msgs_py import topics
-from adcs_msgs_py.params import ParameterError, Schema, load_params_file
+from adcs_msgs_py.params import REQUIRED, ParameterError, Schema, load_params_file
 
 EXIT_BAD_PARAMETERS = 2
 EXIT_GRAPH_TIMEOUT = 3
@@ -144,14 +144,40 @@ def check_params_files(argv: list[str]) -> None:
             load_params_file(argv[i + 1])
 
 
+HELP_FLAGS = ('-h', '--help')
+
+
+def wants_help(argv: list[str]) -> bool:
+    """``-h``/``--help`` among the program's own arguments (before any ``--ros-args``)."""
+    own = argv[1:argv.index('--ros-args')] if '--ros-args' in argv else argv[1:]
+    return any(a in HELP_FLAGS for a in own)
+
+
+def usage(schema: Schema) -> str:
+    """What ``<node> --help`` prints: how to start it and its parameters, one line each."""
+    lines = [f'usage: {schema.node} [-h] [--ros-args --params-file FILE] [--ros-args -p NAME:=VALUE ...]', '']
+    if schema.doc:
+        lines += [schema.doc.strip(), '']
+    lines += [f'parameters (section {schema.node}.ros__parameters of a scenario file):']
+    width = max((len(p.name) for p in schema.params), default=0)
+    for p in schema.params:
+        default = 'required' if p.default is REQUIRED else f'default {p.default!r}'
+        doc = f' {p.doc}' if p.doc else ''
+        lines.append(f'  {p.name:<{width}}  {p.kind}, {default}.{doc}')
+    return '\n'.join(lines)
+
+
 def main_for(node_class: type[AdcsNode], args=None, handle_signals: bool = True) -> int:
     """Entry point of a node executable. Returns the process exit status.
 
     ``handle_signals=False`` leaves SIGINT/SIGTERM to the node (the recorder drains its queues
     before closing the bag); otherwise rclpy's handler turns them into a clean shutdown.
     """
-    network_hygiene_defaults()
     argv = list(args if args is not None else sys.argv)
+    if wants_help(argv):
+        print(usage(node_class.schema), flush=True)
+        return 0
+    network_hygiene_defaults()
     try:
         check_params_files(argv)
     except ParameterError as exc:
