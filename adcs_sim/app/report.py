@@ -669,11 +669,6 @@ def unique_names(runs: list[Run]) -> list[str]:
             for r in runs]
 
 
-def default_comparison_dir(paths) -> Path:
-    """``comparison/`` in the folder holding all the runs (the common parent of their run folders)."""
-    return Path(os.path.commonpath([str(default_report_dir(p).parent) for p in paths])) / 'comparison'
-
-
 def load_reference(path) -> dict:
     """Published figures to compare runs with: a YAML file ``{source: text, runs: {run name:
     {comparison row: value}}}`` (rows as in ``comparison.csv``, e.g. ``integrated_torque_Nms``,
