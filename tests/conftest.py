@@ -24,6 +24,44 @@ network_hygiene_defaults()  # the same Fast DDS profile as the nodes, for in-pro
 CONFIG = ROOT / 'config'
 
 
+# --- processes, found through /proc (not ps, whose output is cut to the terminal's width) --------
+
+def _stat(pid: int) -> tuple[str, int] | None:
+    """(state letter, parent pid) of ``pid``, or None if there is no such process."""
+    try:
+        with open(f'/proc/{pid}/stat') as f:
+            fields = f.read().rsplit(')', 1)[1].split()
+    except (OSError, IndexError):
+        return None
+    return fields[0], int(fields[1])
+
+
+def cmdline(pid: int) -> str:
+    """The full command line of ``pid`` ('' for a zombie or a process gone)."""
+    try:
+        with open(f'/proc/{pid}/cmdline', 'rb') as f:
+            return f.read().replace(b'\0', b' ').decode(errors='replace').strip()
+    except OSError:
+        return ''
+
+
+def children(pid: int) -> dict[int, str]:
+    """The direct children of ``pid``: {child pid: command line}."""
+    kids = {}
+    for entry in os.listdir('/proc'):
+        if entry.isdigit():
+            stat = _stat(int(entry))
+            if stat is not None and stat[1] == pid:
+                kids[int(entry)] = cmdline(int(entry))
+    return kids
+
+
+def alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie whose parent has not reaped it yet is gone for our purpose)."""
+    stat = _stat(pid)
+    return stat is not None and stat[0] not in 'ZX'
+
+
 @pytest.fixture
 def ros_domain(monkeypatch):
     """A leased ROS_DOMAIN_ID (in 100..232, away from the runner's default range), set in os.environ.

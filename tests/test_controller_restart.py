@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 import yaml
-from conftest import CONFIG, ROOT, make_scenario
+from conftest import CONFIG, ROOT, children, make_scenario
 
 from adcs_sim import bag as bagio
 from adcs_sim.app.analysis import RunData, run_metrics
@@ -45,11 +45,6 @@ def _wait(what, condition, proc):
             pass
 
 
-def _children(pid: int) -> dict[int, str]:
-    out = subprocess.run(['ps', '-o', 'pid=,args=', '--ppid', str(pid)], capture_output=True, text=True).stdout
-    return {int(line.split(None, 1)[0]): line.split(None, 1)[1] for line in out.strip().splitlines()}
-
-
 def _assert_whole_run_with_gap(bag, killed_after: int):
     run = RunData.from_bag(bag)
     np.testing.assert_array_equal(run.t, np.arange(DURATION + 1))      # every step recorded
@@ -71,7 +66,7 @@ def test_runner_restarts_a_killed_controller_which_rejoins(tmp_path):
     try:
         _wait('run under way', lambda: _states_recorded(out / 'bag') > 0, proc)
         killed_after = _states_recorded(out / 'bag')
-        [pid] = [p for p, a in _children(proc.pid).items() if 'pd_controller' in a]
+        [pid] = [p for p, a in children(proc.pid).items() if 'pd_controller' in a]
         subprocess.run(['kill', '-KILL', str(pid)], check=True)
         _, err = proc.communicate(timeout=DEADLINE)
     finally:
