@@ -137,8 +137,9 @@ class AdcsNode(Node):
 
 
 def check_params_files(argv: list[str]) -> None:
-    """Parse every ``--params-file`` ourselves first: rcl's parser reports a malformed file with
-    no key; ours names the file, the line and the section."""
+    """Read every ``--params-file`` as the runner does first (:func:`load_params_file`: its size
+    and complexity limits, then rcl's parser): a file over a limit or refused by rcl stops the
+    node with a one-line message naming the file, before rclpy.init parses it again."""
     for i, arg in enumerate(argv[:-1]):
         if arg == '--params-file':
             load_params_file(argv[i + 1])

@@ -77,6 +77,15 @@ def ros_domain(monkeypatch):
         lease.release()
 
 
+def _prune_empty(tree: dict) -> None:
+    """Drop the mappings left empty by deletions (rcl refuses an empty mapping: ``wheels: {}``)."""
+    for key in list(tree):
+        if isinstance(tree[key], dict):
+            _prune_empty(tree[key])
+            if not tree[key]:
+                del tree[key]
+
+
 def make_scenario(tmp_path: Path, overrides: dict | None = None, base: str = 'microsat_pd_slew.yaml',
                   drop: tuple[str, ...] = ()) -> Path:
     """Copy of a config/ scenario with ``overrides`` ({section: {dotted.name: value}}) applied.
@@ -98,6 +107,7 @@ def make_scenario(tmp_path: Path, overrides: dict | None = None, base: str = 'mi
                 d.pop(leaf, None)
             else:
                 d[leaf] = value
+        _prune_empty(node)
     path = tmp_path / f'scenario_{len(list(tmp_path.glob("scenario_*.yaml")))}.yaml'
     path.write_text(yaml.safe_dump(tree, sort_keys=False))
     return path
