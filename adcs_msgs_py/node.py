@@ -27,7 +27,8 @@ from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 
 from adcs_msgs_py import topics
-from adcs_msgs_py.params import REQUIRED, ParameterError, Schema, load_params_file
+from adcs_msgs_py.params import REQUIRED, ParameterError, Schema
+from adcs_msgs_py.params_file import load_params_file
 
 EXIT_BAD_PARAMETERS = 2
 EXIT_GRAPH_TIMEOUT = 3

@@ -15,7 +15,8 @@ from pathlib import Path
 import pytest
 from conftest import ROOT
 
-from adcs_msgs_py.params import ParameterError, load_params_file
+from adcs_msgs_py.params import ParameterError
+from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.app import runner
 
 SOURCE_DIRS = ['adcs_sim', 'adcs_controllers', 'adcs_msgs_py', 'benchmarks', 'tests']

@@ -15,7 +15,8 @@ import yaml
 from numpy.testing import assert_allclose, assert_array_equal
 
 from adcs_controllers.families import PD_SCHEMA
-from adcs_msgs_py.params import ParameterError, load_params_file
+from adcs_msgs_py.params import ParameterError
+from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.bag.schema import RECORDER_SCHEMA
 from adcs_sim.truth.plant import ReactionWheels
 from adcs_sim.truth.schema import DYNAMICS_SCHEMA, build_plant, initial_state

@@ -19,8 +19,9 @@ from hypothesis import strategies as st
 from rclpy.context import Context
 from rclpy.signals import SignalHandlerOptions
 
-from adcs_msgs_py import params as params_module
-from adcs_msgs_py.params import ParameterError, load_params_file
+from adcs_msgs_py import params_file as params_module
+from adcs_msgs_py.params import ParameterError
+from adcs_msgs_py.params_file import load_params_file
 
 BUILTINS = ('use_sim_time', 'start_type_description_service')
 NODE_NAMES = ('dynamics', '/pd_controller', 'recorder', '/fault_injector')

@@ -8,7 +8,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from adcs_msgs_py.params import ParameterError, load_params_file
+from adcs_msgs_py.params import ParameterError
+from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.app.registry import NODES
 
 DEFAULT_SCENARIO = 'uosat12_gsmn.yaml'  # seed 000: a wheel fails, two-wheel GSMN recovers (the showcase)
