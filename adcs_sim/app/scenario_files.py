@@ -11,6 +11,7 @@ from pathlib import Path
 from adcs_msgs_py.params import ParameterError
 from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.app.registry import NODES
+from adcs_sim.app.scenario_checks import check_agreement, check_resources
 
 DEFAULT_SCENARIO = 'uosat12_gsmn.yaml'  # seed 000: a wheel fails, two-wheel GSMN recovers (the showcase)
 
@@ -48,7 +49,8 @@ def resolve_scenario(name: str | None) -> Path:
 
 
 def validate_scenario(path: Path, duration: float | None = None) -> dict:
-    """Validate every section; return {section: validated params}. Raises ParameterError."""
+    """Validate every section, then that they agree and that the run's needs fit
+    (:mod:`adcs_sim.app.scenario_checks`); return {section: validated params}. Raises ParameterError."""
     sections = load_params_file(str(path))
     unknown = [s for s in sections if s not in NODES]
     if unknown:
@@ -65,12 +67,6 @@ def validate_scenario(path: Path, duration: float | None = None) -> dict:
         if name == 'dynamics' and duration is not None:
             given = {**given, 'duration': float(duration)}
         validated[name] = NODES[name].schema.validate(given)
-    faults = validated.get('fault_injector')
-    if faults is not None:
-        wheels = validated['dynamics']['wheels.names']
-        unknown = sorted(set(faults['schedule.actuator']) - set(wheels))
-        if unknown:
-            raise ParameterError('schedule.actuator', f'fault on actuator(s) {unknown} that the '
-                                 f'dynamics section does not have (dynamics.wheels.names: {list(wheels)})',
-                                 'fault_injector')
+    check_agreement(validated)
+    check_resources(validated['dynamics'])
     return validated
