@@ -32,10 +32,16 @@ from adcs_msgs_py.params_file import load_params_file
 
 EXIT_BAD_PARAMETERS = 2
 EXIT_GRAPH_TIMEOUT = 3
+EXIT_RUN_STOPPED = 4
 
 
 class GraphTimeout(RuntimeError):
     """The graph did not connect within the startup timeout."""
+
+
+class RunStopped(RuntimeError):
+    """The run cannot go on (e.g. the plant state is no longer finite): the node exits with
+    :data:`EXIT_RUN_STOPPED` and this message."""
 
 
 FASTDDS_PROFILE = Path(__file__).resolve().parent / 'fastdds_profile.xml'
@@ -203,6 +209,9 @@ def main_for(node_class: type[AdcsNode], args=None, handle_signals: bool = True)
     except GraphTimeout as exc:
         print(f'error: {exc}', file=sys.stderr, flush=True)
         status = EXIT_GRAPH_TIMEOUT
+    except RunStopped as exc:
+        print(f'[{node_class.schema.node}] error: {exc}', file=sys.stderr, flush=True)
+        status = EXIT_RUN_STOPPED
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
