@@ -11,7 +11,9 @@
 from __future__ import annotations
 
 import array
+import ctypes
 import os
+import signal
 import sys
 import time
 from collections.abc import Callable
@@ -52,6 +54,26 @@ def network_hygiene_defaults() -> None:
     only, and our Fast DDS profile (short heartbeat period; see fastdds_profile.xml)."""
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(FASTDDS_PROFILE))
+
+
+# Set by the runner in the environment of every node it starts: its pid. A node so started dies
+# with the runner, however the runner dies (SIGKILL included): Linux's parent-death signal.
+RUNNER_PID_ENV = 'ADCS_SIM_RUNNER_PID'
+PR_SET_PDEATHSIG = 1   # <linux/prctl.h>
+
+
+def die_with_runner(death_signal: int = signal.SIGKILL) -> None:
+    """If started by the runner (:data:`RUNNER_PID_ENV`), ask the kernel for ``death_signal`` when
+    the runner exits, then check that the runner is still the parent (it may have died between
+    the fork and here: then exit at once, as the signal would have made us)."""
+    runner = os.environ.get(RUNNER_PID_ENV)
+    if not runner or not sys.platform.startswith('linux'):
+        return
+    libc = ctypes.CDLL(None, use_errno=True)
+    if libc.prctl(PR_SET_PDEATHSIG, int(death_signal), 0, 0, 0) != 0:
+        raise OSError(ctypes.get_errno(), 'prctl(PR_SET_PDEATHSIG) failed')
+    if os.getppid() != int(runner):
+        os._exit(128 + int(death_signal))
 
 
 def _plain(value):
@@ -179,12 +201,15 @@ def main_for(node_class: type[AdcsNode], args=None, handle_signals: bool = True)
     """Entry point of a node executable. Returns the process exit status.
 
     ``handle_signals=False`` leaves SIGINT/SIGTERM to the node (the recorder drains its queues
-    before closing the bag); otherwise rclpy's handler turns them into a clean shutdown.
+    before closing the bag); otherwise rclpy's handler turns them into a clean shutdown. Started
+    by the runner, the node dies with it (:func:`die_with_runner`): SIGKILL, or SIGTERM for a node
+    that handles it (the recorder closes its bag, then exits).
     """
     argv = list(args if args is not None else sys.argv)
     if wants_help(argv):
         print(usage(node_class.schema), flush=True)
         return 0
+    die_with_runner(signal.SIGKILL if handle_signals else signal.SIGTERM)
     network_hygiene_defaults()
     try:
         check_params_files(argv)

@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import os
+import signal
+import subprocess
 import sys
 from pathlib import Path
 
@@ -60,6 +62,73 @@ def alive(pid: int) -> bool:
     """Whether ``pid`` runs (a zombie whose parent has not reaped it yet is gone for our purpose)."""
     stat = _stat(pid)
     return stat is not None and stat[0] not in 'ZX'
+
+
+def descendants(pid: int) -> set[int]:
+    """Every process below ``pid`` (children, their children, ...)."""
+    found, todo = set(), [pid]
+    while todo:
+        for child in children(todo.pop()):
+            if child not in found:
+                found.add(child)
+                todo.append(child)
+    return found
+
+
+def kill_tree(proc: subprocess.Popen) -> None:
+    """SIGKILL ``proc``'s process group and every process below it, and reap ``proc``."""
+    targets = descendants(proc.pid)
+    for pgid in {proc.pid, *targets}:
+        try:
+            os.killpg(pgid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+    for pid in targets:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    proc.wait()
+
+
+class Spawner:
+    """``spawn(args, **popen_kwargs)``: a process in a session of its own. ``spawn.adopt(pids)``
+    adds processes seen below it (they may outlive it). :meth:`cleanup` kills them all."""
+
+    def __init__(self) -> None:
+        self.procs: list[subprocess.Popen] = []
+        self.adopted: set[int] = set()
+
+    def __call__(self, args, **kwargs) -> subprocess.Popen:
+        kwargs.setdefault('start_new_session', True)
+        proc = subprocess.Popen(args, **kwargs)
+        self.procs.append(proc)
+        return proc
+
+    def adopt(self, pids) -> None:
+        self.adopted |= set(pids)
+
+    def cleanup(self) -> None:
+        for pid in self.adopted:
+            if alive(pid):
+                try:
+                    os.kill(pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+        for proc in self.procs:
+            kill_tree(proc)
+
+
+@pytest.fixture
+def spawn():
+    """A :class:`Spawner`; at teardown, passed or failed, every process it started or adopted is
+    killed with its process group and descendants (a failing test leaves no runner and no node
+    behind for the rest of the suite)."""
+    spawner = Spawner()
+    try:
+        yield spawner
+    finally:
+        spawner.cleanup()
 
 
 @pytest.fixture

@@ -18,7 +18,7 @@ from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from tqdm import tqdm
 
-from adcs_msgs_py.node import network_hygiene_defaults
+from adcs_msgs_py.node import RUNNER_PID_ENV, network_hygiene_defaults
 from adcs_sim import bag as bagio
 from adcs_sim.app.domains import DomainLease
 from adcs_sim.app.scenario_files import RunError
@@ -27,10 +27,14 @@ STOP_TIMEOUT_S = 20.0
 
 
 class Graph:
-    """The node processes of one run, started and stopped in order."""
+    """The node processes of one run, started and stopped in order.
 
-    def __init__(self, env: dict, log_dir: Path) -> None:
-        self.env = env
+    Each node dies with the runner (:data:`~adcs_msgs_py.node.RUNNER_PID_ENV`: the node sets the
+    parent-death signal at start) and holds the domain lease's lock (``keep_fds``) until it exits."""
+
+    def __init__(self, env: dict, log_dir: Path, keep_fds: tuple[int, ...] = ()) -> None:
+        self.env = {**env, RUNNER_PID_ENV: str(os.getpid())}
+        self.keep_fds = keep_fds
         self.log_dir = log_dir
         self.procs: dict[str, subprocess.Popen] = {}
         self.logs: dict[str, Path] = {}
@@ -57,7 +61,7 @@ class Graph:
         with open(log, 'wb') as f:
             proc = subprocess.Popen([sys.executable, '-m', module, '--ros-args', *args],
                                     stdout=f, stderr=subprocess.STDOUT, env=self.env,
-                                    stdin=subprocess.DEVNULL, start_new_session=True)
+                                    stdin=subprocess.DEVNULL, start_new_session=True, pass_fds=self.keep_fds)
         self.procs[name] = proc
         return proc
 
