@@ -57,12 +57,12 @@ def _assert_whole_run_with_gap(bag, killed_after: int):
     return metrics
 
 
-def test_runner_restarts_a_killed_controller_which_rejoins(tmp_path):
+def test_runner_restarts_a_killed_controller_which_rejoins(tmp_path, spawn):
     scenario = make_scenario(tmp_path, {'dynamics': {'duration': DURATION, 'lockstep.timeout': TIMEOUT}})
     out = tmp_path / 'run'
-    proc = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
-                             '--no-progress', '--restart', '1'], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    proc = spawn([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
+                  '--no-progress', '--restart', '1'], stdout=subprocess.PIPE,
+                 stderr=subprocess.PIPE, text=True, cwd=ROOT)
     try:
         _wait('run under way', lambda: _states_recorded(out / 'bag') > 0, proc)
         killed_after = _states_recorded(out / 'bag')
@@ -80,7 +80,7 @@ def test_runner_restarts_a_killed_controller_which_rejoins(tmp_path):
     assert (out / 'logs' / 'pd_controller.1.log').is_file() and (out / 'logs' / 'pd_controller.log').is_file()
 
 
-def test_another_law_takes_over_after_a_kill(ros_domain, tmp_path):
+def test_another_law_takes_over_after_a_kill(ros_domain, tmp_path, spawn):
     """Node processes on the test's domain: recorder, dynamics, PD; the PD is SIGKILLed and the
     min-norm law of the same spacecraft (seed 004 eq. 14) is started in its place."""
     minnorm = yaml.safe_load((CONFIG / 'microsat_minnorm_slew.yaml').read_text())['minnorm_controller']
@@ -92,9 +92,9 @@ def test_another_law_takes_over_after_a_kill(ros_domain, tmp_path):
 
     def start(name, module, *params):
         log = open(tmp_path / f'{name}.log', 'wb')
-        procs[name] = subprocess.Popen([sys.executable, '-m', module, '--ros-args', '--params-file', str(scenario),
-                                        *[a for p in params for a in ('-p', p)]], stdout=log,
-                                       stderr=subprocess.STDOUT, env=env, cwd=ROOT)
+        procs[name] = spawn([sys.executable, '-m', module, '--ros-args', '--params-file', str(scenario),
+                             *[a for p in params for a in ('-p', p)]], stdout=log,
+                            stderr=subprocess.STDOUT, env=env, cwd=ROOT)
         log.close()
         return procs[name]
 

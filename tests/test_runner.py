@@ -34,12 +34,11 @@ def test_runner_end_to_end_and_analyze_agree(tmp_path, capsys):
 
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
-def test_runner_interrupted_mid_run_leaves_readable_bag_and_no_orphans(tmp_path, sig):
+def test_runner_interrupted_mid_run_leaves_readable_bag_and_no_orphans(tmp_path, sig, spawn):
     scenario = make_scenario(tmp_path, {'dynamics': {'duration': 1.0e6}})
     out = tmp_path / 'run'
-    proc = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
-                             '--no-progress'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            cwd=ROOT)
+    proc = spawn([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
+                  '--no-progress'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
     try:
         bag = out / 'bag'
         deadline = time.monotonic() + 120

@@ -27,13 +27,13 @@ DEADLINE = 120.0
 class Run:
     """``adcs-run`` as a subprocess; remembers every child process it ever saw."""
 
-    def __init__(self, tmp_path, duration: float) -> None:
+    def __init__(self, tmp_path, duration: float, spawn) -> None:
         self.scenario = make_scenario(tmp_path, {'dynamics': {'duration': duration}})
         self.out = tmp_path / 'run'
         self.bag = self.out / 'bag'
-        self.proc = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.runner', str(self.scenario), '--out',
-                                      str(self.out), '--no-progress'], stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        self.proc = spawn([sys.executable, '-m', 'adcs_sim.app.runner', str(self.scenario), '--out',
+                           str(self.out), '--no-progress'], stdout=subprocess.PIPE,
+                          stderr=subprocess.PIPE, text=True, cwd=ROOT)
         self.seen: dict[int, str] = {}
 
     def wait_for(self, what: str, condition) -> bool:
@@ -86,8 +86,8 @@ def _state_recorded(bag, count: int = 1) -> bool:
     ('shutdown', signal.SIGINT),
     ('twice', signal.SIGINT),
 ])
-def test_signal_at_any_phase_leaves_no_orphan_and_a_complete_bag(tmp_path, phase, sig):
-    run = Run(tmp_path, 30.0 if phase == 'shutdown' else 1.0e6)
+def test_signal_at_any_phase_leaves_no_orphan_and_a_complete_bag(tmp_path, phase, sig, spawn):
+    run = Run(tmp_path, 30.0 if phase == 'shutdown' else 1.0e6, spawn)
     try:
         if phase == 'recorder_starting':
             reached = run.wait_for('recorder started', lambda: run.node_pids('adcs_sim.nodes.recorder'))
@@ -120,8 +120,8 @@ def test_signal_at_any_phase_leaves_no_orphan_and_a_complete_bag(tmp_path, phase
         assert RunData.from_bag(run.bag).t.size > 1
 
 
-def test_node_killed_mid_run_stops_graph_keeps_bag_and_names_it(tmp_path):
-    run = Run(tmp_path, 1.0e6)
+def test_node_killed_mid_run_stops_graph_keeps_bag_and_names_it(tmp_path, spawn):
+    run = Run(tmp_path, 1.0e6, spawn)
     try:
         # two states recorded: the controller has answered at least one step (the first state
         # alone can be flushed before the controller's first answer, under load)
