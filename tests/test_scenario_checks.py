@@ -34,7 +34,8 @@ def test_controller_wheel_names_differ_from_the_plants(tmp_path):
 
 def test_controller_has_fewer_wheels_than_the_plant(tmp_path):
     path = make_scenario(tmp_path, {'pd_controller': {
-        'wheels.names': ['rw_x', 'rw_y'], 'wheels.axes': [1.0, 0.0, 0.0, 0.0, 1.0, 0.0], 'wheels.max_torque': [0.01, 0.01]}})
+        'wheels.names': ['rw_x', 'rw_y'], 'wheels.axes': [1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+        'wheels.max_torque': [0.01, 0.01]}})
     refused(path, 'pd_controller', 'wheels.names', 'rw_z')
 
 
