@@ -1,9 +1,20 @@
 """ament_python package ``adcs_sim``: installable by ``colcon build`` and by ``pip install``."""
 from glob import glob
+from pathlib import Path
 
 from setuptools import find_packages, setup
 
 PACKAGE = 'adcs_sim'
+HERE = Path(__file__).resolve().parent
+
+
+def runtime_requirements() -> list[str]:
+    """The pinned runtime dependencies: requirements.txt is their one source (``pip install -r``
+    and ``pip install .`` get the same pins; the ros-* must stay pinned, unpinned they resolve to
+    a later ROS distribution)."""
+    lines = (HERE / 'requirements.txt').read_text().splitlines()
+    return [line.split('#', 1)[0].strip() for line in lines if line.split('#', 1)[0].strip()]
+
 
 # Node executables: the name is also the node name and the scenario-file section name.
 NODES = {
@@ -43,7 +54,7 @@ setup(
         ('share/' + PACKAGE + '/config', sorted(glob('config/*.yaml'))),
         ('share/' + PACKAGE + '/config/campaigns', sorted(glob('config/campaigns/*.yaml'))),
     ],
-    install_requires=['setuptools'],
+    install_requires=runtime_requirements(),
     zip_safe=True,
     maintainer='adcs_sim developers',
     maintainer_email='adcs-sim@example.org',

@@ -11,7 +11,9 @@
 from __future__ import annotations
 
 import array
+import ctypes
 import os
+import signal
 import sys
 import time
 from collections.abc import Callable
@@ -28,15 +30,22 @@ from rclpy.signals import SignalHandlerOptions
 
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import Intruder, IntrusionDetected, PublisherVetting, RejectCounter, parse_publishers
-from adcs_msgs_py.params import ParameterError, Schema, load_params_file
+from adcs_msgs_py.params import REQUIRED, ParameterError, Schema
+from adcs_msgs_py.params_file import load_params_file
 
 EXIT_BAD_PARAMETERS = 2
 EXIT_GRAPH_TIMEOUT = 3
 EXIT_INTRUSION = 4   # a publisher the run does not allow was matched on a topic this node applies
+EXIT_RUN_STOPPED = 5   # the run cannot go on (e.g. the plant state is no longer finite)
 
 
 class GraphTimeout(RuntimeError):
     """The graph did not connect within the startup timeout."""
+
+
+class RunStopped(RuntimeError):
+    """The run cannot go on (e.g. the plant state is no longer finite): the node exits with
+    :data:`EXIT_RUN_STOPPED` and this message."""
 
 
 FASTDDS_PROFILE = Path(__file__).resolve().parent / 'fastdds_profile.xml'
@@ -47,6 +56,26 @@ def network_hygiene_defaults() -> None:
     only, and our Fast DDS profile (short heartbeat period; see fastdds_profile.xml)."""
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(FASTDDS_PROFILE))
+
+
+# Set by the runner in the environment of every node it starts: its pid. A node so started dies
+# with the runner, however the runner dies (SIGKILL included): Linux's parent-death signal.
+RUNNER_PID_ENV = 'ADCS_SIM_RUNNER_PID'
+PR_SET_PDEATHSIG = 1   # <linux/prctl.h>
+
+
+def die_with_runner(death_signal: int = signal.SIGKILL) -> None:
+    """If started by the runner (:data:`RUNNER_PID_ENV`), ask the kernel for ``death_signal`` when
+    the runner exits, then check that the runner is still the parent (it may have died between
+    the fork and here: then exit at once, as the signal would have made us)."""
+    runner = os.environ.get(RUNNER_PID_ENV)
+    if not runner or not sys.platform.startswith('linux'):
+        return
+    libc = ctypes.CDLL(None, use_errno=True)
+    if libc.prctl(PR_SET_PDEATHSIG, int(death_signal), 0, 0, 0) != 0:
+        raise OSError(ctypes.get_errno(), 'prctl(PR_SET_PDEATHSIG) failed')
+    if os.getppid() != int(runner):
+        os._exit(128 + int(death_signal))
 
 
 def _plain(value):
@@ -189,21 +218,51 @@ class AdcsNode(Node):
 
 
 def check_params_files(argv: list[str]) -> None:
-    """Parse every ``--params-file`` ourselves first: rcl's parser reports a malformed file with
-    no key; ours names the file, the line and the section."""
+    """Read every ``--params-file`` as the runner does first (:func:`load_params_file`: its size
+    and complexity limits, then rcl's parser): a file over a limit or refused by rcl stops the
+    node with a one-line message naming the file, before rclpy.init parses it again."""
     for i, arg in enumerate(argv[:-1]):
         if arg == '--params-file':
             load_params_file(argv[i + 1])
+
+
+HELP_FLAGS = ('-h', '--help')
+
+
+def wants_help(argv: list[str]) -> bool:
+    """``-h``/``--help`` among the program's own arguments (before any ``--ros-args``)."""
+    own = argv[1:argv.index('--ros-args')] if '--ros-args' in argv else argv[1:]
+    return any(a in HELP_FLAGS for a in own)
+
+
+def usage(schema: Schema) -> str:
+    """What ``<node> --help`` prints: how to start it and its parameters, one line each."""
+    lines = [f'usage: {schema.node} [-h] [--ros-args --params-file FILE] [--ros-args -p NAME:=VALUE ...]', '']
+    if schema.doc:
+        lines += [schema.doc.strip(), '']
+    lines += [f'parameters (section {schema.node}.ros__parameters of a scenario file):']
+    width = max((len(p.name) for p in schema.params), default=0)
+    for p in schema.params:
+        default = 'required' if p.default is REQUIRED else f'default {p.default!r}'
+        doc = f' {p.doc}' if p.doc else ''
+        lines.append(f'  {p.name:<{width}}  {p.kind}, {default}.{doc}')
+    return '\n'.join(lines)
 
 
 def main_for(node_class: type[AdcsNode], args=None, handle_signals: bool = True) -> int:
     """Entry point of a node executable. Returns the process exit status.
 
     ``handle_signals=False`` leaves SIGINT/SIGTERM to the node (the recorder drains its queues
-    before closing the bag); otherwise rclpy's handler turns them into a clean shutdown.
+    before closing the bag); otherwise rclpy's handler turns them into a clean shutdown. Started
+    by the runner, the node dies with it (:func:`die_with_runner`): SIGKILL, or SIGTERM for a node
+    that handles it (the recorder closes its bag, then exits).
     """
-    network_hygiene_defaults()
     argv = list(args if args is not None else sys.argv)
+    if wants_help(argv):
+        print(usage(node_class.schema), flush=True)
+        return 0
+    die_with_runner(signal.SIGKILL if handle_signals else signal.SIGTERM)
+    network_hygiene_defaults()
     try:
         check_params_files(argv)
     except ParameterError as exc:
@@ -230,6 +289,9 @@ def main_for(node_class: type[AdcsNode], args=None, handle_signals: bool = True)
     except IntrusionDetected as exc:
         print(f'error: run compromised: {exc}', file=sys.stderr, flush=True)
         status = EXIT_INTRUSION
+    except RunStopped as exc:
+        print(f'[{node_class.schema.node}] error: {exc}', file=sys.stderr, flush=True)
+        status = EXIT_RUN_STOPPED
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

@@ -6,7 +6,8 @@ Each node declares its parameters as a :class:`Schema`; :meth:`Schema.validate` 
 key. The same schema validates a YAML section before any process starts (runner) and the
 parameter overrides a node received (node start), so both give the same message.
 
-No rclpy here: this module is importable and testable without ROS.
+No rclpy here: this module is importable and testable without ROS (params files are read by
+:mod:`adcs_msgs_py.params_file`, with rcl's own parser).
 """
 from __future__ import annotations
 
@@ -16,7 +17,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import yaml
 
 REQUIRED = object()
 
@@ -233,32 +233,3 @@ def unflatten(flat: Mapping[str, Any]) -> dict[str, Any]:
             node = node.setdefault(part, {})
         node[leaf] = value
     return out
-
-
-def load_params_file(path: str) -> dict[str, dict[str, Any]]:
-    """Read a ROS 2 params file -> {node section: {dotted.name: value}}.
-
-    Raises ParameterError with the offending section for malformed YAML or a section without
-    ``ros__parameters``. Node names may be written with or without a leading ``/``.
-    """
-    try:
-        with open(path, encoding='utf-8') as f:
-            tree = yaml.safe_load(f)
-    except OSError as exc:
-        raise ParameterError('<file>', f'cannot read {path}: {exc.strerror}') from None
-    except yaml.YAMLError as exc:
-        raise ParameterError('<file>', f'{path} is not valid YAML: {exc}') from None
-    if not isinstance(tree, Mapping) or not tree:
-        raise ParameterError('<file>', f'{path} must be a mapping of node sections '
-                             '(<node>: {ros__parameters: {...}})')
-    sections: dict[str, dict[str, Any]] = {}
-    for node, body in tree.items():
-        name = str(node).lstrip('/')
-        if not isinstance(body, Mapping) or set(body) != {'ros__parameters'}:
-            raise ParameterError('ros__parameters', f'section {name!r} must contain exactly one key '
-                                 "'ros__parameters'", name)
-        params = body['ros__parameters'] or {}
-        if not isinstance(params, Mapping):
-            raise ParameterError('ros__parameters', 'must be a mapping of parameters', name)
-        sections[name] = flatten(params)
-    return sections

@@ -90,10 +90,10 @@ def test_runs_that_end_early_or_diverge_are_masked(tmp_path):
     overflows. The diverging run is recorded as failed at the step it went non-finite; a shorter
     run stops at its own duration; the others are exactly what they are alone."""
     scenario = make_scenario(tmp_path, {
-        'dynamics': {'duration': 400.0, 'torquers.enabled': True, 'wheels.names': [], 'wheels.axes': [],
-                     'wheels.spin_inertia': [], 'wheels.max_torque': [], 'wheels.max_speed': []},
-        'pd_controller': {'actuator': 'torquers', 'wheels.names': [], 'wheels.axes': [],
-                          'wheels.max_torque': []}})
+        'dynamics': {'duration': 400.0, 'torquers.enabled': True, 'wheels.names': None, 'wheels.axes': None,
+                     'wheels.spin_inertia': None, 'wheels.max_torque': None, 'wheels.max_speed': None},
+        'pd_controller': {'actuator': 'torquers', 'wheels.names': None, 'wheels.axes': None,
+                          'wheels.max_torque': None}})
     runs = [{}, {'pd_controller': {'kd': 40.0}}, {'dynamics': {'duration': 150.0}}]
     result = batch_of(scenario, runs).run()
     assert result.failure[0] is None and result.failure[2] is None

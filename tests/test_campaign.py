@@ -113,10 +113,10 @@ def test_diverging_runs_are_failed_rows_and_the_campaign_goes_on(tmp_path):
     """Torquers without limit and kd drawn in [0.05, 6]: kd * period > 2 makes the discrete rate
     loop unstable and overflow; those runs fail with their inputs, the others complete."""
     scenario = make_scenario(tmp_path, {
-        'dynamics': {'duration': 300.0, 'torquers.enabled': True, 'wheels.names': [], 'wheels.axes': [],
-                     'wheels.spin_inertia': [], 'wheels.max_torque': [], 'wheels.max_speed': []},
-        'pd_controller': {'actuator': 'torquers', 'wheels.names': [], 'wheels.axes': [],
-                          'wheels.max_torque': []}})
+        'dynamics': {'duration': 300.0, 'torquers.enabled': True, 'wheels.names': None, 'wheels.axes': None,
+                     'wheels.spin_inertia': None, 'wheels.max_torque': None, 'wheels.max_speed': None},
+        'pd_controller': {'actuator': 'torquers', 'wheels.names': None, 'wheels.axes': None,
+                          'wheels.max_torque': None}})
     path = write_campaign(tmp_path, scenario, runs=12, chunk_size=5, dispersions={
         'pd_controller.kd': {'distribution': 'uniform', 'low': 0.05, 'high': 6.0}},
         requirements={'settling_euler213_0.5deg_s': {'max': 250.0}})

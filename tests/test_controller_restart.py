@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 import yaml
-from conftest import CONFIG, ROOT, make_scenario
+from conftest import CONFIG, ROOT, children, make_scenario
 
 from adcs_sim.app.analysis import RunData, run_metrics
 from adcs_sim.bag.reader import read_raw
@@ -45,11 +45,6 @@ def _wait(what, condition, proc):
             pass
 
 
-def _children(pid: int) -> dict[int, str]:
-    out = subprocess.run(['ps', '-o', 'pid=,args=', '--ppid', str(pid)], capture_output=True, text=True).stdout
-    return {int(line.split(None, 1)[0]): line.split(None, 1)[1] for line in out.strip().splitlines()}
-
-
 def _assert_whole_run_with_gap(bag, killed_after: int):
     run = RunData.from_bag(bag)
     np.testing.assert_array_equal(run.t, np.arange(DURATION + 1))      # every step recorded
@@ -62,16 +57,16 @@ def _assert_whole_run_with_gap(bag, killed_after: int):
     return metrics
 
 
-def test_runner_restarts_a_killed_controller_which_rejoins(tmp_path):
+def test_runner_restarts_a_killed_controller_which_rejoins(tmp_path, spawn):
     scenario = make_scenario(tmp_path, {'dynamics': {'duration': DURATION, 'lockstep.timeout': TIMEOUT}})
     out = tmp_path / 'run'
-    proc = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
-                             '--no-progress', '--restart', '1'], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    proc = spawn([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
+                  '--no-progress', '--restart', '1'], stdout=subprocess.PIPE,
+                 stderr=subprocess.PIPE, text=True, cwd=ROOT)
     try:
         _wait('run under way', lambda: _states_recorded(out / 'bag') > 0, proc)
         killed_after = _states_recorded(out / 'bag')
-        [pid] = [p for p, a in _children(proc.pid).items() if 'pd_controller' in a]
+        [pid] = [p for p, a in children(proc.pid).items() if 'pd_controller' in a]
         subprocess.run(['kill', '-KILL', str(pid)], check=True)
         _, err = proc.communicate(timeout=DEADLINE)
     finally:
@@ -85,7 +80,7 @@ def test_runner_restarts_a_killed_controller_which_rejoins(tmp_path):
     assert (out / 'logs' / 'pd_controller.1.log').is_file() and (out / 'logs' / 'pd_controller.log').is_file()
 
 
-def test_another_law_takes_over_after_a_kill(ros_domain, tmp_path):
+def test_another_law_takes_over_after_a_kill(ros_domain, tmp_path, spawn):
     """Node processes on the test's domain: recorder, dynamics, PD; the PD is SIGKILLed and the
     min-norm law of the same spacecraft (seed 004 eq. 14) is started in its place."""
     minnorm = yaml.safe_load((CONFIG / 'microsat_minnorm_slew.yaml').read_text())['minnorm_controller']
@@ -97,9 +92,9 @@ def test_another_law_takes_over_after_a_kill(ros_domain, tmp_path):
 
     def start(name, module, *params):
         log = open(tmp_path / f'{name}.log', 'wb')
-        procs[name] = subprocess.Popen([sys.executable, '-m', module, '--ros-args', '--params-file', str(scenario),
-                                        *[a for p in params for a in ('-p', p)]], stdout=log,
-                                       stderr=subprocess.STDOUT, env=env, cwd=ROOT)
+        procs[name] = spawn([sys.executable, '-m', module, '--ros-args', '--params-file', str(scenario),
+                             *[a for p in params for a in ('-p', p)]], stdout=log,
+                            stderr=subprocess.STDOUT, env=env, cwd=ROOT)
         log.close()
         return procs[name]
 

@@ -15,7 +15,8 @@ from pathlib import Path
 import pytest
 from conftest import ROOT
 
-from adcs_msgs_py.params import ParameterError, load_params_file
+from adcs_msgs_py.params import ParameterError
+from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.app import runner
 
 SOURCE_DIRS = ['adcs_sim', 'adcs_controllers', 'adcs_msgs_py', 'benchmarks', 'tests']
@@ -79,12 +80,18 @@ def test_sources_use_safe_yaml_and_never_evaluate_code():
 
 
 def test_yaml_code_tags_in_a_scenario_are_refused_not_run(tmp_path):
+    """rcl's parser ignores tags: the tagged value is data (a string array), which the schema
+    refuses where a number is due; nothing is constructed or run."""
+    from adcs_sim.app.registry import NODES
     marker = tmp_path / 'pwned'
     path = tmp_path / 'evil.yaml'
     path.write_text('dynamics:\n  ros__parameters:\n'
                     f'    duration: !!python/object/apply:os.system ["touch {marker}"]\n')
-    with pytest.raises(ParameterError, match='not valid YAML'):
-        load_params_file(str(path))
+    value = load_params_file(str(path))['dynamics']['duration']
+    assert value == [f'touch {marker}']
+    nominal = load_params_file(str(ROOT / 'config' / 'microsat_pd_slew.yaml'))['dynamics']
+    with pytest.raises(ParameterError, match='duration'):
+        NODES['dynamics'].schema.validate({**nominal, 'duration': value})
     assert not marker.exists()
 
 

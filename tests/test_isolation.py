@@ -33,9 +33,9 @@ def _scenarios(tmp_path):
             for q in attitudes], attitudes
 
 
-def _launch(scenario, out):
-    return subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
-                             '--no-progress'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+def _launch(spawn, scenario, out):
+    return spawn([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
+                  '--no-progress'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
 
 
 def _finish(proc):
@@ -60,10 +60,10 @@ def _content(bag):
     return dict(out)
 
 
-def test_eight_concurrent_runs_do_not_cross_talk_and_equal_solo_runs(tmp_path):
+def test_eight_concurrent_runs_do_not_cross_talk_and_equal_solo_runs(tmp_path, spawn):
     scenarios, attitudes = _scenarios(tmp_path)
     outs = [tmp_path / f'concurrent{i}' for i in range(N_RUNS)]
-    procs = [_launch(s, o) for s, o in zip(scenarios, outs)]
+    procs = [_launch(spawn, s, o) for s, o in zip(scenarios, outs)]
     domains = [_finish(p) for p in procs]
     assert len(set(domains)) == N_RUNS, domains                       # a domain each
 
@@ -78,5 +78,5 @@ def test_eight_concurrent_runs_do_not_cross_talk_and_equal_solo_runs(tmp_path):
 
     for i in np.random.default_rng(5).choice(N_RUNS, size=1):
         solo = tmp_path / f'solo{i}'
-        _finish(_launch(scenarios[i], solo))
+        _finish(_launch(spawn, scenarios[i], solo))
         assert _content(solo / 'bag') == contents[i], f'run {i}: concurrent != alone'

@@ -31,7 +31,7 @@ def test_fates_are_seeded_and_have_the_fractions():
 
 def test_fractions_are_checked_at_start(tmp_path):
     schema = NODES['dynamics'].schema
-    from adcs_msgs_py.params import load_params_file
+    from adcs_msgs_py.params_file import load_params_file
     section = load_params_file(str(ROOT / 'config' / 'microsat_pd_slew.yaml'))['dynamics']
     with pytest.raises(ParameterError, match='link_faults.drop'):
         schema.validate({**section, 'link_faults.drop': 1.5})

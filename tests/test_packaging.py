@@ -341,7 +341,7 @@ def test_wheel_declares_console_scripts_and_ros_data_files(wheel):
         assert wheel.data_prefix + data_file in wheel.names, (
             f'{data_file} not among the wheel data files '
             f'({sorted(n for n in wheel.names if ".data/" in n)})')
-    # The nodes' Fast DDS profile (package data beside the node base class, adcs_msgs_py/node.py).
+    # The nodes' Fast DDS profile (package data of the interface layer, beside adcs_msgs_py/node.py).
     assert 'adcs_msgs_py/fastdds_profile.xml' in wheel.names
 
 
@@ -375,3 +375,14 @@ def test_runner_registry_matches_setup_py():
     for name, info in REGISTRY.items():
         assert NODES[name].split(':')[0] == info.module, name
         assert info.schema.node == name, f'{name}: schema is for node {info.schema.node!r}'
+
+
+def test_wheel_requires_the_pinned_runtime_dependencies(wheel):
+    """``pip install .`` installs what requirements.txt pins, pins included (issue #17)."""
+    from test_dependencies import requirements
+    with zipfile.ZipFile(wheel.path) as zf:
+        [metadata] = [n for n in zf.namelist() if n.endswith('.dist-info/METADATA')]
+        lines = zf.read(metadata).decode().splitlines()
+    requires = sorted(line.split(':', 1)[1].strip().replace(' ', '') for line in lines
+                      if line.startswith('Requires-Dist:'))
+    assert requires == sorted(r.replace(' ', '') for r in requirements().values())

@@ -15,7 +15,8 @@ import yaml
 from numpy.testing import assert_allclose, assert_array_equal
 
 from adcs_controllers.families import PD_SCHEMA
-from adcs_msgs_py.params import ParameterError, load_params_file
+from adcs_msgs_py.params import ParameterError
+from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.bag.schema import RECORDER_SCHEMA
 from adcs_sim.truth.plant import ReactionWheels
 from adcs_sim.truth.schema import DYNAMICS_SCHEMA, build_plant, initial_state
@@ -131,13 +132,14 @@ def test_missing_file(tmp_path):
 
 
 def test_section_without_ros_parameters(tmp_path):
-    """A node section must be {ros__parameters: {...}}; the error names the section and the key."""
+    """A node section must be {ros__parameters: {...}}: rcl refuses it, and so does the runner,
+    quoting rcl (the line and the key it missed)."""
     path = tmp_path / 'flat.yaml'
     path.write_text('dynamics:\n  ros__parameters:\n    duration: 5.0\npd_controller:\n  kp: 0.002\n')
     with pytest.raises(ParameterError) as info:
         load_params_file(str(path))
-    assert info.value.section == 'pd_controller' and info.value.key == 'ros__parameters'
-    assert 'pd_controller' in str(info.value) and 'ros__parameters' in str(info.value)
+    assert info.value.key == '<file>'
+    assert str(path) in str(info.value) and 'ros__parameters at line 5' in str(info.value)
 
 
 def test_params_file_is_flattened_and_leading_slash_stripped(tmp_path):

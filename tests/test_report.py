@@ -10,9 +10,11 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -270,8 +272,11 @@ def test_comparison_table_and_overlaid_figures(bags, tmp_path, capsys):
         assert 'run_a' in svg and 'run_b' in svg  # one labelled line per run
 
 
-def test_comparison_default_folder_and_bad_member(bags, tmp_path, capsys):
-    """Without --out: comparison/ beside the runs; an unreadable bag is reported, the rest compared."""
+def test_comparison_default_folder_and_bad_member(bags, tmp_path, capsys, monkeypatch):
+    """Without --out: comparison/ in the current directory, nothing among the inputs (issue #17);
+    an unreadable bag is reported, the rest compared."""
+    monkeypatch.chdir(tmp_path)
+    inputs = sorted(bags['run_a'].parent.parent.rglob('*'))
     junk = tmp_path / 'junk.txt'
     junk.write_text('not a bag')
     status = analyze_main(['--compare', str(bags['run_a']), str(bags['run_b']), str(junk), '--json'])
@@ -280,8 +285,22 @@ def test_comparison_default_folder_and_bad_member(bags, tmp_path, capsys):
     assert set(json.loads(captured.out)) == {str(bags['run_a']), str(bags['run_b'])}
     assert [line for line in captured.err.splitlines() if line.startswith('adcs-analyze:')] == \
         [line for line in captured.err.splitlines() if str(junk) in line]
-    out = bags['run_a'].parent.parent / 'comparison'
+    assert sorted(bags['run_a'].parent.parent.rglob('*')) == inputs   # nothing written beside the bags
+    out = tmp_path / 'comparison'
     assert math.isclose(float(next(r for r in csv.reader(open(out / 'comparison.csv')) if r[0] == 'missed_steps')[2]), 3)
+
+
+def test_report_of_a_bag_in_a_read_only_folder_goes_to_the_current_directory(bags, tmp_path, capsys,
+                                                                            monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    folder = bags['run_b'].parent
+    real_access = os.access
+    monkeypatch.setattr(os, 'access', lambda p, mode: False if Path(p) == folder else real_access(p, mode))
+    before = sorted(folder.rglob('*'))
+    assert analyze_main([str(bags['run_b'])]) == 0
+    assert f'report: {tmp_path / "run_b-report" / "report.md"}' in capsys.readouterr().out
+    assert (tmp_path / 'run_b-report' / 'report.md').is_file()
+    assert sorted(folder.rglob('*')) == before
 
 
 def test_report_module_is_pure():

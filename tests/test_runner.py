@@ -2,31 +2,17 @@
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys
 import time
 
 import pytest
-from conftest import ROOT, make_scenario
+from conftest import ROOT, alive, children, make_scenario
 
 from adcs_sim.app.analysis import RunData, run_metrics
 from adcs_sim.app.analyze import main as analyze_main
 from adcs_sim.bag.reader import read_metadata, read_raw
-
-
-def _children(pid: int) -> list[int]:
-    out = subprocess.run(['ps', '-o', 'pid=', '--ppid', str(pid)], capture_output=True, text=True).stdout
-    return [int(x) for x in out.split()]
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    return True
 
 
 def test_runner_end_to_end_and_analyze_agree(tmp_path, capsys):
@@ -48,12 +34,11 @@ def test_runner_end_to_end_and_analyze_agree(tmp_path, capsys):
 
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
-def test_runner_interrupted_mid_run_leaves_readable_bag_and_no_orphans(tmp_path, sig):
+def test_runner_interrupted_mid_run_leaves_readable_bag_and_no_orphans(tmp_path, sig, spawn):
     scenario = make_scenario(tmp_path, {'dynamics': {'duration': 1.0e6}})
     out = tmp_path / 'run'
-    proc = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
-                             '--no-progress'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            cwd=ROOT)
+    proc = spawn([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
+                  '--no-progress'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
     try:
         bag = out / 'bag'
         deadline = time.monotonic() + 120
@@ -65,16 +50,16 @@ def test_runner_interrupted_mid_run_leaves_readable_bag_and_no_orphans(tmp_path,
                 pytest.fail(f'runner exited early: {proc.communicate()}')
             except subprocess.TimeoutExpired:
                 pass
-        children = _children(proc.pid)
-        assert len(children) >= 3  # recorder, controller, dynamics
+        kids = list(children(proc.pid))
+        assert len(kids) >= 3  # recorder, controller, dynamics
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == 1
-    assert 'interrupted' in err
-    assert not [pid for pid in children if _alive(pid)]
+    assert 'interrupted' in err and 'during the run' in err, err
+    assert not [pid for pid in kids if alive(pid)]
     assert (bag / 'metadata.yaml').exists()  # the recorder closed the bag
     run = RunData.from_bag(bag)
     assert run.t.size > 1

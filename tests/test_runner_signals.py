@@ -16,7 +16,7 @@ import sys
 import time
 
 import pytest
-from conftest import ROOT, make_scenario
+from conftest import ROOT, alive, children, make_scenario
 
 from adcs_sim.app.analysis import RunData
 from adcs_sim.bag.reader import is_complete, read_raw
@@ -24,45 +24,24 @@ from adcs_sim.bag.reader import is_complete, read_raw
 DEADLINE = 120.0
 
 
-def _children(pid: int) -> dict[int, str]:
-    out = subprocess.run(['ps', '-o', 'pid=,args=', '--ppid', str(pid)], capture_output=True, text=True).stdout
-    kids = {}
-    for line in out.strip().splitlines():
-        child, _, args = line.strip().partition(' ')
-        kids[int(child)] = args
-    return kids
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    try:  # a zombie whose parent has not reaped it yet is gone for our purpose
-        with open(f'/proc/{pid}/stat') as f:
-            return f.read().split(')')[-1].split()[0] != 'Z'
-    except OSError:
-        return False
-
-
 class Run:
     """``adcs-run`` as a subprocess; remembers every child process it ever saw."""
 
-    def __init__(self, tmp_path, duration: float) -> None:
+    def __init__(self, tmp_path, duration: float, spawn) -> None:
         self.scenario = make_scenario(tmp_path, {'dynamics': {'duration': duration}})
         self.out = tmp_path / 'run'
         self.bag = self.out / 'bag'
-        self.proc = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.runner', str(self.scenario), '--out',
-                                      str(self.out), '--no-progress'], stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        self.proc = spawn([sys.executable, '-m', 'adcs_sim.app.runner', str(self.scenario), '--out',
+                           str(self.out), '--no-progress'], stdout=subprocess.PIPE,
+                          stderr=subprocess.PIPE, text=True, cwd=ROOT)
         self.seen: dict[int, str] = {}
 
     def wait_for(self, what: str, condition) -> bool:
         """Poll (process table, files) until ``condition()``; False if the runner exited first."""
         deadline = time.monotonic() + DEADLINE
         while True:
-            for pid, args in _children(self.proc.pid).items():
-                if pid not in self.seen or '<defunct>' not in args:   # keep the name of a zombie
+            for pid, args in children(self.proc.pid).items():
+                if args or pid not in self.seen:   # keep the name of a zombie (no command line)
                     self.seen[pid] = args
             if condition():
                 return True
@@ -87,7 +66,7 @@ class Run:
         return self.proc.returncode, err
 
     def assert_clean(self) -> None:
-        left = [f'{pid} {args}' for pid, args in self.seen.items() if _alive(pid)]
+        left = [f'{pid} {args}' for pid, args in self.seen.items() if alive(pid)]
         assert not left, f'processes left behind: {left}'
         if self.bag.exists():   # whatever was recorded is a complete, closed bag
             assert is_complete(self.bag), sorted(p.name for p in self.bag.iterdir())
@@ -107,8 +86,8 @@ def _state_recorded(bag, count: int = 1) -> bool:
     ('shutdown', signal.SIGINT),
     ('twice', signal.SIGINT),
 ])
-def test_signal_at_any_phase_leaves_no_orphan_and_a_complete_bag(tmp_path, phase, sig):
-    run = Run(tmp_path, 30.0 if phase == 'shutdown' else 1.0e6)
+def test_signal_at_any_phase_leaves_no_orphan_and_a_complete_bag(tmp_path, phase, sig, spawn):
+    run = Run(tmp_path, 30.0 if phase == 'shutdown' else 1.0e6, spawn)
     try:
         if phase == 'recorder_starting':
             reached = run.wait_for('recorder started', lambda: run.node_pids('adcs_sim.nodes.recorder'))
@@ -116,14 +95,14 @@ def test_signal_at_any_phase_leaves_no_orphan_and_a_complete_bag(tmp_path, phase
             reached = run.wait_for('dynamics started', lambda: run.node_pids('adcs_sim.nodes.dynamics'))
         elif phase == 'shutdown':   # the dynamics node has finished: the runner is stopping the graph
             reached = run.wait_for('dynamics finished', lambda: run.node_pids('adcs_sim.nodes.dynamics')
-                                   and not any(map(_alive, run.node_pids('adcs_sim.nodes.dynamics'))))
+                                   and not any(map(alive, run.node_pids('adcs_sim.nodes.dynamics'))))
         else:                       # mid-run Ctrl-C, then a second signal while the graph is stopping
             reached = run.wait_for('run under way', lambda: _state_recorded(run.bag))
         assert reached, f'runner exited before {phase}: {run.finish()}'
         run.proc.send_signal(sig)
         if phase == 'twice':
             assert run.wait_for('first node stopped',
-                                lambda: not all(map(_alive, run.seen))) or run.proc.poll() is not None
+                                lambda: not all(map(alive, run.seen))) or run.proc.poll() is not None
             if run.proc.poll() is None:
                 run.proc.send_signal(signal.SIGTERM)
         code, err = run.finish()
@@ -141,8 +120,8 @@ def test_signal_at_any_phase_leaves_no_orphan_and_a_complete_bag(tmp_path, phase
         assert RunData.from_bag(run.bag).t.size > 1
 
 
-def test_node_killed_mid_run_stops_graph_keeps_bag_and_names_it(tmp_path):
-    run = Run(tmp_path, 1.0e6)
+def test_node_killed_mid_run_stops_graph_keeps_bag_and_names_it(tmp_path, spawn):
+    run = Run(tmp_path, 1.0e6, spawn)
     try:
         # two states recorded: the controller has answered at least one step (the first state
         # alone can be flushed before the controller's first answer, under load)

@@ -3,11 +3,13 @@
 The same numbers ``adcs-run`` prints at the end of a run; definitions in
 :mod:`adcs_sim.app.analysis`. ``--json`` prints machine-readable output.
 
-Each bag also gets a report (:mod:`adcs_sim.app.report.single_run`): ``report.md`` with the
-scenario, the metrics and figures (PNG + SVG), written to ``<bag>/../report/`` (a ``report`` folder beside the
-bag folder) or ``--out DIR``. ``--compare`` writes one comparison of all the bags instead
-(``comparison.csv``, ``comparison.md``, overlaid figures) to ``--out DIR`` or ``comparison/`` in
-the folder that holds the runs; with ``--reference FILE`` (published figures per run, e.g.
+Each bag also gets a report (:mod:`adcs_sim.app.report`): ``report.md`` with the scenario, the
+metrics and figures (PNG + SVG), written to ``--out DIR``, else to ``<bag>/../report/`` (a
+``report`` folder beside the bag folder) when that folder is writable, else to
+``<run>-report/`` in the current directory. ``--compare`` writes one comparison of all the bags
+instead (``comparison.csv``, ``comparison.md``, overlaid figures) to ``--out DIR`` or
+``comparison/`` in the current directory (never among the inputs: bags under ``bags/`` are the
+repository's reference data); with ``--reference FILE`` (published figures per run, e.g.
 ``docs/seed004/paper.yaml``) it adds a published-vs-ours table with the differences.
 ``--no-report`` only prints the metrics.
 
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -30,7 +33,8 @@ from adcs_sim.app.report.loading import BagError, default_report_dir, load_run
 
 def _report_dir(out: Path | None, path: str, name: str, several: bool) -> Path:
     if out is None:
-        return default_report_dir(path)
+        beside = default_report_dir(path)
+        return beside if os.access(beside.parent, os.W_OK) else Path.cwd() / f'{name}-report'
     return out / name if several else out
 
 
@@ -98,7 +102,7 @@ def main(argv=None) -> int:
         if len(runs) < 2:
             print('adcs-analyze: --compare needs at least two readable bags', file=sys.stderr)
             return 1
-        out = args.out or comparison.default_comparison_dir(list(runs))
+        out = args.out or Path.cwd() / 'comparison'
         try:
             reference = comparison.load_reference(args.reference) if args.reference else None
             csv_path, md_path = comparison.write_comparison(list(runs.values()), out, args.tolerance_deg,

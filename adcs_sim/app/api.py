@@ -32,7 +32,8 @@ import numpy as np
 import yaml
 from matplotlib.figure import Figure
 
-from adcs_msgs_py.params import BUILTIN_PARAMETERS, ParameterError, load_params_file, unflatten
+from adcs_msgs_py.params import BUILTIN_PARAMETERS, ParameterError, unflatten
+from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.app.analysis import RunData, attitude_errors, run_metrics
 from adcs_sim.app.batch import BatchResult, BatchSimulation
 from adcs_sim.app.montecarlo import read_results

@@ -40,6 +40,7 @@ from adcs_core.faults import FAULT_ERROR_MODES
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app.analysis import RunData, run_metrics
 from adcs_sim.app.registry import NODES
+from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.fault_schedule import fault_schedule
 from adcs_sim.truth.plant import ReactionWheels, WheelCommand
 from adcs_sim.truth.schema import build_plant, initial_state, step_timing
@@ -255,7 +256,8 @@ class BatchSimulation:
                     x_new = plant.step(t, x, commands, period, self.max_step)
                 finite = np.isfinite(x_new).all(axis=-1) & np.isfinite(u).all(axis=-1)
                 for i in np.flatnonzero(active & ~finite):
-                    failure[i] = f'non-finite state or torque at t = {t:g} s'
+                    failure[i] = (f'the plant state is no longer finite at t = {t + period:g} s (non-finite '
+                                  f'{nonfinite_cause(plant, x_new[i], u[i])} after the step from t = {t:g} s)')
                 step = active[:, None]
                 x = np.where(step, x_new, x)
                 u_hist[active, k] = u[active]

@@ -55,7 +55,8 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from adcs_core.attitude import EULER_213
-from adcs_msgs_py.params import ParameterError, load_params_file, unflatten
+from adcs_msgs_py.params import ParameterError, unflatten
+from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.app.analysis import RunData, attitude_errors_deg, pointing_error_deg, run_metrics
 from adcs_sim.app.batch import BatchSimulation
 from adcs_sim.app.registry import NODES

@@ -2,7 +2,9 @@
 
 Each run (runner, test, benchmark) takes a domain with an exclusive ``flock`` on a file in the
 temp directory and holds it while it runs, so concurrent runs never cross-talk. A process that
-dies releases its lock with it.
+dies releases its lock with it. The runner's nodes inherit the lock's file descriptor
+(:meth:`DomainLease.fileno`, ``pass_fds``): a ``flock`` belongs to the open file, so the domain is
+free again only when the runner *and* the last of its nodes have exited, however they ended.
 """
 from __future__ import annotations
 
@@ -47,6 +49,12 @@ class DomainLease:
         env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'SUBNET' if allow_network else 'LOCALHOST'
         env.pop('ROS_LOCALHOST_ONLY', None)   # deprecated; would override the range above
         return env
+
+    def fileno(self) -> int:
+        """The lock's file descriptor: a process that inherits it holds the lease until it exits."""
+        if self._fd is None:
+            raise ValueError('the lease was released')
+        return self._fd
 
     def release(self) -> None:
         if self._fd is not None:

@@ -7,9 +7,18 @@ import signal
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
-from adcs_msgs_py.node import network_hygiene_defaults
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
+from tqdm import tqdm
+
+from adcs_msgs_py.node import RUNNER_PID_ENV, network_hygiene_defaults
 from adcs_sim.app.domains import DomainLease
 from adcs_sim.app.scenario_files import RunError
 from adcs_sim.bag.reader import read_raw
@@ -19,10 +28,14 @@ PROGRESS_NODE = 'adcs_run_progress'   # the runner's own /clock subscriber (a no
 
 
 class Graph:
-    """The node processes of one run, started and stopped in order."""
+    """The node processes of one run, started and stopped in order.
 
-    def __init__(self, env: dict, log_dir: Path) -> None:
-        self.env = env
+    Each node dies with the runner (:data:`~adcs_msgs_py.node.RUNNER_PID_ENV`: the node sets the
+    parent-death signal at start) and holds the domain lease's lock (``keep_fds``) until it exits."""
+
+    def __init__(self, env: dict, log_dir: Path, keep_fds: tuple[int, ...] = ()) -> None:
+        self.env = {**env, RUNNER_PID_ENV: str(os.getpid())}
+        self.keep_fds = keep_fds
         self.log_dir = log_dir
         self.procs: dict[str, subprocess.Popen] = {}
         self.logs: dict[str, Path] = {}
@@ -49,7 +62,7 @@ class Graph:
         with open(log, 'wb') as f:
             proc = subprocess.Popen([sys.executable, '-m', module, '--ros-args', *args],
                                     stdout=f, stderr=subprocess.STDOUT, env=self.env,
-                                    stdin=subprocess.DEVNULL, start_new_session=True)
+                                    stdin=subprocess.DEVNULL, start_new_session=True, pass_fds=self.keep_fds)
         self.procs[name] = proc
         return proc
 
@@ -122,20 +135,43 @@ class Graph:
             self.stop(recorder_last)
 
 
-class Progress:
-    """/clock subscriber driving a tqdm bar in simulated seconds."""
+# What a participant of the run takes from the environment when it is created (rcl_init, rmw).
+PARTICIPANT_ENV = ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE', 'ROS_STATIC_PEERS', 'ROS_LOCALHOST_ONLY',
+                   'FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_BUILTIN_TRANSPORTS')
 
-    def __init__(self, duration: float, enabled: bool) -> None:
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.qos import QoSProfile, ReliabilityPolicy
-        from rosgraph_msgs.msg import Clock
-        from tqdm import tqdm
-        self.rclpy = rclpy
+
+@contextmanager
+def run_environment(env: dict):
+    """``os.environ`` as a node of the run sees it (``env``: :func:`graph_env`) while the runner
+    creates its own participant, restored afterwards (the runner may run several scenarios)."""
+    saved = {k: os.environ.get(k) for k in PARTICIPANT_ENV}
+    try:
+        for k in PARTICIPANT_ENV:
+            if k in env:
+                os.environ[k] = env[k]
+            else:
+                os.environ.pop(k, None)
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+class Progress:
+    """/clock subscriber driving a tqdm bar in simulated seconds. Its participant is one of the
+    run's: the run's domain and discovery range (``env``), not the shell's."""
+
+    def __init__(self, duration: float, enabled: bool, env: dict) -> None:
         self.context = Context()
-        rclpy.init(context=self.context, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-        self.node = rclpy.create_node(PROGRESS_NODE, context=self.context)
-        self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
+        with run_environment(env):
+            rclpy.init(context=self.context, domain_id=int(env['ROS_DOMAIN_ID']),
+                       signal_handler_options=SignalHandlerOptions.NO)
+            self.node = rclpy.create_node(PROGRESS_NODE, context=self.context,
+                                          start_parameter_services=False)
+        self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.sim_time = 0.0
         self.bar = tqdm(total=duration, unit='sim s', disable=not enabled, dynamic_ncols=True,
@@ -155,7 +191,7 @@ class Progress:
     def close(self) -> None:
         self.bar.close()
         self.node.destroy_node()
-        self.rclpy.try_shutdown(context=self.context)
+        rclpy.try_shutdown(context=self.context)
 
 
 def graph_env(lease: DomainLease, allow_network: bool = False) -> dict:

@@ -23,7 +23,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from adcs_msgs_py.params import BUILTIN_PARAMETERS, REQUIRED, Param, Schema, load_params_file
+from adcs_msgs_py.params import BUILTIN_PARAMETERS, REQUIRED, Param, Schema
+from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.app.registry import NODES
 from adcs_sim.app.scenario_files import validate_scenario
 
@@ -49,6 +50,7 @@ CHECKS = {
     '_fraction': 'in [0, 1]',
     '_distinct_positive': 'three distinct values > 0',
     '_nonzero_vector': 'not the zero vector',
+    '_check_publishers': 'entries `topic=node[,node...]` (empty after `=`: nobody may publish)',
 }
 LAMBDA_CHECKS = {
     'proposition': '1 or 2',

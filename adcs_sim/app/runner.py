@@ -115,7 +115,7 @@ def _start_graph(run: _Run, show_progress: bool):
         dyn_args += ['-p', f'duration:={float(run.duration)!r}']
     graph.check()
     dynamics = graph.start('dynamics', NODES['dynamics'].module, dyn_args)
-    run.progress = Progress(validated['dynamics']['duration'], show_progress)
+    run.progress = Progress(validated['dynamics']['duration'], show_progress, graph.env)
     return dynamics
 
 
@@ -180,7 +180,7 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
     log_dir = out / 'logs'
     log_dir.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(scenario, out / 'scenario.yaml')
-    graph = Graph(graph_env(lease, allow_network), log_dir)
+    graph = Graph(graph_env(lease, allow_network), log_dir, keep_fds=(lease.fileno(),))
     run = _Run(scenario, validated, out / 'bag', graph, duration, restarts)
     print(f'adcs-run: ROS_DOMAIN_ID={lease.domain_id}, discovery '
           f'{graph.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]}', flush=True)
@@ -193,6 +193,7 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
             raise compromised
     except KeyboardInterrupt:
         graph.stop_all()
+        run.started = run.started or recorded_state(run.bag_dir)   # /clock may not have reached us yet
         sig = signal.Signals(graph.signals[0]).name if graph.signals else 'SIGINT'
         kept = f'bag kept in {run.bag_dir}' if run.bag_dir.exists() else 'no bag was recorded yet'
         raise RunError(f'interrupted by {sig} ({"during" if run.started else "before"} the run); {kept}') from None

@@ -8,8 +8,10 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from adcs_msgs_py.params import ParameterError, load_params_file
+from adcs_msgs_py.params import ParameterError
+from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.app.registry import NODES
+from adcs_sim.app.scenario_checks import check_agreement, check_resources
 
 DEFAULT_SCENARIO = 'uosat12_gsmn.yaml'  # seed 000: a wheel fails, two-wheel GSMN recovers (the showcase)
 
@@ -47,13 +49,14 @@ def resolve_scenario(name: str | None) -> Path:
 
 
 def validate_scenario(path: Path, duration: float | None = None) -> dict:
-    """Validate every section; return {section: validated params}. Raises ParameterError."""
+    """Validate every section, then that they agree and that the run's needs fit
+    (:mod:`adcs_sim.app.scenario_checks`); return {section: validated params}. Raises ParameterError."""
     return validate_sections(load_params_file(str(path)), path, duration)
 
 
 def validate_sections(sections: dict, path, duration: float | None = None) -> dict:
     """:func:`validate_scenario` of sections already read (``{section: {dotted.key: value}}``, as
-    :func:`adcs_msgs_py.params.load_params_file` returns them); ``path`` names them in messages."""
+    :func:`adcs_msgs_py.params_file.load_params_file` returns them); ``path`` names them in messages."""
     unknown = [s for s in sections if s not in NODES]
     if unknown:
         raise ParameterError(unknown[0], f'unknown node section {unknown[0]!r} in {path}; '
@@ -69,12 +72,6 @@ def validate_sections(sections: dict, path, duration: float | None = None) -> di
         if name == 'dynamics' and duration is not None:
             given = {**given, 'duration': float(duration)}
         validated[name] = NODES[name].schema.validate(given)
-    faults = validated.get('fault_injector')
-    if faults is not None:
-        wheels = validated['dynamics']['wheels.names']
-        unknown = sorted(set(faults['schedule.actuator']) - set(wheels))
-        if unknown:
-            raise ParameterError('schedule.actuator', f'fault on actuator(s) {unknown} that the '
-                                 f'dynamics section does not have (dynamics.wheels.names: {list(wheels)})',
-                                 'fault_injector')
+    check_agreement(validated)
+    check_resources(validated['dynamics'])
     return validated

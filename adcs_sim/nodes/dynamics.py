@@ -42,7 +42,8 @@ import numpy as np
 from adcs_core.faults import FaultTracker
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
-from adcs_msgs_py.node import AdcsNode, main_for
+from adcs_msgs_py.node import AdcsNode, RunStopped, main_for
+from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.link_faults import DELAY, FATE_NAMES, OK, LinkFaults
 from adcs_sim.truth.plant import ReactionWheels, WheelCommand
 from adcs_sim.truth.schema import DYNAMICS_SCHEMA, build_plant, command_topics, initial_state, step_timing
@@ -278,6 +279,7 @@ class DynamicsNode(AdcsNode):
             self.apply_due_faults()  # one that arrived while waiting (late unless stamped t_k)
             t = self.step_ns / cv.NS_PER_S
             torque = self._integrate(t)
+            self._stop_if_not_finite(t, torque)
             self.step_ns = (k + 1) * self.period_ns
             self.received.clear()
             self.apply_due_faults()
@@ -290,6 +292,16 @@ class DynamicsNode(AdcsNode):
         self._drain_acks()
         self.get_logger().info(f'done at t = {self.step_ns / cv.NS_PER_S:g} s; '
                                f'missed steps: {self.missed_steps}')
+
+    def _stop_if_not_finite(self, t: float, torque) -> None:
+        """A state that is no longer finite ends the run (status published first): every later
+        step would only wait out the controllers' refusal of it."""
+        cause = nonfinite_cause(self.plant, self.x, torque)
+        if cause is not None:
+            self.publish_status(final=True)
+            self._drain_acks()
+            raise RunStopped(f'the plant state is no longer finite at t = {t + self.period:g} s (non-finite '
+                             f'{cause} after the step from t = {t:g} s); run stopped')
 
     def _wait_commands(self, executor, timeout: float) -> None:
         awaited = self.awaited

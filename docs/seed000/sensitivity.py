@@ -22,7 +22,7 @@ from scipy.spatial.transform import Rotation
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from adcs_msgs_py.params import load_params_file  # noqa: E402
+from adcs_msgs_py.params_file import load_params_file  # noqa: E402
 from adcs_sim.app.analysis import fault_metrics  # noqa: E402
 from adcs_sim.app.batch import BatchSimulation  # noqa: E402
 from adcs_sim.app.registry import NODES  # noqa: E402

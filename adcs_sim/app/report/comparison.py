@@ -13,7 +13,7 @@ import yaml
 
 from adcs_sim.app.analysis import RunData, attitude_errors, run_metrics, settling_times
 from adcs_sim.app.report.figures import AXES, add_legend, log_positive, new_figure, save_figure, step_plot
-from adcs_sim.app.report.loading import Run, default_report_dir, fault_events, missing_topics
+from adcs_sim.app.report.loading import Run, fault_events, missing_topics
 from adcs_sim.app.report.markdown import METRIC_NOTES, fmt, md_escape, metric_note
 
 # Euler angle index (euler_213 order: about y, x, z) of θ1 (x), θ2 (y), θ3 (z).
@@ -72,11 +72,6 @@ def unique_names(runs: list[Run]) -> list[str]:
     common = os.path.commonpath([os.path.abspath(r.path) for r in runs])
     return [os.path.relpath(os.path.abspath(r.path), common) if names.count(r.name) > 1 else r.name
             for r in runs]
-
-
-def default_comparison_dir(paths) -> Path:
-    """``comparison/`` in the folder holding all the runs (the common parent of their run folders)."""
-    return Path(os.path.commonpath([str(default_report_dir(p).parent) for p in paths])) / 'comparison'
 
 
 def load_reference(path) -> dict:

@@ -1,0 +1,55 @@
+"""A run whose plant state is no longer finite ends clearly (issue #17): the dynamics node stops
+the graph with a non-zero exit naming the time and the cause, and the batch engine records the
+same failure, at the same time (the graph and the batch step the same plant bit for bit).
+
+Torquers with unlimited torque and kd * period > 2 (kd = 40): the discrete rate loop is unstable
+and overflows within a few hundred steps (tests/test_batch.py)."""
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+
+from conftest import ROOT, make_scenario
+
+from adcs_sim.app.batch import BatchSimulation
+from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.bag.reader import read_raw
+
+DEADLINE = 300.0   # a hang guard only
+NO_WHEELS = {'wheels.names': None, 'wheels.axes': None, 'wheels.max_torque': None}
+
+
+def _diverging(tmp_path):
+    return make_scenario(tmp_path, {
+        'dynamics': {'duration': 400.0, 'torquers.enabled': True, 'wheels.spin_inertia': None,
+                     'wheels.max_speed': None, **NO_WHEELS},
+        'pd_controller': {'actuator': 'torquers', 'kd': 40.0, **NO_WHEELS}})
+
+
+def _batch_failure(scenario) -> tuple[str, int]:
+    result = BatchSimulation.from_runs([validate_scenario(scenario)]).run()
+    assert result.failure[0] is not None
+    return result.failure[0], int(result.n_steps[0])
+
+
+def test_batch_names_the_time_and_the_cause(tmp_path):
+    failure, k_fail = _batch_failure(_diverging(tmp_path))
+    assert 0 < k_fail < 400
+    assert f'no longer finite at t = {k_fail:g} s' in failure, failure
+    assert re.search(r'non-finite (attitude quaternion|body rate|applied torque)', failure), failure
+
+
+def test_dynamics_node_stops_the_run_naming_the_time_and_the_cause(tmp_path):
+    scenario = _diverging(tmp_path)
+    _, k_fail = _batch_failure(scenario)
+    out = tmp_path / 'run'
+    proc = subprocess.run([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
+                           '--no-progress'], capture_output=True, text=True, timeout=DEADLINE, cwd=ROOT)
+    assert proc.returncode == 1, proc.stderr
+    assert 'dynamics exited with status 5' in proc.stderr, proc.stderr
+    assert f'the plant state is no longer finite at t = {k_fail:g} s' in proc.stderr, proc.stderr
+    assert 'Traceback' not in proc.stderr
+    # The bag keeps every finite state up to the divergence, and no non-finite one.
+    states = [m for t, *m in read_raw(out / 'bag') if t == '/state']
+    assert len(states) == k_fail
