@@ -39,10 +39,8 @@ def campaign_out(tmp_path_factory):
     is unstable) and a requirement that the slower runs miss, so rows are violated and failed."""
     tmp_path = tmp_path_factory.mktemp('parquet')
     scenario = make_scenario(tmp_path, {
-        'dynamics': {'duration': 200.0, 'torquers.enabled': True, 'wheels.names': [], 'wheels.axes': [],
-                     'wheels.spin_inertia': [], 'wheels.max_torque': [], 'wheels.max_speed': []},
-        'pd_controller': {'actuator': 'torquers', 'wheels.names': [], 'wheels.axes': [],
-                          'wheels.max_torque': []}})
+        'dynamics': {'duration': 200.0, 'torquers.enabled': True, 'wheels': None},
+        'pd_controller': {'actuator': 'torquers', 'wheels': None}})
     campaign = tmp_path / 'campaign.yaml'
     campaign.write_text(yaml.safe_dump({'campaign': {
         'scenario': str(scenario), 'runs': 12, 'seed': 5, 'chunk_size': 5,

@@ -66,7 +66,7 @@ def test_runner_restarts_a_killed_controller_which_rejoins(tmp_path, spawn):
     try:
         _wait('run under way', lambda: _states_recorded(out / 'bag') > 0, proc)
         killed_after = _states_recorded(out / 'bag')
-        [pid] = [p for p, a in children(proc.pid).items() if 'pd_controller' in a]
+        [pid] = [p for p, a in children(proc.pid).items() if 'adcs_controllers.nodes.pd_controller' in a]
         subprocess.run(['kill', '-KILL', str(pid)], check=True)
         _, err = proc.communicate(timeout=DEADLINE)
     finally:

@@ -160,7 +160,8 @@ def test_each_limit_refuses_before_rcl_parses(tmp_path, monkeypatch, what, limit
         path.write_text(head + ''.join(f'    k{i}: 1\n' for i in range(params_module.MAX_KEYS + 1)))
     else:
         path.write_text(head + '    x: [' + ','.join(['1'] * (params_module.MAX_ARRAY_LENGTH + 1)) + ']\n')
-    monkeypatch.setattr(params_module, 'parse_file', lambda p: pytest.fail('rcl was asked to parse it'))
+    from adcs_msgs_py import rcl_params   # load_params_file imports rcl's parser from here when it reads
+    monkeypatch.setattr(rcl_params, 'parse_file', lambda p: pytest.fail('rcl was asked to parse it'))
     _refused_quickly(path, limit_words)
 
 
