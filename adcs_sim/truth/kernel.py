@@ -38,9 +38,10 @@ from numba import njit, prange
 
 WHEELS, TORQUERS, THRUSTERS = 0, 1, 2
 _JIT = dict(cache=True, error_model='numpy', nogil=True)
+_INNER = dict(_JIT, inline='always')  # inlined into the RK4 loop: no call or array refcount traffic
 
 
-@njit(**_JIT)
+@njit(**_INNER)
 def _max(a, b):
     """np.maximum: NaN if either is NaN."""
     if a != a:
@@ -50,7 +51,7 @@ def _max(a, b):
     return a if a >= b else b
 
 
-@njit(**_JIT)
+@njit(**_INNER)
 def _min(a, b):
     """np.minimum: NaN if either is NaN."""
     if a != a:
@@ -60,7 +61,7 @@ def _min(a, b):
     return a if a <= b else b
 
 
-@njit(**_JIT)
+@njit(**_INNER)
 def _sign(a):
     if a > 0.0:
         return 1.0
@@ -71,14 +72,14 @@ def _sign(a):
     return a
 
 
-@njit(**_JIT)
+@njit(**_INNER)
 def _matvec3(M, o, v, out):
     """out = M v for the 3 x 3 matrix stored row-major at M[o:o + 9] (matvec's order)."""
     for i in range(3):
         out[i] = (M[o + 3 * i] * v[0] + M[o + 3 * i + 1] * v[1]) + M[o + 3 * i + 2] * v[2]
 
 
-@njit(**_JIT)
+@njit(**_INNER)
 def _cross(a, b, out):
     c0 = a[1] * b[2] - a[2] * b[1]
     c1 = a[2] * b[0] - a[0] * b[2]
@@ -86,7 +87,7 @@ def _cross(a, b, out):
     out[0], out[1], out[2] = c0, c1, c2
 
 
-@njit(**_JIT)
+@njit(**_INNER)
 def _gravity_gradient(p, o_inertia, q, pos, factor, out, tmp):
     """Orbit.gravity_gradient: c = rotate_to_body(q, v), v = -position (negated by the caller);
     factor * c x (J c)."""
@@ -107,7 +108,7 @@ def _gravity_gradient(p, o_inertia, q, pos, factor, out, tmp):
         out[i] = factor * out[i]
 
 
-@njit(**_JIT)
+@njit(**_INNER)
 def _wheel_torque(x, s, p, o, c, oc, n, axes, bias, stuck, avail, flags, tau_w, ta):
     """ReactionWheels.torque: motor (+ friction) torque per wheel in tau_w, body torque in ta."""
     faulty, friction, limited = flags[0], flags[1], flags[2]
@@ -137,7 +138,7 @@ def _wheel_torque(x, s, p, o, c, oc, n, axes, bias, stuck, avail, flags, tau_w, 
         ta[i] = -acc
 
 
-@njit(**_JIT)
+@njit(**_INNER)
 def _wheel_momentum(x, s, p, o, n, axes, w, hm):
     for i in range(3):
         acc = 0.0
@@ -148,7 +149,7 @@ def _wheel_momentum(x, s, p, o, n, axes, w, hm):
         hm[i] = acc
 
 
-@njit(**_JIT)
+@njit(**_INNER)
 def _thruster_torque(t, p, o, c, oc, m, start, period, tol, f, ta):
     """Thrusters.torque: forces f (lit x max force) and body torque T f."""
     rel = t - start
@@ -163,7 +164,7 @@ def _thruster_torque(t, p, o, c, oc, m, start, period, tol, f, ta):
         ta[i] = acc
 
 
-@njit(**_JIT)
+@njit(**_INNER)
 def _derivative(t, x, dx, p, c, kinds, soff, poff, coff, counts, axes, bias, stuck, avail, flags,
                 env, env_on, pos, gg_factor, gg_on, thr, work, aux):
     """Plant.derivative of one run at time t (env/pos: this stage's disturbance and orbit position)."""
@@ -265,11 +266,8 @@ def stage_times(t: float, period: float, max_step: float) -> tuple[np.ndarray, f
     them (``t + i h``, ``+ h/2``, ``+ h``)."""
     n = max(1, math.ceil(period / max_step - 1e-9))
     h = period / n
-    half = 0.5 * h
-    times = np.empty((n, 3))
-    for i in range(n):
-        ti = t + i * h
-        times[i] = (ti, ti + half, ti + h)
+    ti = t + np.arange(n) * h  # t + (i h), each rounded as the Python expression
+    times = np.stack([ti, ti + 0.5 * h, ti + h], axis=1)
     return times, h
 
 
