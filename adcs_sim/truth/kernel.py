@@ -32,6 +32,7 @@ actuators are in that order too).
 from __future__ import annotations
 
 import math
+import types
 
 import numpy as np
 from numba import njit, prange
@@ -72,45 +73,47 @@ def _sign(a):
     return a
 
 
-@njit(**_INNER)
-def _matvec3(M, o, v, out):
-    """out = M v for the 3 x 3 matrix stored row-major at M[o:o + 9] (matvec's order)."""
-    for i in range(3):
-        out[i] = (M[o + 3 * i] * v[0] + M[o + 3 * i + 1] * v[1]) + M[o + 3 * i + 2] * v[2]
+# Work buffer of one run (no array views in the loop: each would cost reference counting):
+# H, tau, actuator torque, actuator momentum, cross products, then the gravity gradient's temporaries.
+_H, _TAU, _TA, _HM, _CW, _GT, _GC, _GJC, _GV, _WORK = 0, 3, 6, 9, 12, 15, 18, 21, 24, 27
 
 
 @njit(**_INNER)
-def _cross(a, b, out):
-    c0 = a[1] * b[2] - a[2] * b[1]
-    c1 = a[2] * b[0] - a[0] * b[2]
-    c2 = a[0] * b[1] - a[1] * b[0]
-    out[0], out[1], out[2] = c0, c1, c2
+def _matvec3(M, o, v, vo, out, oo):
+    """out[oo:oo+3] = M v for the 3 x 3 matrix row-major at M[o:o+9], v at v[vo:vo+3] (matvec's order)."""
+    for i in range(3):
+        out[oo + i] = (M[o + 3 * i] * v[vo] + M[o + 3 * i + 1] * v[vo + 1]) + M[o + 3 * i + 2] * v[vo + 2]
 
 
 @njit(**_INNER)
-def _gravity_gradient(p, o_inertia, q, pos, factor, out, tmp):
-    """Orbit.gravity_gradient: c = rotate_to_body(q, v), v = -position (negated by the caller);
-    factor * c x (J c)."""
-    v = pos
-    qv = q[:3]
-    t = tmp[0]
-    _cross(v, qv, t)
-    for i in range(3):
-        t[i] = 2.0 * t[i]
-    c = tmp[1]
-    _cross(t, qv, c)
-    for i in range(3):
-        c[i] = (v[i] + q[3] * t[i]) + c[i]
-    Jc = tmp[2]
-    _matvec3(p, o_inertia, c, Jc)
-    _cross(c, Jc, out)
-    for i in range(3):
-        out[i] = factor * out[i]
+def _cross(a, ao, b, bo, out, oo):
+    c0 = a[ao + 1] * b[bo + 2] - a[ao + 2] * b[bo + 1]
+    c1 = a[ao + 2] * b[bo] - a[ao] * b[bo + 2]
+    c2 = a[ao] * b[bo + 1] - a[ao + 1] * b[bo]
+    out[oo], out[oo + 1], out[oo + 2] = c0, c1, c2
 
 
 @njit(**_INNER)
-def _wheel_torque(x, s, p, o, c, oc, n, axes, bias, stuck, avail, flags, tau_w, ta):
-    """ReactionWheels.torque: motor (+ friction) torque per wheel in tau_w, body torque in ta."""
+def _gravity_gradient(p, x, pos, i, ts, factor, wk):
+    """Orbit.gravity_gradient into wk[_TA]: c = rotate_to_body(q, v) with v = -position (negated
+    by the caller), then factor * c x (J c)."""
+    for j in range(3):
+        wk[_GV + j] = pos[i, ts, j]
+    _cross(wk, _GV, x, 0, wk, _GT)
+    for j in range(3):
+        wk[_GT + j] = 2.0 * wk[_GT + j]
+    _cross(wk, _GT, x, 0, wk, _GC)
+    for j in range(3):
+        wk[_GC + j] = (wk[_GV + j] + x[3] * wk[_GT + j]) + wk[_GC + j]
+    _matvec3(p, 18, wk, _GC, wk, _GJC)
+    _cross(wk, _GC, wk, _GJC, wk, _TA)
+    for j in range(3):
+        wk[_TA + j] = factor * wk[_TA + j]
+
+
+@njit(**_INNER)
+def _wheel_torque(x, s, p, o, c, oc, n, axes, bias, stuck, avail, flags, aux, a, wk):
+    """ReactionWheels.torque: motor (+ friction) torque per wheel in aux[a], body torque in wk[_TA]."""
     faulty, friction, limited = flags[0], flags[1], flags[2]
     for j in range(n):
         speed = x[s + j]
@@ -130,94 +133,101 @@ def _wheel_torque(x, s, p, o, c, oc, n, axes, bias, stuck, avail, flags, tau_w, 
             tau = tau + ((-p[o + 3 * n + j]) * speed - p[o + 4 * n + j] * _sign(speed))
             if faulty and stuck[j]:
                 tau = 0.0
-        tau_w[j] = tau
+        aux[a, j] = tau
     for i in range(3):
-        acc = axes[0, i] * tau_w[0]
+        acc = axes[0, i] * aux[a, 0]
         for j in range(1, n):
-            acc = acc + axes[j, i] * tau_w[j]
-        ta[i] = -acc
+            acc = acc + axes[j, i] * aux[a, j]
+        wk[_TA + i] = -acc
 
 
 @njit(**_INNER)
-def _wheel_momentum(x, s, p, o, n, axes, w, hm):
+def _wheel_momentum(x, s, p, o, n, axes, wk):
+    """ReactionWheels.momentum into wk[_HM]."""
     for i in range(3):
         acc = 0.0
         for j in range(n):
-            absolute = x[s + j] + ((axes[j, 0] * w[0] + axes[j, 1] * w[1]) + axes[j, 2] * w[2])
+            absolute = x[s + j] + ((axes[j, 0] * x[4] + axes[j, 1] * x[5]) + axes[j, 2] * x[6])
             term = axes[j, i] * (absolute * p[o + j])
             acc = term if j == 0 else acc + term
-        hm[i] = acc
+        wk[_HM + i] = acc
 
 
 @njit(**_INNER)
-def _thruster_torque(t, p, o, c, oc, m, start, period, tol, f, ta):
-    """Thrusters.torque: forces f (lit x max force) and body torque T f."""
+def _thruster_torque(t, p, o, c, oc, m, thr, aux, a, wk):
+    """Thrusters.torque: forces (lit x max force) in aux[a], body torque T f in wk[_TA]."""
+    start, period, tol = thr[0], thr[1], thr[2]
     rel = t - start
     for k in range(m):
         on = c[oc + k]
         lit = (rel >= -tol) and ((rel < on) or ((on >= period) and (rel <= period + tol)))
-        f[k] = (1.0 if lit else 0.0) * p[o + 3 * m + k]
+        aux[a, k] = (1.0 if lit else 0.0) * p[o + 3 * m + k]
     for i in range(3):
-        acc = p[o + i * m] * f[0]
+        acc = p[o + i * m] * aux[a, 0]
         for k in range(1, m):
-            acc = acc + p[o + i * m + k] * f[k]
-        ta[i] = acc
+            acc = acc + p[o + i * m + k] * aux[a, k]
+        wk[_TA + i] = acc
 
 
 @njit(**_INNER)
-def _derivative(t, x, dx, p, c, kinds, soff, poff, coff, counts, axes, bias, stuck, avail, flags,
-                env, env_on, pos, gg_factor, gg_on, thr, work, aux):
-    """Plant.derivative of one run at time t (env/pos: this stage's disturbance and orbit position)."""
-    w = x[4:7]
-    H, tau, ta, hm, cw = work[0], work[1], work[2], work[3], work[4]
-    _matvec3(p, 9, w, H)
-    for i in range(3):
-        tau[i] = 0.0
-    if env_on:
-        for i in range(3):
-            tau[i] = tau[i] + env[i]
-    if gg_on:
-        _gravity_gradient(p, 18, x[:4], pos, gg_factor, ta, work[5:8])
-        for i in range(3):
-            tau[i] = tau[i] + ta[i]
+def _actuators(t, x, p, c, kinds, soff, poff, coff, counts, axes, bias, stuck, avail, flags, thr, wk, aux):
+    """The actuator loop of Plant.derivative: H += momentum, tau += torque, in the plant's order."""
     for a in range(kinds.size):
         kind, s, o, oc, n = kinds[a], soff[a], poff[a], coff[a], counts[a]
         if kind == WHEELS:
-            _wheel_momentum(x, s, p, o, n, axes, w, hm)
-            _wheel_torque(x, s, p, o, c, oc, n, axes, bias, stuck, avail, flags, aux[a], ta)
+            _wheel_momentum(x, s, p, o, n, axes, wk)
+            _wheel_torque(x, s, p, o, c, oc, n, axes, bias, stuck, avail, flags, aux, a, wk)
         else:
             for i in range(3):
-                hm[i] = 0.0
+                wk[_HM + i] = 0.0
             if kind == TORQUERS:
                 for i in range(3):
-                    ta[i] = _min(_max(c[oc + i], -p[o + i]), p[o + i])
+                    wk[_TA + i] = _min(_max(c[oc + i], -p[o + i]), p[o + i])
             else:
-                _thruster_torque(t, p, o, c, oc, n, thr[0], thr[1], thr[2], aux[a], ta)
+                _thruster_torque(t, p, o, c, oc, n, thr, aux, a, wk)
         for i in range(3):
-            H[i] = H[i] + hm[i]
-            tau[i] = tau[i] + ta[i]
-    _cross(w, H, cw)
+            wk[_H + i] = wk[_H + i] + wk[_HM + i]
+            wk[_TAU + i] = wk[_TAU + i] + wk[_TA + i]
+
+
+@njit(**_INNER)
+def _derivative(t, x, k, stage, p, c, kinds, soff, poff, coff, counts, axes, bias, stuck, avail, flags,
+                env, env_on, pos, i_step, ts, gg_factor, gg_on, thr, wk, aux):
+    """Plant.derivative of one run at time t into k[stage] (env/pos[i_step, ts]: this stage's
+    disturbance and orbit position)."""
+    _matvec3(p, 9, x, 4, wk, _H)
     for i in range(3):
-        cw[i] = tau[i] - cw[i]
-    wdot = dx[4:7]
-    _matvec3(p, 0, cw, wdot)
-    q = x[:4]
-    _cross(w, q[:3], cw)
+        wk[_TAU + i] = 0.0
+    if env_on:
+        for i in range(3):
+            wk[_TAU + i] = wk[_TAU + i] + env[i_step, ts, i]
+    if gg_on:
+        _gravity_gradient(p, x, pos, i_step, ts, gg_factor, wk)
+        for i in range(3):
+            wk[_TAU + i] = wk[_TAU + i] + wk[_TA + i]
+    _actuators(t, x, p, c, kinds, soff, poff, coff, counts, axes, bias, stuck, avail, flags, thr, wk, aux)
+    _cross(x, 4, wk, _H, wk, _CW)
     for i in range(3):
-        dx[i] = 0.5 * (q[3] * w[i] - cw[i])
-    dx[3] = -0.5 * ((w[0] * q[0] + w[1] * q[1]) + w[2] * q[2])
+        wk[_CW + i] = wk[_TAU + i] - wk[_CW + i]
+    for i in range(3):  # wdot = matvec(body inertia inverse, tau - w x H)
+        k[stage, 4 + i] = (p[3 * i] * wk[_CW] + p[3 * i + 1] * wk[_CW + 1]) + p[3 * i + 2] * wk[_CW + 2]
+    _cross(x, 4, x, 0, wk, _CW)
+    for i in range(3):
+        k[stage, i] = 0.5 * (x[3] * x[4 + i] - wk[_CW + i])
+    k[stage, 3] = -0.5 * ((x[4] * x[0] + x[5] * x[1]) + x[6] * x[2])
     for a in range(kinds.size):
         kind, s, o, n = kinds[a], soff[a], poff[a], counts[a]
         if kind == WHEELS:
             for j in range(n):
-                accel = aux[a, j] / p[o + j] - ((axes[j, 0] * wdot[0] + axes[j, 1] * wdot[1]) + axes[j, 2] * wdot[2])
+                wdot = (axes[j, 0] * k[stage, 4] + axes[j, 1] * k[stage, 5]) + axes[j, 2] * k[stage, 6]
+                accel = aux[a, j] / p[o + j] - wdot
                 if flags[0] and stuck[j]:
                     accel = 0.0
-                dx[s + j] = accel
-                dx[s + n + j] = x[s + j]
+                k[stage, s + j] = accel
+                k[stage, s + n + j] = x[s + j]
         elif kind == THRUSTERS:
-            for k in range(n):
-                dx[s + k] = aux[a, k]
+            for j in range(n):
+                k[stage, s + j] = aux[a, j]
 
 
 def _rk4_runs(x, out, times, h, params, cmds, kinds, soff, poff, coff, counts, axes, bias, stuck, avail,
@@ -232,30 +242,40 @@ def _rk4_runs(x, out, times, h, params, cmds, kinds, soff, poff, coff, counts, a
         xr = x[r].copy()
         k = np.empty((4, n_states))
         xs = np.empty(n_states)
-        work = np.empty((8, 3))
+        wk = np.empty(_WORK)
         aux = np.empty((max(1, kinds.size), width))
         for i in range(times.shape[0]):
             for stage in range(4):
                 ts = 0 if stage == 0 else (1 if stage < 3 else 2)
                 if stage == 0:
-                    xs[:] = xr
+                    for e in range(n_states):
+                        xs[e] = xr[e]
                 else:
                     step = half if stage < 3 else h
                     for e in range(n_states):
                         xs[e] = xr[e] + step * k[stage - 1, e]
-                _derivative(times[i, ts], xs, k[stage], p, c, kinds, soff, poff, coff, counts, axes, bias,
-                            stuck, avail, flags, env[i, ts], env_on, pos[i, ts], gg_factor, gg_on, thr,
-                            work, aux)
+                _derivative(times[i, ts], xs, k, stage, p, c, kinds, soff, poff, coff, counts, axes, bias,
+                            stuck, avail, flags, env, env_on, pos, i, ts, gg_factor, gg_on, thr, wk, aux)
             for e in range(n_states):
                 xr[e] = (xr[e] + sixth * (k[0, e] + k[3, e])) + third * (k[1, e] + k[2, e])
             norm = np.sqrt(((xr[0] * xr[0] + xr[1] * xr[1]) + xr[2] * xr[2]) + xr[3] * xr[3])
             for e in range(4):
                 xr[e] = xr[e] / norm
-        out[r] = xr
+        for e in range(n_states):
+            out[r, e] = xr[e]
+
+
+def _named(fn, name: str):
+    """``fn`` under another name: numba's cache is indexed by the function's qualified name, so the
+    serial and the parallel compilation of the one source need two names (else they share a cache
+    entry and the second loads the first's machine code)."""
+    copy = types.FunctionType(fn.__code__, fn.__globals__, name, fn.__defaults__, fn.__closure__)
+    copy.__qualname__ = name
+    return copy
 
 
 rk4_serial = njit(**_JIT)(_rk4_runs)
-rk4_parallel = njit(parallel=True, **_JIT)(_rk4_runs)
+rk4_parallel = njit(parallel=True, **_JIT)(_named(_rk4_runs, '_rk4_runs_parallel'))
 # Item dimensions of each kind's parameter arrays, in KernelPlan._param_arrays' order.
 _ITEM_NDIMS = {WHEELS: (1,) * 6, TORQUERS: (1,), THRUSTERS: (2, 1)}
 PARALLEL_MIN_RUNS = 8  # below this a batch is stepped on one thread (thread start-up costs more)
