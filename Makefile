@@ -20,7 +20,10 @@ run: $(VENV)/.installed
 test: $(VENV)/.installed
 	$(PY) -m pytest -q tests
 
+# BENCH_FLAGS=--basilisk adds the Basilisk comparisons (bsk installed into a throwaway venv in /tmp).
 bench: $(VENV)/.installed
+	$(PY) benchmarks/plant_step.py $(BENCH_FLAGS)
+	$(PY) benchmarks/montecarlo_speed.py $(BENCH_FLAGS)
 	$(PY) benchmarks/lockstep_vs_pingpong.py
 	$(PY) benchmarks/batch_vs_loop.py
 	$(PY) benchmarks/pointing_montecarlo.py

@@ -32,12 +32,15 @@ actuators are in that order too).
 from __future__ import annotations
 
 import math
+import os
 import types
 
 import numpy as np
 from numba import njit, prange
 
 WHEELS, TORQUERS, THRUSTERS = 0, 1, 2
+# ADCS_PLANT_KERNEL=0 builds plants without the kernel (numpy path; same numbers, for comparison).
+ENABLED = os.environ.get('ADCS_PLANT_KERNEL', '1') != '0'
 _JIT = dict(cache=True, error_model='numpy', nogil=True)
 _INNER = dict(_JIT, inline='always')  # inlined into the RK4 loop: no call or array refcount traffic
 
@@ -278,7 +281,11 @@ rk4_serial = njit(**_JIT)(_rk4_runs)
 rk4_parallel = njit(parallel=True, **_JIT)(_named(_rk4_runs, '_rk4_runs_parallel'))
 # Item dimensions of each kind's parameter arrays, in KernelPlan._param_arrays' order.
 _ITEM_NDIMS = {WHEELS: (1,) * 6, TORQUERS: (1,), THRUSTERS: (2, 1)}
-PARALLEL_MIN_RUNS = 8  # below this a batch is stepped on one thread (thread start-up costs more)
+# A call goes to the threaded kernel only with enough work (runs x RK4 steps): each launch wakes
+# the worker threads, which on a loaded 2-core machine costs more than a 125-run chunk's step
+# (measured: a 250-run campaign 2.9 s serial against 5-19 s threaded, benchmarks/montecarlo_speed.py).
+PARALLEL_MIN_RUNS = 256
+PARALLEL_MIN_WORK = 8192
 
 
 def stage_times(t: float, period: float, max_step: float) -> tuple[np.ndarray, float]:
@@ -311,7 +318,7 @@ class KernelPlan:
     @classmethod
     def of(cls, plant) -> 'KernelPlan | None':
         kinds = [getattr(a, 'kernel_kind', None) for a in plant.actuators]
-        if None in kinds or len(set(kinds)) != len(kinds):
+        if not ENABLED or None in kinds or len(set(kinds)) != len(kinds):
             return None
         return cls(plant)
 
@@ -407,7 +414,8 @@ class KernelPlan:
         env, pos, factor = self._environment(plant, times)
         xr = np.ascontiguousarray(x.reshape(n_runs, plant.n_states))
         out = np.empty_like(xr)
-        kernel = rk4_parallel if n_runs >= PARALLEL_MIN_RUNS else rk4_serial
+        threaded = n_runs >= PARALLEL_MIN_RUNS and n_runs * len(times) >= PARALLEL_MIN_WORK
+        kernel = rk4_parallel if threaded else rk4_serial
         kernel(xr, out, times, h, params, cmds, self.kinds, self.soff, poff, coff, self.counts,
                np.ascontiguousarray(axes), bias, stuck, avail, flags, env, plant.disturbance is not None,
                pos, factor, bool(plant.gravity_gradient), thr)
