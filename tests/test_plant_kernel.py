@@ -1,6 +1,7 @@
 """The compiled plant kernel (adcs_sim.truth.kernel) equals the numpy plant bit for bit. No ROS.
 
-``Plant.step`` runs on the kernel; ``Plant.step_numpy`` is the numpy reference. Every actuator
+``Plant.step`` and ``Plant.control_torque`` run on the kernel; ``Plant.step_numpy`` and
+``Plant.control_torque_numpy`` are the numpy reference. Every actuator
 model and every branch of it (speed loop, limits, friction, each fault mode, thrusters with pulse
 edges, disturbance, gravity gradient), single runs and batches (the serial and the threaded
 kernel), dispersed parameters, and runs that diverge to inf/NaN.
@@ -59,8 +60,10 @@ def same(plant: Plant, x, commands, period=1.0, max_step=0.25, t=3.0):
     with np.errstate(all='ignore'):
         fast = plant.step(t, x, commands, period, max_step)
         ref = plant.step_numpy(t, x, commands, period, max_step)
-    assert fast.shape == ref.shape
+        tau, tau_ref = plant.control_torque(t, x, commands), plant.control_torque_numpy(t, x, commands)
+    assert fast.shape == ref.shape and tau.shape == tau_ref.shape
     assert_array_equal(fast, ref)
+    assert_array_equal(tau, tau_ref)
     return fast
 
 

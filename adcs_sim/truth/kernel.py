@@ -268,6 +268,22 @@ def _rk4_runs(x, out, times, h, params, cmds, kinds, soff, poff, coff, counts, a
             out[r, e] = xr[e]
 
 
+@njit(**_JIT)
+def torque_runs(x, out, t, params, cmds, kinds, soff, poff, coff, counts, axes, bias, stuck, avail, flags, thr):
+    """Plant.control_torque for every run: the actuators' body torque at (t, x) under the commands
+    (the sum from 0.0 in the plant's order, no environment torque)."""
+    width = max(3, counts.max()) if counts.size else 3
+    wk = np.zeros(_WORK)
+    aux = np.empty((max(1, kinds.size), width))
+    for r in range(x.shape[0]):
+        for i in range(_WORK):
+            wk[i] = 0.0
+        _actuators(t, x[r], params[r], cmds[r], kinds, soff, poff, coff, counts, axes, bias, stuck, avail, flags,
+                   thr, wk, aux)
+        for i in range(3):
+            out[r, i] = wk[_TAU + i]
+
+
 def _named(fn, name: str):
     """``fn`` under another name: numba's cache is indexed by the function's qualified name, so the
     serial and the parallel compilation of the one source need two names (else they share a cache
@@ -321,6 +337,15 @@ class KernelPlan:
         if not ENABLED or None in kinds or len(set(kinds)) != len(kinds):
             return None
         return cls(plant)
+
+    def warm(self, plant) -> None:
+        """One step and one torque of the plant at rest with zero commands: loads (or, on a cold
+        cache, compiles) the machine code, so a node pays it at start-up rather than in its first step."""
+        x = plant.initial_state(np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3))
+        commands = plant.zero_commands()
+        with np.errstate(all='ignore'):
+            self.step(plant, 0.0, x, commands, 1.0, 1.0)
+            self.control_torque(plant, 0.0, x, commands)
 
     def _param_arrays(self, plant) -> list:
         arrays = [plant.body_inertia_inverse(), plant.inertia_struct, plant.inertia]
@@ -398,8 +423,8 @@ class KernelPlan:
         return (w.axes, np.asarray(w.bias, dtype=float), np.asarray(w.stuck, dtype=np.bool_),
                 np.asarray(w.available, dtype=np.bool_), flags)
 
-    def step(self, plant, t: float, x, commands: dict, period: float, max_step: float) -> np.ndarray | None:
-        """Plant.step through the kernel, or None where it cannot (the caller steps with numpy)."""
+    def _inputs(self, plant, x, commands: dict):
+        """(runs' states (n_runs, n_states), the shared arguments of both kernels) or None."""
         x = np.asarray(x)
         if x.dtype != np.float64 or x.ndim < 1 or x.shape[-1] != plant.n_states:
             return None
@@ -410,16 +435,34 @@ class KernelPlan:
             return None
         (params, poff), (cmds, coff, thr) = packed, cmd
         axes, bias, stuck, avail, flags = wheel
+        xr = np.ascontiguousarray(x.reshape(n_runs, plant.n_states))
+        return xr, (params, cmds, self.kinds, self.soff, poff, coff, self.counts, np.ascontiguousarray(axes),
+                    bias, stuck, avail, flags, thr)
+
+    def step(self, plant, t: float, x, commands: dict, period: float, max_step: float) -> np.ndarray | None:
+        """Plant.step through the kernel, or None where it cannot (the caller steps with numpy)."""
+        inputs = self._inputs(plant, x, commands)
+        if inputs is None:
+            return None
+        xr, (params, cmds, kinds, soff, poff, coff, counts, axes, bias, stuck, avail, flags, thr) = inputs
         times, h = stage_times(t, period, max_step)
         env, pos, factor = self._environment(plant, times)
-        xr = np.ascontiguousarray(x.reshape(n_runs, plant.n_states))
         out = np.empty_like(xr)
-        threaded = n_runs >= PARALLEL_MIN_RUNS and n_runs * len(times) >= PARALLEL_MIN_WORK
+        threaded = len(xr) >= PARALLEL_MIN_RUNS and len(xr) * len(times) >= PARALLEL_MIN_WORK
         kernel = rk4_parallel if threaded else rk4_serial
-        kernel(xr, out, times, h, params, cmds, self.kinds, self.soff, poff, coff, self.counts,
-               np.ascontiguousarray(axes), bias, stuck, avail, flags, env, plant.disturbance is not None,
-               pos, factor, bool(plant.gravity_gradient), thr)
-        return out.reshape(x.shape)
+        kernel(xr, out, times, h, params, cmds, kinds, soff, poff, coff, counts, axes, bias, stuck, avail, flags,
+               env, plant.disturbance is not None, pos, factor, bool(plant.gravity_gradient), thr)
+        return out.reshape(np.shape(x))
+
+    def control_torque(self, plant, t: float, x, commands: dict) -> np.ndarray | None:
+        """Plant.control_torque through the kernel (batch + (3,)), or None where it cannot."""
+        inputs = self._inputs(plant, x, commands)
+        if inputs is None:
+            return None
+        xr, args = inputs
+        out = np.empty((len(xr), 3))
+        torque_runs(xr, out, float(t), *args)
+        return out.reshape(np.shape(x)[:-1] + (3,))
 
 
 def _rows(value, batch: tuple, item_ndim: int, n_runs: int) -> np.ndarray | None:

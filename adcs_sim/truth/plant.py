@@ -328,6 +328,8 @@ class Plant:
         self._constraint_key = self._constraints()
         self._body_inv = self.inertia_struct_inv
         self.kernel = kernel.KernelPlan.of(self)  # None: stepped by step_numpy
+        if self.kernel is not None:  # load the compiled code now (start-up), not in the first step
+            self.kernel.warm(self)
 
     def _constraints(self) -> tuple[int, ...]:
         return tuple(a.constraint_version for a in self.actuators)
@@ -396,7 +398,16 @@ class Plant:
         return T
 
     def control_torque(self, t: float, x: np.ndarray, commands: dict[str, Any]) -> np.ndarray:
-        """Body torque from all actuators at state ``x`` (what the ZOH command produces now)."""
+        """Body torque from all actuators at state ``x`` (what the ZOH command produces now); on the
+        compiled kernel when it models every actuator (same numbers), else :meth:`control_torque_numpy`."""
+        if self.kernel is not None:
+            tau = self.kernel.control_torque(self, t, x, commands)
+            if tau is not None:
+                return tau
+        return self.control_torque_numpy(t, x, commands)
+
+    def control_torque_numpy(self, t: float, x: np.ndarray, commands: dict[str, Any]) -> np.ndarray:
+        """:meth:`control_torque` with numpy arrays (the reference the kernel equals)."""
         w = x[..., 4:7]
         tau = np.zeros(w.shape)
         for a in self.actuators:
