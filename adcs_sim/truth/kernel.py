@@ -3,7 +3,7 @@
 One code path for the single run (a graph's dynamics node, ``adcs-run``) and the batch engine: the
 plant's fixed-step RK4 over one zero-order-hold period, for every run of a batch, written as scalar
 loops and compiled by numba. The batch axis stays: runs are independent iterations of a ``prange``
-loop (threads over cores for a batch, a plain loop for one run; the same source compiled twice).
+loop (all threads for a large batch, one thread otherwise; one compiled function).
 
 Bit for bit the numpy plant
 ---------------------------
@@ -33,8 +33,8 @@ from __future__ import annotations
 
 import math
 import os
-import types
 
+import numba
 import numpy as np
 from numba import njit, prange
 
@@ -284,22 +284,17 @@ def torque_runs(x, out, t, params, cmds, kinds, soff, poff, coff, counts, axes, 
             out[r, i] = wk[_TAU + i]
 
 
-def _named(fn, name: str):
-    """``fn`` under another name: numba's cache is indexed by the function's qualified name, so the
-    serial and the parallel compilation of the one source need two names (else they share a cache
-    entry and the second loads the first's machine code)."""
-    copy = types.FunctionType(fn.__code__, fn.__globals__, name, fn.__defaults__, fn.__closure__)
-    copy.__qualname__ = name
-    return copy
-
-
-rk4_serial = njit(**_JIT)(_rk4_runs)
-rk4_parallel = njit(parallel=True, **_JIT)(_named(_rk4_runs, '_rk4_runs_parallel'))
+# The RK4 loop is compiled once, as a parallel (prange) loop, and run on one thread or on all of
+# them per call. Compiled without parallel=True the same source ran 3-5x slower per step (measured
+# 2.0 against 0.36 µs per RK4 step, body + 3 wheels, one thread each: the serial compilation kept
+# array reference counting in the loop).
+rk4_runs = njit(parallel=True, **_JIT)(_rk4_runs)
 # Item dimensions of each kind's parameter arrays, in KernelPlan._param_arrays' order.
 _ITEM_NDIMS = {WHEELS: (1,) * 6, TORQUERS: (1,), THRUSTERS: (2, 1)}
-# A call goes to the threaded kernel only with enough work (runs x RK4 steps): each launch wakes
-# the worker threads, which on a loaded 2-core machine costs more than a 125-run chunk's step
-# (measured: a 250-run campaign 2.9 s serial against 5-19 s threaded, benchmarks/montecarlo_speed.py).
+
+# A call runs on all threads only with enough work (runs x RK4 steps): waking the worker threads
+# costs more, on a loaded 2-core machine, than a 125-run chunk's step (measured: a 250-run campaign
+# 2.9 s on one thread against 5-19 s threaded, benchmarks/montecarlo_speed.py).
 PARALLEL_MIN_RUNS = 256
 PARALLEL_MIN_WORK = 8192
 
@@ -449,8 +444,10 @@ class KernelPlan:
         env, pos, factor = self._environment(plant, times)
         out = np.empty_like(xr)
         threaded = len(xr) >= PARALLEL_MIN_RUNS and len(xr) * len(times) >= PARALLEL_MIN_WORK
-        kernel = rk4_parallel if threaded else rk4_serial
-        kernel(xr, out, times, h, params, cmds, kinds, soff, poff, coff, counts, axes, bias, stuck, avail, flags,
+        threads = numba.config.NUMBA_NUM_THREADS if threaded else 1
+        if numba.get_num_threads() != threads:
+            numba.set_num_threads(threads)
+        rk4_runs(xr, out, times, h, params, cmds, kinds, soff, poff, coff, counts, axes, bias, stuck, avail, flags,
                env, plant.disturbance is not None, pos, factor, bool(plant.gravity_gradient), thr)
         return out.reshape(np.shape(x))
 
