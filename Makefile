@@ -9,6 +9,7 @@ $(VENV)/.installed: requirements.txt requirements-dev.txt setup.py setup.cfg pyp
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-dev.txt
 	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps -e . && test -x $(VENV)/bin/dynamics
+	$(PY) -c 'import numpy; from adcs_sim.truth.plant import Plant; Plant(numpy.eye(3))'  # compile the plant kernel into its cache
 	touch $@
 
 .PHONY: install run test bench
