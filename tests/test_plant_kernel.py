@@ -3,8 +3,8 @@
 ``Plant.step`` and ``Plant.control_torque`` run on the kernel; ``Plant.step_numpy`` and
 ``Plant.control_torque_numpy`` are the numpy reference. Every actuator
 model and every branch of it (speed loop, limits, friction, each fault mode, thrusters with pulse
-edges, disturbance, gravity gradient), single runs and batches (the serial and the threaded
-kernel), dispersed parameters, and runs that diverge to inf/NaN.
+edges, disturbance, gravity gradient), single runs and batches (on one thread and on all
+threads), dispersed parameters, and runs that diverge to inf/NaN.
 """
 from __future__ import annotations
 
@@ -150,3 +150,11 @@ def test_an_unknown_actuator_keeps_the_numpy_path():
     x = state(plant)
     out = plant.step(0.0, x, {'mtq': np.array([0.01, 0.0, 0.0])}, 1.0, 0.5)
     assert_array_equal(out, plant.step_numpy(0.0, x, {'mtq': np.array([0.01, 0.0, 0.0])}, 1.0, 0.5))
+
+
+def test_compiled_without_fastmath_and_with_numpy_errors():
+    """What the bit-for-bit argument rests on (module doc of adcs_sim.truth.kernel)."""
+    for fn in (kernel.rk4_runs, kernel.torque_runs):
+        options = fn.targetoptions
+        assert not options.get('fastmath', False)
+        assert options['error_model'] == 'numpy'

@@ -21,6 +21,10 @@ position (``math.sin``/``math.cos`` of Python floats) likewise; the kernel only 
 sqrt, which IEEE 754 rounds exactly. ``tests/test_plant_kernel.py`` compares the two paths bit for
 bit; the reproduction tests compare every committed bag with its batch run.
 
+Checked on the development machine (x86-64 with FMA, AVX2, AVX-512; numba 0.68.1, llvmlite 0.50.0):
+the compiled kernels' assembly holds no FMA instruction and their LLVM IR no fast-math flag and no
+``llvm.fma`` / ``llvm.fmuladd`` (``inspect_asm`` / ``inspect_llvm`` of a fresh compilation).
+
 Compilation is cached (``cache=True``: next to this file, or under ``NUMBA_CACHE_DIR``), so a
 node's start-up loads machine code instead of compiling it.
 
