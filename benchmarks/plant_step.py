@@ -190,16 +190,16 @@ def main() -> int:
 
 def report(med: dict, args) -> None:
     print(f'body + 3 wheels, RK4 h = {H} s, single run; medians of {args.repeat} (µs per RK4 step):')
-    print(f"  (a) kernel, 1 s period per call (as the dynamics node) {med['kernel']:9.2f}")
-    print(f"  (b) kernel, {args.steps} steps in one call           {med['kernel_long']:9.2f}")
-    print(f"  (c) numpy (previous code), as (a)                  {med['numpy']:9.2f}   "
-          f"(c)/(a) = {med['numpy'] / med['kernel']:.1f}")
-    print(f"  (d) scalar Python floats, as (a)                   {med['scalar']:9.2f}   "
-          f"(d)/(a) = {med['scalar'] / med['kernel']:.1f}")
+    rows = [('(a) kernel, 1 s period per call (as the dynamics node)', med['kernel'], ''),
+            (f'(b) kernel, {args.steps} steps in one call', med['kernel_long'], ''),
+            ('(c) numpy (previous code), as (a)', med['numpy'], f"(c)/(a) = {med['numpy'] / med['kernel']:.1f}"),
+            ('(d) scalar Python floats, as (a)', med['scalar'], f"(d)/(a) = {med['scalar'] / med['kernel']:.1f}")]
     if 'basilisk' in med:
-        print(f"  Basilisk 2.12.1, same body + 3 wheels, RK4         {med['basilisk']:9.2f}   "
-              f"Basilisk/(a) = {med['basilisk'] / med['kernel']:.2f}, Basilisk/(b) = "
-              f"{med['basilisk'] / med['kernel_long']:.1f}  (target >= 1)")
+        rows.append(('Basilisk 2.12.1, same body + 3 wheels, RK4', med['basilisk'],
+                     f"Basilisk/(a) = {med['basilisk'] / med['kernel']:.2f}, Basilisk/(b) = "
+                     f"{med['basilisk'] / med['kernel_long']:.1f}  (target >= 1)"))
+    for label, value, note in rows:
+        print(f'  {label:<56}{value:9.2f}   {note}')
     print(f"(e) batch of {args.runs} runs: kernel {med['batch']:.3g} runs·steps/s, numpy "
           f"{med['batch_numpy']:.3g} runs·steps/s, ratio {med['batch'] / med['batch_numpy']:.1f}")
 

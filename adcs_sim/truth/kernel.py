@@ -308,9 +308,11 @@ def stage_times(t: float, period: float, max_step: float) -> tuple[np.ndarray, f
     them (``t + i h``, ``+ h/2``, ``+ h``)."""
     n = max(1, math.ceil(period / max_step - 1e-9))
     h = period / n
+    if n <= 16:  # a control period's few steps: Python floats are cheaper than array calls
+        half = 0.5 * h
+        return np.array([(ti, ti + half, ti + h) for ti in (t + i * h for i in range(n))]), h
     ti = t + np.arange(n) * h  # t + (i h), each rounded as the Python expression
-    times = np.stack([ti, ti + 0.5 * h, ti + h], axis=1)
-    return times, h
+    return np.stack([ti, ti + 0.5 * h, ti + h], axis=1), h
 
 
 class KernelPlan:
@@ -329,6 +331,7 @@ class KernelPlan:
         self.thrusters = next((a for a, k in zip(self.actuators, self.kinds) if k == THRUSTERS), None)
         self._cache_key: tuple = ()
         self._packed = None
+        self._no_environment = np.zeros((0, 3, 3))
 
     @classmethod
     def of(cls, plant) -> 'KernelPlan | None':
@@ -400,6 +403,10 @@ class KernelPlan:
 
     def _environment(self, plant, times: np.ndarray):
         shape = times.shape + (3,)
+        if plant.disturbance is None and not plant.gravity_gradient:
+            if self._no_environment.shape != shape:  # read only by the kernel: one zero array is enough
+                self._no_environment = np.zeros(shape)
+            return self._no_environment, self._no_environment, 0.0
         env, pos, factor = np.zeros(shape), np.zeros(shape), 0.0
         if plant.disturbance is not None:
             for i, s in np.ndindex(times.shape):
