@@ -9,6 +9,7 @@ $(VENV)/.installed: requirements.txt requirements-dev.txt setup.py setup.cfg pyp
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-dev.txt
 	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps -e . && test -x $(VENV)/bin/dynamics
+	$(PY) -c 'import numpy; from adcs_sim.truth.plant import Plant; Plant(numpy.eye(3))'  # compile the plant kernel into its cache
 	touch $@
 
 .PHONY: install run test bench
@@ -20,7 +21,10 @@ run: $(VENV)/.installed
 test: $(VENV)/.installed
 	$(PY) -m pytest -q tests
 
+# BENCH_FLAGS=--basilisk adds the Basilisk comparisons (bsk installed into a throwaway venv in /tmp).
 bench: $(VENV)/.installed
+	$(PY) benchmarks/plant_step.py $(BENCH_FLAGS)
+	$(PY) benchmarks/montecarlo_speed.py $(BENCH_FLAGS)
 	$(PY) benchmarks/lockstep_vs_pingpong.py
 	$(PY) benchmarks/batch_vs_loop.py
 	$(PY) benchmarks/pointing_montecarlo.py

@@ -61,87 +61,104 @@ def synthetic(n: int, period: float):
     return t, q, w, u, speed
 
 
+TOPIC_TYPES = {'/clock': 'rosgraph_msgs/msg/Clock', '/state': 'nav_msgs/msg/Odometry',
+               '/wheels/state': 'sensor_msgs/msg/JointState', '/wheels/cmd': 'sensor_msgs/msg/JointState',
+               '/actuators/torque': 'geometry_msgs/msg/Vector3Stamped',
+               '/controller/status': 'diagnostic_msgs/msg/DiagnosticArray',
+               '/dynamics/status': 'diagnostic_msgs/msg/DiagnosticArray'}
+
+
+class _Messages:
+    """One reusable message of each recorded type (rosbags types), re-stamped at each step."""
+
+    def __init__(self, store) -> None:
+        T = self.T = store.types
+        self.ser = store.serialize_cdr
+        Time, Header = T['builtin_interfaces/msg/Time'], T['std_msgs/msg/Header']
+        zeros3, cov = np.zeros(3), np.zeros(36)
+        vec = T['geometry_msgs/msg/Vector3']
+        self.odom = T['nav_msgs/msg/Odometry'](
+            header=Header(stamp=Time(sec=0, nanosec=0), frame_id='inertial'), child_frame_id='body',
+            pose=T['geometry_msgs/msg/PoseWithCovariance'](
+                pose=T['geometry_msgs/msg/Pose'](position=T['geometry_msgs/msg/Point'](x=0.0, y=0.0, z=0.0),
+                                                 orientation=T['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0,
+                                                                                               w=1.0)),
+                covariance=cov),
+            twist=T['geometry_msgs/msg/TwistWithCovariance'](
+                twist=T['geometry_msgs/msg/Twist'](linear=vec(x=0.0, y=0.0, z=0.0), angular=vec(x=0.0, y=0.0, z=0.0)),
+                covariance=cov))
+        names = ['rw_x', 'rw_y', 'rw_z']
+        self.wheels = T['sensor_msgs/msg/JointState'](header=Header(stamp=Time(sec=0, nanosec=0), frame_id=''),
+                                                      name=names, position=zeros3, velocity=zeros3, effort=zeros3)
+        self.cmd = T['sensor_msgs/msg/JointState'](header=Header(stamp=Time(sec=0, nanosec=0), frame_id=''),
+                                                   name=names, position=np.zeros(0), velocity=np.zeros(0),
+                                                   effort=zeros3)
+        self.torque = T['geometry_msgs/msg/Vector3Stamped'](
+            header=Header(stamp=Time(sec=0, nanosec=0), frame_id='body'), vector=vec(x=0.0, y=0.0, z=0.0))
+        self.clock = T['rosgraph_msgs/msg/Clock'](clock=Time(sec=0, nanosec=0))
+
+    def status(self, name, values):
+        T = self.T
+        KV, Status = T['diagnostic_msgs/msg/KeyValue'], T['diagnostic_msgs/msg/DiagnosticStatus']
+        Header, Time = T['std_msgs/msg/Header'], T['builtin_interfaces/msg/Time']
+        return T['diagnostic_msgs/msg/DiagnosticArray'](
+            header=Header(stamp=Time(sec=0, nanosec=0), frame_id=''), status=[Status(
+                level=0, name=name, message='', hardware_id='',
+                values=[KV(key=k, value=v) for k, v in values.items()])])
+
+    def dyn_status(self, k, final, stamp=None):
+        msg = self.status('dynamics', {'step': str(k), 'missed_steps': '0', 'final': final})
+        if stamp is not None:
+            msg.header.stamp.sec, msg.header.stamp.nanosec = stamp
+        return self.ser(msg, 'diagnostic_msgs/msg/DiagnosticArray')
+
+
+def _write_step(writer, m: _Messages, k: int, n: int, stamp: tuple, q, w, u, speed) -> int:
+    """Step ``k``'s messages; returns how many were written."""
+    sec, nsec = stamp
+    for msg in (m.odom.header, m.wheels.header, m.cmd.header, m.clock):
+        st = msg.stamp if hasattr(msg, 'stamp') else msg.clock
+        st.sec, st.nanosec = sec, nsec
+    pose, twist = m.odom.pose.pose.orientation, m.odom.twist.twist.angular
+    pose.x, pose.y, pose.z, pose.w = q[k]
+    twist.x, twist.y, twist.z = w[k]
+    m.wheels.velocity = speed[k]
+    m.wheels.effort = -u[k]
+    m.cmd.effort = -u[k]
+    ser = m.ser
+    writer.write('/clock', ser(m.clock, 'rosgraph_msgs/msg/Clock'))
+    writer.write('/state', ser(m.odom, 'nav_msgs/msg/Odometry'))
+    writer.write('/wheels/state', ser(m.wheels, 'sensor_msgs/msg/JointState'))
+    ctrl = m.status('pd_controller', {'mode': 'pd', 'u_x': repr(float(u[k, 0])), 'u_y': repr(float(u[k, 1])),
+                                      'u_z': repr(float(u[k, 2])), 'rejected_messages': '0'})
+    ctrl.header.stamp.sec, ctrl.header.stamp.nanosec = sec, nsec
+    writer.write('/controller/status', ser(ctrl, 'diagnostic_msgs/msg/DiagnosticArray'))
+    writer.write('/wheels/cmd', ser(m.cmd, 'sensor_msgs/msg/JointState'))
+    if k == n - 1:
+        return 5
+    # the torque applied over [t_k, t_k+1], stamped t_k
+    m.torque.header.stamp.sec, m.torque.header.stamp.nanosec = sec, nsec
+    m.torque.vector.x, m.torque.vector.y, m.torque.vector.z = u[k]
+    writer.write('/actuators/torque', ser(m.torque, 'geometry_msgs/msg/Vector3Stamped'))
+    return 6
+
+
 def write_bag(path: Path, hours: float, rate: float) -> tuple[int, tuple]:
-    store = typestore()
-    T = store.types
-    Time, Header = T['builtin_interfaces/msg/Time'], T['std_msgs/msg/Header']
+    m = _Messages(typestore())
     period = 1.0 / rate
     n = int(round(hours * 3600 * rate)) + 1
     t, q, w, u, speed = synthetic(n, period)
-    zeros3, cov = np.zeros(3), np.zeros(36)
-    vec = T['geometry_msgs/msg/Vector3']
-    odom = T['nav_msgs/msg/Odometry'](
-        header=Header(stamp=Time(sec=0, nanosec=0), frame_id='inertial'), child_frame_id='body',
-        pose=T['geometry_msgs/msg/PoseWithCovariance'](
-            pose=T['geometry_msgs/msg/Pose'](position=T['geometry_msgs/msg/Point'](x=0.0, y=0.0, z=0.0),
-                                             orientation=T['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0, w=1.0)),
-            covariance=cov),
-        twist=T['geometry_msgs/msg/TwistWithCovariance'](
-            twist=T['geometry_msgs/msg/Twist'](linear=vec(x=0.0, y=0.0, z=0.0), angular=vec(x=0.0, y=0.0, z=0.0)),
-            covariance=cov))
-    names = ['rw_x', 'rw_y', 'rw_z']
-    wheels = T['sensor_msgs/msg/JointState'](header=Header(stamp=Time(sec=0, nanosec=0), frame_id=''),
-                                             name=names, position=zeros3, velocity=zeros3, effort=zeros3)
-    cmd = T['sensor_msgs/msg/JointState'](header=Header(stamp=Time(sec=0, nanosec=0), frame_id=''),
-                                          name=names, position=np.zeros(0), velocity=np.zeros(0), effort=zeros3)
-    torque = T['geometry_msgs/msg/Vector3Stamped'](header=Header(stamp=Time(sec=0, nanosec=0), frame_id='body'),
-                                                   vector=vec(x=0.0, y=0.0, z=0.0))
-    clock = T['rosgraph_msgs/msg/Clock'](clock=Time(sec=0, nanosec=0))
-    KV, Status = T['diagnostic_msgs/msg/KeyValue'], T['diagnostic_msgs/msg/DiagnosticStatus']
-    Array = T['diagnostic_msgs/msg/DiagnosticArray']
-
-    def status(name, values):
-        return Array(header=Header(stamp=Time(sec=0, nanosec=0), frame_id=''), status=[Status(
-            level=0, name=name, message='', hardware_id='',
-            values=[KV(key=k, value=v) for k, v in values.items()])])
-
     writer = BagWriter(path, chunk_size=65536)
-    types = {'/clock': 'rosgraph_msgs/msg/Clock', '/state': 'nav_msgs/msg/Odometry',
-             '/wheels/state': 'sensor_msgs/msg/JointState', '/wheels/cmd': 'sensor_msgs/msg/JointState',
-             '/actuators/torque': 'geometry_msgs/msg/Vector3Stamped',
-             '/controller/status': 'diagnostic_msgs/msg/DiagnosticArray',
-             '/dynamics/status': 'diagnostic_msgs/msg/DiagnosticArray'}
-    for name, type_name in types.items():
+    for name, type_name in TOPIC_TYPES.items():
         writer.add_topic(name, type_name, QOS)
-    ser = store.serialize_cdr
-
-    def dyn_status(k, final):
-        return ser(status('dynamics', {'step': str(k), 'missed_steps': '0', 'final': final}),
-                   'diagnostic_msgs/msg/DiagnosticArray')
-
-    writer.write('/dynamics/status', dyn_status(0, 'false'))
+    writer.write('/dynamics/status', m.dyn_status(0, 'false'))
     count = 1
-    pose, twist = odom.pose.pose.orientation, odom.twist.twist.angular
-    tq = torque.vector
     for k in range(n):
-        sec, nsec = divmod(k * int(round(period * 1e9)), 1_000_000_000)
-        for msg in (odom.header, wheels.header, cmd.header, clock):
-            stamp = msg.stamp if hasattr(msg, 'stamp') else msg.clock
-            stamp.sec, stamp.nanosec = sec, nsec
-        pose.x, pose.y, pose.z, pose.w = q[k]
-        twist.x, twist.y, twist.z = w[k]
-        wheels.velocity = speed[k]
-        wheels.effort = -u[k]
-        cmd.effort = -u[k]
-        writer.write('/clock', ser(clock, 'rosgraph_msgs/msg/Clock'))
-        writer.write('/state', ser(odom, 'nav_msgs/msg/Odometry'))
-        writer.write('/wheels/state', ser(wheels, 'sensor_msgs/msg/JointState'))
-        ctrl = status('pd_controller', {'mode': 'pd', 'u_x': repr(float(u[k, 0])), 'u_y': repr(float(u[k, 1])),
-                                        'u_z': repr(float(u[k, 2])), 'rejected_messages': '0'})
-        ctrl.header.stamp.sec, ctrl.header.stamp.nanosec = sec, nsec
-        writer.write('/controller/status', ser(ctrl, 'diagnostic_msgs/msg/DiagnosticArray'))
-        writer.write('/wheels/cmd', ser(cmd, 'sensor_msgs/msg/JointState'))
-        count += 5
-        if k < n - 1:  # the torque applied over [t_k, t_k+1], stamped t_k
-            torque.header.stamp.sec, torque.header.stamp.nanosec = sec, nsec
-            tq.x, tq.y, tq.z = u[k]
-            writer.write('/actuators/torque', ser(torque, 'geometry_msgs/msg/Vector3Stamped'))
-            count += 1
+        stamp = divmod(k * int(round(period * 1e9)), 1_000_000_000)
+        count += _write_step(writer, m, k, n, stamp, q, w, u, speed)
         if k % 100_000 == 0:
             print(f'  writing: {k}/{n} steps', file=sys.stderr, flush=True)
-    status_end = status('dynamics', {'step': str(n - 1), 'missed_steps': '0', 'final': 'true'})
-    status_end.header.stamp.sec, status_end.header.stamp.nanosec = sec, nsec
-    writer.write('/dynamics/status', ser(status_end, 'diagnostic_msgs/msg/DiagnosticArray'))
+    writer.write('/dynamics/status', m.dyn_status(n - 1, 'true', stamp))
     writer.close()
     return count + 1, (t, q, w, u, speed)
 

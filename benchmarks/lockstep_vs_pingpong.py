@@ -353,7 +353,7 @@ def print_profile(path: Path, top: int = 25) -> None:
 
 # --- main -------------------------------------------------------------------------------------------
 
-def main() -> int:
+def _parse_args():
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--role', choices=['echo', 'ping', 'observer'], help=argparse.SUPPRESS)
     ap.add_argument('--round-trips', type=int, default=2000)
@@ -364,7 +364,46 @@ def main() -> int:
                     help='alternating ping-pong / lockstep measurements; medians are compared')
     ap.add_argument('--profile', type=Path, metavar='DIR',
                     help='also run the lockstep pair under cProfile, writing DIR/<node>.prof')
-    args = ap.parse_args()
+    return ap.parse_args()
+
+
+def _measure(env: dict, args) -> None:
+    """The alternating ping-pong / lockstep repeats, the default run, the medians and the ratio."""
+    pps, lss = [], []
+    for i in range(args.repeat):  # alternate, so that a change of machine load hits both
+        tag = f'[{i + 1}/{args.repeat}]'
+        pp = run_pingpong(env, args.round_trips, args.warmup)
+        pps.append(pp['rate'])
+        print(f'{tag} ping-pong : {pp["round_trips"]} round trips of nav_msgs/Odometry in '
+              f'{pp["seconds"]:.3f} s -> {pp["rate"]:.0f} round trips/s ({1e6 / pp["rate"]:.0f} us each)',
+              flush=True)
+        ls = run_lockstep(env, args.duration)
+        lss.append(ls['rate'])
+        print(f'{tag} lockstep  : {ls["steps"]} steps in {ls["seconds"]:.3f} s of stepping loop '
+              f'-> {ls["rate"]:.0f} steps/s ({1e6 / ls["rate"]:.0f} us each); missed steps '
+              f'{ls["missed_steps"]}; timed from {ls["start_source"]} to {ls["end_source"]}; '
+              f'then {ls["drain"]:.3f} s until \'done at\' (ack wait); '
+              f'dynamics process {ls["process_wall"]:.2f} s in all', flush=True)
+    dflt = run_lockstep(env, 600.0)
+    print(f'default run : {dflt["steps"]} steps (600 simulated s) in {dflt["seconds"]:.3f} s of stepping '
+          f'loop -> real-time factor {600.0 / dflt["seconds"]:.0f}x (missed steps '
+          f'{dflt["missed_steps"]}; dynamics process incl. start-up and ack wait '
+          f'{dflt["process_wall"]:.2f} s -> {600.0 / dflt["process_wall"]:.0f}x end to end)', flush=True)
+    pp_rate, ls_rate = statistics.median(pps), statistics.median(lss)
+    print(f'median      : ping-pong {pp_rate:.0f} round trips/s, lockstep {ls_rate:.0f} steps/s '
+          f'(of {args.repeat})')
+    print(f'ratio       : lockstep steps/s / ping-pong round trips/s = {ls_rate / pp_rate:.3f} '
+          f'(per repeat: {", ".join(f"{b / a:.3f}" for a, b in zip(pps, lss))})', flush=True)
+    if args.profile:
+        args.profile.mkdir(parents=True, exist_ok=True)
+        prof = run_lockstep(env, args.duration, args.profile)
+        print(f'\nprofiled lockstep: {prof["rate"]:.0f} steps/s under cProfile')
+        for name in ('dynamics', 'pd_controller'):
+            print_profile(args.profile / f'{name}.prof')
+
+
+def main() -> int:
+    args = _parse_args()
     if args.role == 'echo':
         return role_echo()
     if args.role == 'ping':
@@ -386,37 +425,7 @@ def main() -> int:
           f'Fast DDS default transports; python {sys.version.split()[0]}; {os.cpu_count()} CPUs, '
           f'load average {load}', flush=True)
     try:
-        pps, lss = [], []
-        for i in range(args.repeat):  # alternate, so that a change of machine load hits both
-            tag = f'[{i + 1}/{args.repeat}]'
-            pp = run_pingpong(env, args.round_trips, args.warmup)
-            pps.append(pp['rate'])
-            print(f'{tag} ping-pong : {pp["round_trips"]} round trips of nav_msgs/Odometry in '
-                  f'{pp["seconds"]:.3f} s -> {pp["rate"]:.0f} round trips/s ({1e6 / pp["rate"]:.0f} us each)',
-                  flush=True)
-            ls = run_lockstep(env, args.duration)
-            lss.append(ls['rate'])
-            print(f'{tag} lockstep  : {ls["steps"]} steps in {ls["seconds"]:.3f} s of stepping loop '
-                  f'-> {ls["rate"]:.0f} steps/s ({1e6 / ls["rate"]:.0f} us each); missed steps '
-                  f'{ls["missed_steps"]}; timed from {ls["start_source"]} to {ls["end_source"]}; '
-                  f'then {ls["drain"]:.3f} s until \'done at\' (ack wait); '
-                  f'dynamics process {ls["process_wall"]:.2f} s in all', flush=True)
-        dflt = run_lockstep(env, 600.0)
-        print(f'default run : {dflt["steps"]} steps (600 simulated s) in {dflt["seconds"]:.3f} s of stepping '
-              f'loop -> real-time factor {600.0 / dflt["seconds"]:.0f}x (missed steps '
-              f'{dflt["missed_steps"]}; dynamics process incl. start-up and ack wait '
-              f'{dflt["process_wall"]:.2f} s -> {600.0 / dflt["process_wall"]:.0f}x end to end)', flush=True)
-        pp_rate, ls_rate = statistics.median(pps), statistics.median(lss)
-        print(f'median      : ping-pong {pp_rate:.0f} round trips/s, lockstep {ls_rate:.0f} steps/s '
-              f'(of {args.repeat})')
-        print(f'ratio       : lockstep steps/s / ping-pong round trips/s = {ls_rate / pp_rate:.3f} '
-              f'(per repeat: {", ".join(f"{b / a:.3f}" for a, b in zip(pps, lss))})', flush=True)
-        if args.profile:
-            args.profile.mkdir(parents=True, exist_ok=True)
-            prof = run_lockstep(env, args.duration, args.profile)
-            print(f'\nprofiled lockstep: {prof["rate"]:.0f} steps/s under cProfile')
-            for name in ('dynamics', 'pd_controller'):
-                print_profile(args.profile / f'{name}.prof')
+        _measure(env, args)
     except KeyboardInterrupt:
         print('interrupted; stopping child processes', file=sys.stderr)
         return 130

@@ -16,6 +16,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from adcs_sim.app.domains import DomainLease  # noqa: E402
+from adcs_sim.truth.plant import Plant  # noqa: E402
 
 # Tests use UDP only: a killed Fast DDS process would otherwise leave shared-memory files.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -129,6 +130,12 @@ def spawn():
         yield spawner
     finally:
         spawner.cleanup()
+
+
+def pytest_sessionstart(session):
+    """Load the compiled plant kernel (on a fresh clone: compile it into its cache, once) before
+    any test starts a node, so no graph test's start-up time includes a compilation."""
+    Plant(np.eye(3))
 
 
 @pytest.fixture

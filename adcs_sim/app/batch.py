@@ -193,6 +193,56 @@ class BatchSimulation:
             commands['torquers'] = values
         return commands
 
+    def _history(self, x: np.ndarray, K: int) -> dict[str, np.ndarray]:
+        """The recorded series (NaN where a run has no sample), with the initial state's."""
+        N, plant = self.n_runs, self.plant
+        n_wheels = self.wheels.count if self.wheels else 0
+        n_thr = self.thrusters.count if self.thrusters else 0
+        hist = {'q': np.full((N, K + 1, 4), math.nan), 'w': np.full((N, K + 1, 3), math.nan),
+                'u': np.full((N, K, 3), math.nan), 'speed': np.full((N, K + 1, n_wheels), math.nan),
+                'on': np.full((N, K, n_thr), math.nan), 'impulse': np.full((N, K + 1, n_thr), math.nan)}
+        hist['q'][:, 0], hist['w'][:, 0] = x[:, :4], x[:, 4:7]
+        if n_thr:
+            hist['impulse'][:, 0] = x[:, plant.slices['thrusters']]
+        if n_wheels:
+            hist['speed'][:, 0] = x[:, plant.slices['wheels']][:, :n_wheels]
+        return hist
+
+    def _control(self, k: int, t: float, x: np.ndarray, observe) -> tuple:
+        """Step ``k``'s commands as the controller node computes them: (values, momentum mode)."""
+        if self.law is None:
+            return None, False
+        N = self.n_runs
+        wheel_sl = self.plant.slices.get('wheels')
+        q_m, w_m = self.measurement.measure(x[:, :4], x[:, 4:7])
+        q_m = quat_normalize(q_m)  # what a controller does to the attitude it receives
+        momentum = self.law.output == 'wheel_momentum'
+        if self.needs_wheel_momentum:
+            speed = x[:, wheel_sl][:, self.momentum_index]
+            out, status = self.law.control(t, q_m, w_m, self.actuation.wheel_momentum(speed))
+        else:
+            out, status = self.law.control(t, q_m, w_m)
+        if observe is not None:
+            observe(k, t, status)
+        if momentum:
+            return self.actuation.command_momentum(np.broadcast_to(out, (N, 3))), True
+        if self.actuation.kind == 'thrusters':
+            speed = x[:, wheel_sl][:, :self.wheels.count]
+            on_time, tau_w, _ = self.actuation.command(np.broadcast_to(out, (N, 3)), w_m, speed)
+            return (on_time, tau_w), False
+        values, _ = self.actuation.command(np.broadcast_to(out, (N, 3)))
+        return values, False
+
+    def _record(self, hist: dict, k: int, x: np.ndarray, u: np.ndarray, active: np.ndarray) -> None:
+        """Step ``k``'s torque and the state at ``t_k+1`` of the active runs."""
+        hist['u'][active, k] = u[active]
+        hist['q'][active, k + 1] = x[active, :4]
+        hist['w'][active, k + 1] = x[active, 4:7]
+        if self.wheels is not None:
+            hist['speed'][active, k + 1] = x[active][:, self.plant.slices['wheels']][:, :self.wheels.count]
+        if self.thrusters is not None:
+            hist['impulse'][active, k + 1] = x[active][:, self.plant.slices['thrusters']]
+
     def run(self, progress=None, observe=None) -> BatchResult:
         """Simulate every run to its end (or divergence). ``progress(steps_done)`` is called
         after each control step if given; ``observe(k, t, status)`` with the law's status of
@@ -201,21 +251,7 @@ class BatchSimulation:
         plant = self.plant
         period = self.period_ns / NS_PER_S
         x = np.broadcast_to(initial_state(plant, self.dynamics), (N, plant.n_states)).copy()
-        q_hist = np.full((N, K + 1, 4), math.nan)
-        w_hist = np.full((N, K + 1, 3), math.nan)
-        u_hist = np.full((N, K, 3), math.nan)
-        wheel_sl = plant.slices.get('wheels')
-        n_wheels = self.wheels.count if self.wheels else 0
-        speed_hist = np.full((N, K + 1, n_wheels), math.nan)
-        thr_sl = plant.slices.get('thrusters')
-        n_thr = self.thrusters.count if self.thrusters else 0
-        on_hist = np.full((N, K, n_thr), math.nan)
-        impulse_hist = np.full((N, K + 1, n_thr), math.nan)
-        if n_thr:
-            impulse_hist[:, 0] = x[:, thr_sl]
-        q_hist[:, 0], w_hist[:, 0] = x[:, :4], x[:, 4:7]
-        if n_wheels:
-            speed_hist[:, 0] = x[:, wheel_sl][:, :n_wheels]
+        hist = self._history(x, K)
         failure: list = [None] * N
         fault_applied = -1
         active = self.n_steps > 0
@@ -227,58 +263,34 @@ class BatchSimulation:
                 t = (k * self.period_ns) / NS_PER_S
                 if self.fault_schedule:
                     fault_applied = self._apply_faults(k * self.period_ns, fault_applied)
-                values, momentum = None, False
-                if self.law is not None:
-                    q_m, w_m = self.measurement.measure(x[:, :4], x[:, 4:7])
-                    q_m = quat_normalize(q_m)  # what a controller does to the attitude it receives
-                    momentum = self.law.output == 'wheel_momentum'
-                    if self.needs_wheel_momentum:
-                        speed = x[:, wheel_sl][:, self.momentum_index]
-                        out, status = self.law.control(t, q_m, w_m, self.actuation.wheel_momentum(speed))
-                    else:
-                        out, status = self.law.control(t, q_m, w_m)
-                    if observe is not None:
-                        observe(k, t, status)
-                    if momentum:
-                        values = self.actuation.command_momentum(np.broadcast_to(out, (N, 3)))
-                    elif self.actuation.kind == 'thrusters':
-                        speed = x[:, wheel_sl][:, :n_wheels]
-                        on_time, tau_w, _ = self.actuation.command(np.broadcast_to(out, (N, 3)), w_m, speed)
-                        values = (on_time, tau_w)
-                    else:
-                        values, _ = self.actuation.command(np.broadcast_to(out, (N, 3)))
+                values, momentum = self._control(k, t, x, observe)
                 commands = self._commands(values, momentum, t, period)
                 u = plant.control_torque(t, x, commands)
                 if self.thrusters is not None:
                     x_new = step_pulsed(plant, t, x, commands, period, self.max_step)
-                    on_hist[active, k] = commands['thrusters'].on_time[active]
+                    hist['on'][active, k] = commands['thrusters'].on_time[active]
                 else:
                     x_new = plant.step(t, x, commands, period, self.max_step)
                 finite = np.isfinite(x_new).all(axis=-1) & np.isfinite(u).all(axis=-1)
                 for i in np.flatnonzero(active & ~finite):
                     failure[i] = (f'the plant state is no longer finite at t = {t + period:g} s (non-finite '
                                   f'{nonfinite_cause(plant, x_new[i], u[i])} after the step from t = {t:g} s)')
-                step = active[:, None]
-                x = np.where(step, x_new, x)
-                u_hist[active, k] = u[active]
-                q_hist[active, k + 1] = x[active, :4]
-                w_hist[active, k + 1] = x[active, 4:7]
-                if n_wheels:
-                    speed_hist[active, k + 1] = x[active][:, wheel_sl][:, :n_wheels]
-                if n_thr:
-                    impulse_hist[active, k + 1] = x[active][:, thr_sl]
+                x = np.where(active[:, None], x_new, x)
+                self._record(hist, k, x, u, active)
                 done_steps += active
                 active = active & finite & (done_steps < self.n_steps)
                 if progress is not None:
                     progress(k + 1)
+        return self._result(hist, K, done_steps, failure)
+
+    def _result(self, hist: dict, K: int, done_steps: np.ndarray, failure: list) -> BatchResult:
         t_grid = np.arange(K + 1, dtype=np.int64) * self.period_ns / NS_PER_S
-        return BatchResult(t=t_grid, q=q_hist, w=w_hist, u=u_hist, n_steps=done_steps,
+        return BatchResult(t=t_grid, q=hist['q'], w=hist['w'], u=hist['u'], n_steps=done_steps,
                            failure=failure, wheel_names=list(self.wheels.names) if self.wheels else [],
-                           wheel_speed=speed_hist, q_ref=np.asarray(self.q_ref, dtype=float),
+                           wheel_speed=hist['speed'], q_ref=np.asarray(self.q_ref, dtype=float),
                            faults=[(t_ns / NS_PER_S, 2 if mode in FAULT_ERROR_MODES else 0, name, mode)
                                    for t_ns, snap in self.fault_schedule
                                    for name, (mode, _, _) in snap.items()],
                            thruster_names=list(self.thrusters.names) if self.thrusters else [],
-                           thruster_on_time=on_hist, thruster_impulse=impulse_hist,
+                           thruster_on_time=hist['on'], thruster_impulse=hist['impulse'],
                            pointing=self.pointing)
-

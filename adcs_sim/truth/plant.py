@@ -46,6 +46,7 @@ from adcs_core.attitude import cross, matvec, quat_kinematics, rotate_to_inertia
 from adcs_core.faults import FAULT_ERROR_MODES, FAULT_OK_MODES
 from adcs_core.inertia import check_inertias
 from adcs_core.orbit import CircularOrbit
+from adcs_sim.truth import kernel
 
 # --- actuators -------------------------------------------------------------------------------
 
@@ -54,6 +55,7 @@ class Actuator:
 
     name: str = 'actuator'
     n_states: int = 0
+    kernel_kind: int | None = None  # the compiled kernel's model of this actuator (adcs_sim.truth.kernel)
 
     def initial_state(self) -> np.ndarray:
         return np.zeros(self.n_states)
@@ -131,6 +133,7 @@ class ReactionWheels(Actuator):
     initial_speed: np.ndarray | None = None
     name: str = 'wheels'
     available: np.ndarray = field(init=False)
+    kernel_kind = kernel.WHEELS
 
     def __post_init__(self) -> None:
         n = len(self.names)
@@ -252,6 +255,7 @@ class Torquers(Actuator):
 
     max_torque: np.ndarray = field(default_factory=lambda: np.full(3, np.inf))
     name: str = 'torquers'
+    kernel_kind = kernel.TORQUERS
 
     def __post_init__(self) -> None:
         limit = np.asarray(self.max_torque, dtype=float)
@@ -323,6 +327,9 @@ class Plant:
         self._actuator_slices = [(a, self.slices[a.name]) for a in self.actuators]
         self._constraint_key = self._constraints()
         self._body_inv = self.inertia_struct_inv
+        self.kernel = kernel.KernelPlan.of(self)  # None: stepped by step_numpy
+        if self.kernel is not None:  # load the compiled code now (start-up), not in the first step
+            self.kernel.warm(self)
 
     def _constraints(self) -> tuple[int, ...]:
         return tuple(a.constraint_version for a in self.actuators)
@@ -391,7 +398,16 @@ class Plant:
         return T
 
     def control_torque(self, t: float, x: np.ndarray, commands: dict[str, Any]) -> np.ndarray:
-        """Body torque from all actuators at state ``x`` (what the ZOH command produces now)."""
+        """Body torque from all actuators at state ``x`` (what the ZOH command produces now); on the
+        compiled kernel when it models every actuator (same numbers), else :meth:`control_torque_numpy`."""
+        if self.kernel is not None:
+            tau = self.kernel.control_torque(self, t, x, commands)
+            if tau is not None:
+                return tau
+        return self.control_torque_numpy(t, x, commands)
+
+    def control_torque_numpy(self, t: float, x: np.ndarray, commands: dict[str, Any]) -> np.ndarray:
+        """:meth:`control_torque` with numpy arrays (the reference the kernel equals)."""
         w = x[..., 4:7]
         tau = np.zeros(w.shape)
         for a in self.actuators:
@@ -420,8 +436,18 @@ class Plant:
         """Advance ``period`` seconds holding ``commands`` (zero-order hold), fixed-step RK4.
 
         The period is split into ``ceil(period / max_step)`` equal RK4 steps; the quaternion is
-        renormalised after each.
+        renormalised after each. Runs on the compiled kernel (:mod:`adcs_sim.truth.kernel`, the same
+        numbers bit for bit) when it models every actuator, else :meth:`step_numpy`.
         """
+        if self.kernel is not None:
+            x_new = self.kernel.step(self, t, x, commands, period, max_step)
+            if x_new is not None:
+                return x_new
+        return self.step_numpy(t, x, commands, period, max_step)
+
+    def step_numpy(self, t: float, x: np.ndarray, commands: dict[str, Any], period: float,
+                   max_step: float) -> np.ndarray:
+        """:meth:`step` with numpy arrays and :meth:`derivative` (the reference the kernel equals)."""
         n = max(1, math.ceil(period / max_step - 1e-9))
         h = period / n
         f = self.derivative

@@ -1,0 +1,104 @@
+#!/usr/bin/env python3
+"""Monte Carlo throughput: a campaign's runs per second, compiled plant against numpy and Basilisk.
+
+Issue 18's Monte Carlo benchmark, on ``config/campaigns/pd_slew_30deg.yaml`` (1000 PD slews of
+600 s, 1 s control period, the scenario's RK4 step) unless ``--campaign`` names another (the seed
+003 Table 1 campaign: ``config/campaigns/pointing_table1.yaml``). The campaign is run as
+``adcs-montecarlo`` runs it, chunk by chunk (:func:`adcs_sim.app.campaign.run_chunk`: dispersions,
+batch simulation, metrics), in this process without Dask:
+
+(a) **kernel**: plants on the compiled kernel (:mod:`adcs_sim.truth.kernel`);
+(b) **numpy**: the same campaign with ``ADCS_PLANT_KERNEL=0`` semantics (``kernel.ENABLED =
+    False``: the previous numpy plant), checked to give the same rows bit for bit.
+
+``--basilisk``: the same slews in Basilisk 2.12.1 one after another (bsk installed into a throwaway
+venv under /tmp, :mod:`bsk_support`; hub + 3 wheels, RK4 at the scenario's step, simpleNav,
+attTrackingError, mrpFeedback as PD, rwMotorTorque at the control period), a timed sample of
+``--bsk-sample`` runs scaled to the campaign's size, and ``ratio = Basilisk / ours``
+(issue target >= 100). Says so when Basilisk cannot be installed or run.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bsk_support import basilisk_python, run_child  # noqa: E402
+
+from adcs_sim.app.campaign import Campaign, run_chunk  # noqa: E402
+from adcs_sim.truth import kernel  # noqa: E402
+
+DEFAULT = ROOT / 'config' / 'campaigns' / 'pd_slew_30deg.yaml'
+
+
+def timed_campaign(campaign: Campaign, compiled: bool) -> tuple[float, list]:
+    kernel.ENABLED = compiled
+    try:
+        t0 = time.perf_counter()
+        rows = [row for chunk in campaign.chunks() for row in run_chunk(campaign, chunk)]
+        return time.perf_counter() - t0, rows
+    finally:
+        kernel.ENABLED = True
+
+
+def basilisk_per_run(campaign: Campaign, sample: int) -> tuple[float | None, str]:
+    python, why = basilisk_python()
+    if python is None:
+        return None, why
+    sigma0 = []
+    for i in range(sample):
+        d = campaign.run_sections(i)['dynamics']
+        q = np.asarray(d['initial.attitude'], dtype=float)
+        q = q / np.linalg.norm(q)
+        sigma0.append([float(v) for v in q[:3] / (1.0 + q[3])])  # MRP of the initial attitude
+    d = campaign.run_sections(0)['dynamics']
+    args = {'inertia': [float(v) for v in np.diag(np.asarray(d['inertia'], dtype=float).reshape(-1))[:3]]
+            if np.asarray(d['inertia']).size == 9 else [float(v) for v in d['inertia']],
+            'spin_inertia': float(d['wheels.spin_inertia'][0]), 'max_torque': float(d['wheels.max_torque'][0]),
+            'max_speed': float(d['wheels.max_speed'][0]), 'max_step': float(d['integrator.max_step']),
+            'period': float(d['control_period']), 'duration': float(d['duration']),
+            'K': 0.024, 'P': 0.6, 'sigma0': sigma0}
+    answer, why = run_child(python, 'bsk_pd_slew.py', args)
+    if answer is None:
+        return None, why
+    print(f"Basilisk: {answer['runs']} slews timed, worst final |sigma| {answer['final_mrp_norm_max']:.2e}")
+    return answer['s_per_run'], ''
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--campaign', type=Path, default=DEFAULT)
+    parser.add_argument('--runs', type=int, default=None, help='first N runs only (default: all)')
+    parser.add_argument('--basilisk', action='store_true', help='also time a sample of bsk 2.12.1 runs')
+    parser.add_argument('--bsk-sample', type=int, default=5)
+    args = parser.parse_args()
+    campaign = Campaign.load(args.campaign, runs=args.runs)
+    timed_campaign(Campaign.load(args.campaign, runs=min(campaign.chunk_size, campaign.runs)), True)  # warm
+    fast, rows = timed_campaign(campaign, True)
+    slow, rows_numpy = timed_campaign(campaign, False)
+    if repr(rows) != repr(rows_numpy):
+        print('MISMATCH: the kernel and numpy campaigns differ', file=sys.stderr)
+        return 1
+    n = campaign.runs
+    print(f'{args.campaign.name}: {n} runs in chunks of {campaign.chunk_size}, one process (same rows bit for bit)')
+    print(f'  (a) kernel: {fast:.2f} s = {n / fast:.1f} runs/s')
+    print(f'  (b) numpy:  {slow:.2f} s = {n / slow:.1f} runs/s   (b)/(a) time = {slow / fast:.2f}')
+    if args.basilisk:
+        per_run, why = basilisk_per_run(campaign, args.bsk_sample)
+        if per_run is None:
+            print(f'Basilisk: not measured ({why})')
+        else:
+            print(f'  Basilisk 2.12.1, one run after another: {per_run:.3f} s per run, {n} runs ~ '
+                  f'{per_run * n:.1f} s   ratio Basilisk/(a) = {per_run * n / fast:.1f}  (target >= 100)')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
