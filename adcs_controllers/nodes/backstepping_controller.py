@@ -21,14 +21,14 @@ import numpy as np
 
 from adcs_controllers.families import BACKSTEPPING
 from adcs_controllers.laws.base import LawOutputRejected, checked_control
-from adcs_controllers.nodes.base import StampPairs
+from adcs_controllers.nodes.base import StampPairs, WheelStatePairing
 from adcs_core.faults import FaultTracker
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.node import AdcsNode, entry_point
 
 
-class BacksteppingController(AdcsNode):
+class BacksteppingController(WheelStatePairing, AdcsNode):
     family = BACKSTEPPING  # law: BacksteppingLaw, actuation: ThrusterActuation
     schema = BACKSTEPPING.schema
 
@@ -76,18 +76,10 @@ class BacksteppingController(AdcsNode):
     def _on_state(self, msg) -> None:
         parsed = self.rejects.accept(topics.STATE, lambda: cv.state_from_msg(msg))
         if parsed is not None:
-            self._paired(parsed[0], self.pairs.add(0, parsed[0], parsed[1:]))
+            self._pair_state(*parsed)
 
-    def _on_wheel_state(self, msg) -> None:
-        parsed = self.rejects.accept(topics.WHEELS_STATE,
-                                     lambda: cv.wheel_speeds_from_msg(msg, self.wheel_names))
-        if parsed is not None:
-            self._paired(parsed[0], self.pairs.add(1, *parsed))
-
-    def _paired(self, t_ns: int, pair) -> None:
-        if pair is not None:
-            (q, w), speed = pair
-            self.step(t_ns, q, w, speed)
+    def on_pair(self, t_ns: int, q: np.ndarray, w: np.ndarray, speed: np.ndarray) -> None:
+        self.step(t_ns, q, w, speed)
 
     # --- state -> commands ----------------------------------------------------------------
 

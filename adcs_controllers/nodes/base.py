@@ -64,7 +64,28 @@ class StampPairs:
         return None
 
 
-class ControllerNode(AdcsNode):
+class WheelStatePairing:
+    """For a node that needs the state and the wheel speeds of the same step: pairs ``state`` and
+    ``wheels/state`` by stamp, whichever arrives first, and calls ``self.on_pair(t_ns, q, w,
+    speed)`` once both are here. The node provides ``rejects``, ``wheel_names`` and ``pairs`` (a
+    :class:`StampPairs`)."""
+
+    def _pair_state(self, t_ns: int, q: np.ndarray, w: np.ndarray) -> None:
+        self._paired(t_ns, self.pairs.add(0, t_ns, (q, w)))
+
+    def _on_wheel_state(self, msg) -> None:
+        parsed = self.rejects.accept(topics.WHEELS_STATE,
+                                     lambda: cv.wheel_speeds_from_msg(msg, self.wheel_names))
+        if parsed is not None:
+            self._paired(parsed[0], self.pairs.add(1, *parsed))
+
+    def _paired(self, t_ns: int, pair) -> None:
+        if pair is not None:
+            (q, w), speed = pair
+            self.on_pair(t_ns, q, w, speed)
+
+
+class ControllerNode(WheelStatePairing, AdcsNode):
     """Base class of the controller nodes. Subclasses set ``family``
     (:class:`~adcs_controllers.families.ControllerFamily`): its schema validates the section, its law
     and actuation are built from it, the objects the batch engine builds too."""
@@ -163,20 +184,12 @@ class ControllerNode(AdcsNode):
         if not self.needs_wheel_momentum:
             self._step(t_ns, q, w)
             return
-        self._paired(t_ns, self.pairs.add(0, t_ns, (q, w)))
+        self._pair_state(t_ns, q, w)
 
-    def _on_wheel_state(self, msg) -> None:
-        parsed = self.rejects.accept(topics.WHEELS_STATE,
-                                     lambda: cv.wheel_speeds_from_msg(msg, self.wheel_names))
-        if parsed is not None:
-            self._paired(parsed[0], self.pairs.add(1, *parsed))
-
-    def _paired(self, t_ns: int, pair) -> None:
+    def on_pair(self, t_ns: int, q: np.ndarray, w: np.ndarray, speed: np.ndarray) -> None:
         """Compute the step ``t_ns`` once its state and wheel speeds are both here, with
         ``h = sum_i a_i Js_i Ω_i``."""
-        if pair is not None:
-            (q, w), speed = pair
-            self._step(t_ns, q, w, self.actuation.wheel_momentum(speed))
+        self._step(t_ns, q, w, self.actuation.wheel_momentum(speed))
 
     def _step(self, t_ns: int, q: np.ndarray, w: np.ndarray, h: np.ndarray | None = None) -> None:
         self.states += 1
