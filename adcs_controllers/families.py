@@ -19,7 +19,7 @@ import numpy as np
 
 from adcs_controllers.laws.allocation import Actuation
 from adcs_controllers.laws.backstepping import BacksteppingLaw, ThrusterActuation, actuator_matrix, positive_null_vector
-from adcs_controllers.laws.inverse_optimal import GsmnLaw, KtLaw, MinNormLaw
+from adcs_controllers.laws.inverse_optimal import LGV_READINGS, GsmnLaw, KtLaw, MinNormLaw
 from adcs_controllers.laws.motion_to_rest import M2rLaw, actuation_matrix, check_m2r_gains
 from adcs_controllers.laws.motion_to_spin import M2sLaw
 from adcs_controllers.laws.pd import PdLaw
@@ -93,13 +93,17 @@ def _gain(name: str, doc: str) -> Param:
 _INERTIA_MODEL = "the controller's inertia model I (kg m^2): 3 principal moments or 9 entries"
 _SHORTEST = Param('shortest_path', 'bool', default=False,
                   doc='flip q when q4 < 0 (not in seed 004, whose laws are applied as printed by default)')
+_LGV = Param('lgv', 'string', default='printed', choices=LGV_READINGS,
+             doc="projection direction of the min-norm torque: 'printed' LgV = (w + gamma q)^T I^-1 with V of "
+                 "eq. (15); 'inertia_weighted' LgV = (w + gamma q)^T, the exact LgV of V_I = c(1 - q4) + "
+                 "1/2 w^T I w + gamma q^T I w (docs/seed004_readings.md, eq. 17)")
 
 MINNORM_SCHEMA = Schema('minnorm_controller', [
     inertia_param(_INERTIA_MODEL),
     _gain('kp', 'PD gain of the reference torque u_PD = -kp I q - kd I w (1/s^2)'),
     _gain('kd', 'PD gain of the reference torque (1/s)'),
     _gain('gamma', 'cross-term weight of the Lyapunov function, eq. (15) (1/s)'),
-    *_target_params(), _SHORTEST,
+    *_target_params(), _SHORTEST, _LGV,
     *controller_params(),
 ], cross_check=_actuator_check, doc='standard minimum-norm law, seed 004 eq. (14) with V of eq. (15)')
 
@@ -112,7 +116,7 @@ GSMN_SCHEMA = Schema('gsmn_controller', [
     _gain('gamma', 'cross-term weight of the Lyapunov function, eq. (15) (1/s)'),
     Param('epsilon', 'double', check=positive, batch=True,
           doc='switching threshold on |u2|_inf (N m): high gains below it (eq. 17)'),
-    *_target_params(), _SHORTEST,
+    *_target_params(), _SHORTEST, _LGV,
     *controller_params(),
 ], cross_check=_actuator_check, doc='gain-scheduled minimum-norm law, seed 004 eq. (17)')
 

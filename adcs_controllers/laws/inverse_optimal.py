@@ -18,6 +18,18 @@ only ``LgV``)::
     LgV  = (w + γ q)ᵀ I⁻¹
     LfV  = (kp + γ kd) qᵀw + γ/2 q4 wᵀw - LgV (w x (I w + h))
 
+Reading ``lgv='inertia_weighted'`` (the printed ``I⁻¹`` dropped: ``LgV = (w + γ q)ᵀ``) is the exact
+``LgV`` of the inertia-weighted function (ours; it equals ``ι`` times eq. 15 when ``I = ι 1``)::
+
+    V_I  = c (1 - q4) + 1/2 wᵀ I w + γ qᵀ I w,   c = 2 (kp + γ kd) ι,   ι = tr(I)/3
+    LgV  = (w + γ q)ᵀ
+    LfV  = c/2 qᵀw + γ/2 q4 wᵀ I w + γ/2 (q x w)ᵀ I w - γ qᵀ (w x (I w + h))
+
+(from ``dq4/dt = -1/2 wᵀq``, ``dq/dt = 1/2 (q4 w + q x w)``, ``wᵀ(w x ·) = 0``). ``c`` does not
+change the torque, only ``V``/``Vdot`` of the status; with the PD torque the cross term
+``qᵀ(c/2 - (kp + γ kd) I) w`` no longer cancels unless ``I`` is scalar, so ``dV/dt <= 0`` is
+checked on random states (tests/test_seed004_lgv_reading.py).
+
 PD benchmark (eq. 13): ``u_PD = -kp I q - kd I w`` — :func:`pd_torque`, re-exported from
 :mod:`adcs_controllers.laws.pd`.
 
@@ -76,8 +88,8 @@ from adcs_controllers.laws.pd import pd_torque
 from adcs_core.attitude import cross, dot, error_quaternion, gain_vector, matvec, transpose
 
 __all__ = [
-    'MODE_LOW_GAIN', 'MODE_ZERO_TORQUE', 'MODE_HIGH_GAIN', 'MODE_MIN_NORM', 'MODE_CONTINUOUS',
-    'pd_torque', 'inertia_inverse', 'error_state', 'lyapunov', 'lie_derivatives',
+    'MODE_LOW_GAIN', 'MODE_ZERO_TORQUE', 'MODE_HIGH_GAIN', 'MODE_MIN_NORM', 'MODE_CONTINUOUS', 'LGV_READINGS',
+    'pd_torque', 'inertia_inverse', 'error_state', 'lyapunov', 'lyapunov_inertia_weighted', 'lie_derivatives',
     'min_norm_projection', 'min_norm_torque', 'gsmn_torque', 'gibbs', 'kt_lyapunov', 'kt_torque',
     'MinNormLaw', 'GsmnLaw', 'KtLaw',
 ]
@@ -87,6 +99,10 @@ MODE_ZERO_TORQUE = 1   # min-norm and GSMN: torque off
 MODE_HIGH_GAIN = 2     # GSMN: projection of the high-gain PD torque u2
 MODE_MIN_NORM = 3      # standard min-norm: projection of u_PD
 MODE_CONTINUOUS = 4    # Krstic-Tsiotras: one continuous law
+
+# The two readings of the projection direction LgV of eq. (14)/(17) (docs/seed004_readings.md, eq. 17):
+# 'printed' LgV = (w + γq)ᵀ I⁻¹ with V of eq. (15); 'inertia_weighted' LgV = (w + γq)ᵀ with V_I.
+LGV_READINGS = ('printed', 'inertia_weighted')
 
 
 # --- helpers -------------------------------------------------------------------------------------
@@ -148,20 +164,62 @@ def _lie(qe, we, inertia, inertia_inv, kp, kd, gamma, h):
     return LfV, LgV
 
 
+def _lie_inertia_weighted(qe, we, inertia, kp, kd, gamma, h):
+    """(LfV, LgVᵀ) of V_I (reading 'inertia_weighted') on the error state; ``h`` (..., 3) or None."""
+    qv, q4 = qe[..., :3], qe[..., 3]
+    kp, kd, gamma = (np.asarray(k, dtype=float) for k in (kp, kd, gamma))
+    half_c = (kp + gamma * kd) * _mean_inertia(inertia)
+    LgV = we + gain_vector(gamma) * qv
+    Iw = matvec(inertia, we)
+    H = Iw if h is None else Iw + h
+    LfV = (half_c * dot(qv, we) + 0.5 * gamma * q4 * dot(we, Iw) + 0.5 * gamma * dot(cross(qv, we), Iw)
+           - gamma * dot(qv, cross(we, H)))
+    return LfV, LgV
+
+
+def _mean_inertia(inertia):
+    """ι = tr(I)/3 (batch shape of ``inertia``)."""
+    return (inertia[..., 0, 0] + inertia[..., 1, 1] + inertia[..., 2, 2]) / 3.0
+
+
+def lyapunov_inertia_weighted(q: np.ndarray, w: np.ndarray, inertia: np.ndarray, kp, kd, gamma,
+                              q_ref: np.ndarray | None = None, w_ref: np.ndarray | None = None,
+                              shortest_path: bool = False) -> np.ndarray:
+    """V_I = ``c (1 - q4) + 1/2 wᵀIw + γ qᵀIw``, ``c = 2 (kp + γ kd) tr(I)/3``: the function whose
+    exact ``LgV`` is ``(w + γ q)ᵀ`` (reading 'inertia_weighted'; ι V of eq. 15 for ``I = ι 1``)."""
+    qe, we = error_state(q, w, q_ref, w_ref, shortest_path)
+    inertia = np.asarray(inertia, dtype=float)
+    kp, kd, gamma = (np.asarray(k, dtype=float) for k in (kp, kd, gamma))
+    qv, Iw = qe[..., :3], matvec(inertia, we)
+    c = 2.0 * (kp + gamma * kd) * _mean_inertia(inertia)
+    return c * (1.0 - qe[..., 3]) + 0.5 * dot(we, Iw) + gamma * dot(qv, Iw)
+
+
+def _lie_and_v(qe, we, inertia, kp, kd, gamma, h, lgv):
+    """(LfV, LgV, V) of the reading ``lgv`` (one of LGV_READINGS) on the error state."""
+    h = None if h is None else np.asarray(h, dtype=float)
+    if lgv == 'printed':
+        LfV, LgV = _lie(qe, we, inertia, inertia_inverse(inertia), kp, kd, gamma, h)
+        return LfV, LgV, lyapunov(qe, we, kp, kd, gamma)
+    if lgv == 'inertia_weighted':
+        LfV, LgV = _lie_inertia_weighted(qe, we, inertia, kp, kd, gamma, h)
+        return LfV, LgV, lyapunov_inertia_weighted(qe, we, inertia, kp, kd, gamma)
+    raise ValueError(f'lgv must be one of {list(LGV_READINGS)}, got {lgv!r}')
+
+
 def lie_derivatives(q: np.ndarray, w: np.ndarray, inertia: np.ndarray, kp, kd, gamma,
                     h: np.ndarray | None = None, q_ref: np.ndarray | None = None,
-                    w_ref: np.ndarray | None = None, shortest_path: bool = False):
+                    w_ref: np.ndarray | None = None, shortest_path: bool = False, lgv: str = 'printed'):
     """``(LfV, LgV)`` of V (eq. 15) along ``I dw/dt = -w x (I w + h) + u`` and eq. (4).
 
     ``LgV = (w + γ q)ᵀ I⁻¹`` (text after eq. 15), returned as a (..., 3) array;
     ``LfV = (kp + γ kd) qᵀw + γ/2 q4 wᵀw - LgV (w x (I w + h))`` (scalar per state; eq. 37-38 of
     the appendix with ``u`` removed). ``h`` is the wheel momentum in body axes (default zero).
-    ``dV/dt = LfV + LgV u``.
+    ``dV/dt = LfV + LgV u``. ``lgv='inertia_weighted'``: those of V_I (``LgV = (w + γ q)ᵀ``).
     """
     qe, we = error_state(q, w, q_ref, w_ref, shortest_path)
-    inertia = np.asarray(inertia, dtype=float)
-    return _lie(qe, we, inertia, inertia_inverse(inertia), kp, kd, gamma,
-                None if h is None else np.asarray(h, dtype=float))
+    LfV, LgV, _ = _lie_and_v(qe, we, np.asarray(inertia, dtype=float), kp, kd, gamma, h, lgv)
+    return LfV, LgV
 
 
 # --- minimum-norm laws (eq. 10, 14, 17) ----------------------------------------------------------
@@ -186,26 +244,25 @@ def _status(mode, V, LfV, LgV, u):
 
 def min_norm_torque(q: np.ndarray, w: np.ndarray, inertia: np.ndarray, kp, kd, gamma,
                     h: np.ndarray | None = None, q_ref: np.ndarray | None = None,
-                    w_ref: np.ndarray | None = None, shortest_path: bool = False):
+                    w_ref: np.ndarray | None = None, shortest_path: bool = False, lgv: str = 'printed'):
     """Standard minimum-norm law, eq. (14), with the PD benchmark ``u_PD`` of eq. (13).
 
     ``u = (LgV u_PD) LgVᵀ / (LgV LgVᵀ)`` if ``LgV u_PD < 0`` (mode ``MODE_MIN_NORM``), else 0
     (``MODE_ZERO_TORQUE``). Returns ``(u, status)``; ``status['V']``/``['Vdot']`` are V of eq. (15)
     with the same ``kp, kd, γ`` and ``LfV + LgV u``; ``h`` (wheel momentum) only enters ``Vdot``.
+    ``lgv`` (one of LGV_READINGS): the projection direction and V (module docstring).
     """
     qe, we = error_state(q, w, q_ref, w_ref, shortest_path)
     inertia = np.asarray(inertia, dtype=float)
-    LfV, LgV = _lie(qe, we, inertia, inertia_inverse(inertia), kp, kd, gamma,
-                    None if h is None else np.asarray(h, dtype=float))
+    LfV, LgV, V = _lie_and_v(qe, we, inertia, kp, kd, gamma, h, lgv)
     u, on = min_norm_projection(LgV, pd_torque(qe, we, inertia, kp, kd))
     mode = np.where(on, MODE_MIN_NORM, MODE_ZERO_TORQUE)
-    V = lyapunov(qe, we, kp, kd, gamma)
     return u, _status(mode, V, LfV, LgV, u)
 
 
 def gsmn_torque(q: np.ndarray, w: np.ndarray, inertia: np.ndarray, kp1, kd1, kp2, kd2, gamma,
                 epsilon, h: np.ndarray | None = None, q_ref: np.ndarray | None = None,
-                w_ref: np.ndarray | None = None, shortest_path: bool = False):
+                w_ref: np.ndarray | None = None, shortest_path: bool = False, lgv: str = 'printed'):
     """Gain-scheduled minimum-norm law, eq. (17) (solution of eq. 16 as printed).
 
     ``u_i = -kp_i I q - kd_i I w``; ``LgV`` of eq. (15) (independent of the PD gains)::
@@ -216,12 +273,11 @@ def gsmn_torque(q: np.ndarray, w: np.ndarray, inertia: np.ndarray, kp1, kd1, kp2
 
     ``epsilon`` (N m, scalar or per batch element) is the paper's ε, "a percentage of the maximum
     torque value". Returns ``(u, status)``; ``status['V']``/``['Vdot']`` are those of the
-    benchmark's V (eq. 15 with ``kp1, kd1, γ``).
+    benchmark's V (eq. 15 with ``kp1, kd1, γ``; V_I with them for ``lgv='inertia_weighted'``).
     """
     qe, we = error_state(q, w, q_ref, w_ref, shortest_path)
     inertia = np.asarray(inertia, dtype=float)
-    LfV, LgV = _lie(qe, we, inertia, inertia_inverse(inertia), kp1, kd1, gamma,
-                    None if h is None else np.asarray(h, dtype=float))
+    LfV, LgV, V = _lie_and_v(qe, we, inertia, kp1, kd1, gamma, h, lgv)
     u1 = pd_torque(qe, we, inertia, kp1, kd1)
     u2 = pd_torque(qe, we, inertia, kp2, kd2)
     b2 = dot(LgV, u2)
@@ -232,7 +288,6 @@ def gsmn_torque(q: np.ndarray, w: np.ndarray, inertia: np.ndarray, kp1, kd1, kp2
     aa = dot(LgV, LgV)
     u = np.where(on, b / np.where(on, aa, 1.0), 0.0)[..., None] * LgV
     mode = np.where(on, np.where(high, MODE_HIGH_GAIN, MODE_LOW_GAIN), MODE_ZERO_TORQUE)
-    V = lyapunov(qe, we, kp1, kd1, gamma)
     return u, _status(mode, V, LfV, LgV, u)
 
 
@@ -309,10 +364,11 @@ class MinNormLaw(_BoundLaw):
     def __init__(self, p: dict) -> None:
         super().__init__(p)
         self.kp, self.kd, self.gamma = p['kp'], p['kd'], p['gamma']
+        self.lgv = p.get('lgv', 'printed')
 
     def control(self, t: float, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, dict]:
         return min_norm_torque(q, w, self.inertia, self.kp, self.kd, self.gamma, q_ref=self.q_ref,
-                               w_ref=self.w_ref, shortest_path=self.shortest_path)
+                               w_ref=self.w_ref, shortest_path=self.shortest_path, lgv=self.lgv)
 
 
 class GsmnLaw(_BoundLaw):
@@ -322,10 +378,11 @@ class GsmnLaw(_BoundLaw):
         super().__init__(p)
         self.gains = tuple(p[k] for k in ('kp1', 'kd1', 'kp2', 'kd2', 'gamma'))
         self.epsilon = p['epsilon']
+        self.lgv = p.get('lgv', 'printed')
 
     def control(self, t: float, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, dict]:
         return gsmn_torque(q, w, self.inertia, *self.gains, epsilon=self.epsilon, q_ref=self.q_ref,
-                           w_ref=self.w_ref, shortest_path=self.shortest_path)
+                           w_ref=self.w_ref, shortest_path=self.shortest_path, lgv=self.lgv)
 
 
 class KtLaw(_BoundLaw):
