@@ -173,3 +173,55 @@ def test_bad_input_is_a_value_error(bad):
                                                  'P': np.full((6, 6), np.nan), 'dt': -1.0}[bad]
     with pytest.raises(ValueError):
         mekf.propagate(args['q'], args['beta'], args['P'], args['omega_meas'], args['dt'], SIGMA_V, SIGMA_U)
+
+
+def test_a_masked_update_leaves_the_unavailable_runs_alone():
+    """Per-run availability (an outage in some runs of a batch): the available runs get the same
+    update as alone, the others keep their state, NaN measurements of the latter are ignored."""
+    rng = np.random.default_rng(9)
+    q = rng.normal(size=(4, 4))
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    beta, P = 1e-3 * rng.normal(size=(4, 3)), np.broadcast_to(P0, (4, 6, 6)).copy()
+    q_meas = quat_multiply(q, mekf.rotation_quaternion(0.01 * rng.normal(size=(4, 3))))
+    avail = np.array([True, False, True, False])
+    q_meas[~avail] = np.nan
+    R = SIGMA_ST ** 2 * np.eye(3)
+    qn, bn, Pn, nis = mekf.update_quaternion(q, beta, P, q_meas, R, available=avail)
+    qa, ba, Pa, nisa = mekf.update_quaternion(q[avail], beta[avail], P[avail], q_meas[avail], R)
+    np.testing.assert_array_equal(qn[avail], qa)
+    np.testing.assert_array_equal(Pn[avail], Pa)
+    np.testing.assert_array_equal(nis[avail], nisa)
+    np.testing.assert_array_equal(qn[~avail], q[~avail])
+    np.testing.assert_array_equal(bn[~avail], beta[~avail])
+    np.testing.assert_array_equal(Pn[~avail], P[~avail])
+    assert np.isnan(nis[~avail]).all()
+    refs = np.array([[1.0, 0.0, 0.0], [0.0, 0.6, 0.8]])
+    b_meas = rotate_to_body(q[:, None, :], refs)
+    b_meas[~avail] = np.nan
+    qn, bn, Pn, nis = mekf.update_vectors(q, beta, P, b_meas, refs, np.full(2, 1e-3), available=avail)
+    np.testing.assert_array_equal(qn[~avail], q[~avail])
+    assert np.isfinite(qn).all() and np.isnan(nis[~avail]).all() and np.isfinite(nis[avail]).all()
+
+
+@pytest.mark.parametrize('case', ['nan_quaternion', 'zero_quaternion', 'opposite', 'nan_vector', 'zero_vector',
+                                  'zero_reference', 'zero_sigma'])
+def test_bad_measurements_are_value_errors(case):
+    q, beta, P = np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3), P0
+    refs = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    with pytest.raises(ValueError, match='MEKF'):
+        if case in ('nan_quaternion', 'zero_quaternion', 'opposite'):
+            q_meas = {'nan_quaternion': [np.nan, 0, 0, 1], 'zero_quaternion': [0, 0, 0, 0],
+                      'opposite': [1.0, 0, 0, 0]}[case]
+            mekf.update_quaternion(q, beta, P, np.array(q_meas, dtype=float), 1e-8 * np.eye(3))
+        else:
+            b = refs.copy()
+            r, sigma = refs.copy(), np.full(2, 1e-3)
+            if case == 'nan_vector':
+                b[0, 1] = np.nan
+            elif case == 'zero_vector':
+                b[1] = 0.0
+            elif case == 'zero_reference':
+                r[0] = 0.0
+            else:
+                sigma[1] = 0.0
+            mekf.update_vectors(q, beta, P, b, r, sigma)

@@ -95,11 +95,20 @@ def reset(q, beta, dx):
     return q_new, beta + dx[..., 3:]
 
 
-def kalman_update(q, beta, P, y, H, R):
+def _availability(available, shape) -> np.ndarray | None:
+    """The per-element measurement mask (``shape`` = the batch shape), or None for all."""
+    if available is None:
+        return None
+    return np.broadcast_to(np.asarray(available, dtype=bool), shape)
+
+
+def kalman_update(q, beta, P, y, H, R, available=None):
     """The linear update of the error state from the innovation ``y`` (..., m), measurement matrix
     ``H`` (..., m, 6) and noise ``R`` (..., m, m): ``S = H P Hᵀ + R``, ``K = P Hᵀ S⁻¹``,
     ``dx = K y``, Joseph form ``P⁺ = (I − K H) P (I − K H)ᵀ + K R Kᵀ``, then :func:`reset`.
-    Returns ``(q, beta, P, nis)`` with the normalised innovation squared ``yᵀ S⁻¹ y``."""
+    Returns ``(q, beta, P, nis)`` with the normalised innovation squared ``yᵀ S⁻¹ y``. Where the
+    optional mask ``available`` (batch shape) is False (an outage in that run) the state is returned
+    unchanged and ``nis`` is NaN (no measurement)."""
     Ht = np.swapaxes(H, -1, -2)
     S = H @ P @ Ht + R
     K = np.swapaxes(np.linalg.solve(S, H @ P), -1, -2)      # P Hᵀ S⁻¹ (P and S symmetric)
@@ -108,17 +117,32 @@ def kalman_update(q, beta, P, y, H, R):
     P_new = IKH @ P @ np.swapaxes(IKH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
     nis = (y * np.linalg.solve(S, y[..., None])[..., 0]).sum(axis=-1)
     q_new, beta_new = reset(q, beta, dx)
-    return q_new, beta_new, 0.5 * (P_new + np.swapaxes(P_new, -1, -2)), nis
+    P_new = 0.5 * (P_new + np.swapaxes(P_new, -1, -2))
+    mask = _availability(available, nis.shape)
+    if mask is not None:
+        q_new = np.where(mask[..., None], q_new, q)
+        beta_new = np.where(mask[..., None], beta_new, beta)
+        P_new = np.where(mask[..., None, None], P_new, P)
+        nis = np.where(mask, nis, np.nan)
+    return q_new, beta_new, P_new, nis
 
 
-def update_quaternion(q, beta, P, q_meas, R):
+def update_quaternion(q, beta, P, q_meas, R, available=None):
     """Star tracker update: the measured attitude ``q_meas = q_true ⊗ δq(v)``, ``v ~ N(0, R)`` in
     body (sensor) axes, ``R`` (..., 3, 3) rad². Innovation: twice the Gibbs vector of
     ``δq = q* ⊗ q_meas``, ``y = 2 δq_v / δq4`` (= δθ to first order), ``H = [I 0]``. The Gibbs form
     is the one :func:`reset` inverts exactly (``[y/2, 1]/|·|`` is ``δq``), so a large first error
     (the 10° of an acquisition) is corrected without the second-order residue of ``2 δq_v``.
-    Rejects a measurement 180° away (``δq4 = 0``) with ValueError."""
-    q, q_meas = _finite('q', q), _finite('q_meas', q_meas)
+    Rejects a measurement 180° away (``δq4 = 0``) with ValueError. ``available``: see
+    :func:`kalman_update` (the measurements of unavailable elements are ignored, NaN allowed)."""
+    q = _finite('q', q)
+    q_meas = np.asarray(q_meas, dtype=float)
+    mask = _availability(available, np.broadcast_shapes(q.shape, q_meas.shape)[:-1])
+    if mask is not None:
+        q_meas = np.where(mask[..., None], q_meas, q)
+    q_meas = _finite('q_meas', q_meas)
+    if not (np.sqrt((q_meas * q_meas).sum(axis=-1)) > 0).all():
+        raise ValueError('MEKF: zero star tracker quaternion')
     q_meas = q_meas / np.sqrt((q_meas * q_meas).sum(axis=-1))[..., None]
     dq = quat_multiply(quat_conjugate(q), q_meas)
     if not (np.abs(dq[..., 3]) > 1e-6).all():
@@ -126,30 +150,40 @@ def update_quaternion(q, beta, P, q_meas, R):
     y = 2.0 * dq[..., :3] / dq[..., 3:4]
     H = np.broadcast_to(np.concatenate([np.eye(3), np.zeros((3, 3))], axis=-1), y.shape[:-1] + (3, 6))
     R = np.broadcast_to(_finite('R', R), y.shape[:-1] + (3, 3))
-    return kalman_update(q, _finite('beta', beta), _finite('P', P), y, H, R)
+    return kalman_update(q, _finite('beta', beta), _finite('P', P), y, H, R, mask)
 
 
-def update_vectors(q, beta, P, b_meas, r, sigma):
+def update_vectors(q, beta, P, b_meas, r, sigma, available=None):
     """Unit-vector update (sun sensor, magnetometer): ``n`` measured body directions ``b_meas``
     (..., n, 3) of the reference directions ``r`` (..., n, 3), each with noise ``σ_i`` (rad,
     (..., n)). Prediction ``b̂ = R(q)ᵀ r``, innovation ``y = b_meas − b̂`` (stacked, 3n),
-    ``H_i = [[b̂_i×] 0]`` (``b_true = b̂ + [b̂×] δθ`` to first order), ``R = diag(σ_i² I₃)``."""
-    q, b_meas, r = _finite('q', q), _finite('b_meas', b_meas), _finite('r', r)
+    ``H_i = [[b̂_i×] 0]`` (``b_true = b̂ + [b̂×] δθ`` to first order), ``R = diag(σ_i² I₃)``.
+    ``available``: see :func:`kalman_update` (all vectors of an unavailable element are ignored)."""
+    q, r = _finite('q', q), _finite('r', r)
     sigma = _finite('sigma', sigma)
-    if (sigma <= 0).any():
+    if not (sigma > 0).all():
         raise ValueError('MEKF: sigma must be positive')
-    b_meas = b_meas / np.sqrt(dot(b_meas, b_meas))[..., None]
+    if not (np.sqrt(dot(r, r)) > 0).all():
+        raise ValueError('MEKF: zero-length reference vector')
     r = r / np.sqrt(dot(r, r))[..., None]
     qv, q4 = q[..., None, :3], q[..., None, 3:4]
     t = 2.0 * cross(r, qv)
     b_hat = r + q4 * t + cross(t, qv)                         # rotate_to_body, per vector
+    b_meas = np.asarray(b_meas, dtype=float)
+    mask = _availability(available, np.broadcast_shapes(b_hat.shape, b_meas.shape)[:-2])
+    if mask is not None:
+        b_meas = np.where(mask[..., None, None], b_meas, b_hat)
+    b_meas = _finite('b_meas', b_meas)
+    if not (np.sqrt(dot(b_meas, b_meas)) > 0).all():
+        raise ValueError('MEKF: zero-length measured vector')
+    b_meas = b_meas / np.sqrt(dot(b_meas, b_meas))[..., None]
     n = b_hat.shape[-2]
     batch = b_hat.shape[:-2]
     H = np.concatenate([hat(b_hat), np.zeros(b_hat.shape + (3,))], axis=-1).reshape(batch + (3 * n, 6))
     y = (b_meas - b_hat).reshape(batch + (3 * n,))
     var = np.repeat(np.broadcast_to(sigma, batch + (n,)) ** 2, 3, axis=-1)
     R = var[..., None] * np.eye(3 * n)
-    return kalman_update(q, _finite('beta', beta), _finite('P', P), y, H, R)
+    return kalman_update(q, _finite('beta', beta), _finite('P', P), y, H, R, mask)
 
 
 def attitude_error(q, q_true) -> np.ndarray:
