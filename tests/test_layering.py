@@ -4,7 +4,7 @@ inside functions alike) runs from the application down to the kernel, never up o
     application      adcs_sim.app          registry, batch, runner, campaigns, analysis, report
     nodes            adcs_sim.nodes, adcs_controllers.nodes    thin ROS adapters
     truth model | flight software | storage
-                     adcs_sim.truth | adcs_controllers.laws, adcs_controllers.families | adcs_sim.bag
+                     adcs_sim.truth | adcs_controllers.laws, .families, .estimators | adcs_sim.bag
     interface        adcs_msgs_py          topics, QoS, conversions, validation, schemas, node base
     kernel           adcs_core             attitude, orbit, inertia, faults
 
@@ -31,7 +31,7 @@ LAYERS = [
     ('kernel', 0, ('adcs_core',)),
     ('interface', 1, ('adcs_msgs_py',)),
     ('truth model', 2, ('adcs_sim.truth',)),
-    ('flight software', 2, ('adcs_controllers.laws', 'adcs_controllers.families')),
+    ('flight software', 2, ('adcs_controllers.laws', 'adcs_controllers.families', 'adcs_controllers.estimators')),
     ('storage', 2, ('adcs_sim.bag',)),
     ('nodes', 3, ('adcs_sim.nodes', 'adcs_controllers.nodes')),
     ('application', 4, ('adcs_sim.app',)),
