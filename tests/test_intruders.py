@@ -193,6 +193,7 @@ def test_rogue_publisher_is_detected_not_applied_and_named(tmp_path, monkeypatch
     found = bag_intrusions(bag)
     assert found and all('/rogue' in f for f in found) and any(f'/{topic} ' in f for f in found), found
     run = RunData.from_bag(bag)
+    assert run.intrusions == found   # the analysis' one pass reads what the intrusions reader reads
     clean = BatchSimulation.from_runs([validate_scenario(ROOT / 'config/microsat_pd_slew.yaml',
                                                          float(len(run.u)))]).run()
     clean_u = clean.run_data(0).u[:len(run.u)]

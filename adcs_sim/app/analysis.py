@@ -179,6 +179,7 @@ class RunData:
     scenario: dict | None = None
     controller_status: list = field(default_factory=list)  # (t, name, {key: value text}) per status
     faults: list = field(default_factory=list)  # (t, level, name, message) per status on faults
+    intrusions: list = field(default_factory=list)  # the recorder's intruder lines (intrusion_lines)
     topic_counts: dict = field(default_factory=dict)  # messages per topic (relative to the namespace)
     # How the bag was read:
     truncated: bool = False            # no MCAP summary/footer (writer killed): data up to the last whole chunk
@@ -222,6 +223,8 @@ class RunData:
         fixed = None if namespace is None else ('/' + namespace.strip('/') + '/').replace('//', '/')
 
         def select(topic: str, type_name: str) -> bool:
+            if type_name == DIAGNOSTIC_ARRAY and _is_intrusions(topic):
+                return True
             if fixed is not None:
                 return topic.startswith(fixed) and READ_TYPES.get(topic[len(fixed):]) == type_name
             return any(READ_TYPES[rel] == type_name and (topic == '/' + rel or topic.endswith('/' + rel))
@@ -263,6 +266,7 @@ class RunData:
         run.missed_at = _missed_at(diagnostics.get(ns + topics.DYNAMICS_STATUS, []))
         run.faults = [(stamp, int(s[0]), s[1], s[2]) for stamp, statuses in
                       _merged_statuses(diagnostics.get(ns + topics.FAULTS, [])) for s in statuses]
+        run.intrusions = _recorded_intrusions(diagnostics)
         run.topic_counts = {_relative(name, ns): n for name, n in counts.items()}
         run.truncated = reader.truncated
         run.problem, run.damaged = reader.problem, reader.damaged
@@ -554,18 +558,34 @@ def format_metrics(metrics: dict) -> str:
     return '\n'.join(f'  {k:<{width}}  {fmt(v)}' for k, v in metrics.items())
 
 
+def intrusion_lines(values) -> list[str]:
+    """One line per intruder (node, topic, GID, who was allowed), each once, from the ``{key:
+    value}`` of the statuses the recorder wrote on ``intrusions`` (adcs_msgs_py.guard)."""
+    return list(dict.fromkeys(
+        f'intruder node {kv.get("node", "?")} published on {kv.get("topic", "?")} '
+        f'(GID {kv.get("gid", "?")}; allowed: {kv.get("allowed", "?")})' for kv in values))
+
+
+def _is_intrusions(topic: str) -> bool:
+    return topic.rsplit('/', 1)[-1] == topics.INTRUSIONS
+
+
+def _recorded_intrusions(diagnostics: dict) -> list[str]:
+    """:func:`intrusion_lines` of the decoded ``intrusions`` topics ({topic: [(stamps, statuses)]})."""
+    return intrusion_lines(s[4] for name, parts in diagnostics.items() if _is_intrusions(name)
+                           for _, statuses in _merged_statuses(parts) for s in statuses)
+
+
 def bag_intrusions(bag) -> list[str]:
     """What the recorder wrote on ``intrusions`` (publishers the run did not allow: the run is
-    compromised, adcs_msgs_py.guard): one line per intruder (node, topic, GID, who was allowed)."""
-    out = []
+    compromised): :func:`intrusion_lines` of a bag read for that alone (e.g. one a run left
+    behind when it failed). A bag read into :class:`RunData` has them in ``intrusions``."""
+    values = []
     try:
         for topic, type_name, _, data in read_raw(bag):
-            if topic.rsplit('/', 1)[-1] != topics.INTRUSIONS:
-                continue
-            for status in typestore().deserialize_cdr(data, type_name).status:
-                kv = {v.key: v.value for v in status.values}
-                out.append(f'intruder node {kv.get("node", "?")} published on {kv.get("topic", "?")} '
-                           f'(GID {kv.get("gid", "?")}; allowed: {kv.get("allowed", "?")})')
+            if _is_intrusions(topic):
+                values += [{v.key: v.value for v in status.values}
+                           for status in typestore().deserialize_cdr(data, type_name).status]
     except (OSError, ValueError):
         pass
-    return list(dict.fromkeys(out))
+    return intrusion_lines(values)

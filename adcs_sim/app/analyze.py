@@ -27,7 +27,7 @@ import os
 import sys
 from pathlib import Path
 
-from adcs_sim.app.analysis import bag_intrusions, format_metrics, jsonable_metrics, run_metrics
+from adcs_sim.app.analysis import format_metrics, jsonable_metrics, run_metrics
 from adcs_sim.app.report.loading import BagError, default_report_dir, load_run
 
 
@@ -55,11 +55,11 @@ def _load(paths: list[str]) -> tuple[dict, int]:
     return runs, status
 
 
-def _warn_compromised(paths) -> int:
+def _warn_compromised(runs: dict) -> int:
     """A compromised run's numbers are not the run's alone (its bag has ``intrusions``): said on
-    stderr, and exit status 1."""
-    lines = [f'adcs-analyze: {path}: WARNING: run compromised: {line}' for path in paths
-             for line in bag_intrusions(path)]
+    stderr, and exit status 1. ``runs``: {path: loaded run}."""
+    lines = [f'adcs-analyze: {path}: WARNING: run compromised: {line}' for path, run in runs.items()
+             for line in run.data.intrusions]
     for line in lines:
         print(line, file=sys.stderr)
     return 1 if lines else 0

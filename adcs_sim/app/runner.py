@@ -69,12 +69,12 @@ def publishers_arg(sections) -> list[str]:
     return ['-p', f'startup.publishers:={json.dumps(allowed_publishers(sections))}']
 
 
-def _compromised(run) -> RunError | None:
-    found = bag_intrusions(run.bag_dir)
+def _compromised(found: list[str], bag_dir: Path) -> RunError | None:
+    """The error of a run whose bag holds intruders (``found``: :func:`intrusion_lines`), or None."""
     if not found:
         return None
-    return RunError('run compromised, its messages were not applied: ' + '; '.join(dict.fromkeys(found))
-                    + f'; bag kept in {run.bag_dir} (topic {names.INTRUSIONS})')
+    return RunError('run compromised, its messages were not applied: ' + '; '.join(found)
+                    + f'; bag kept in {bag_dir} (topic {names.INTRUSIONS})')
 
 
 @dataclass
@@ -188,7 +188,8 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
     try:
         _supervise(run, _start_graph(run, progress))
         _stop_graph(run)
-        compromised = _compromised(run)
+        data = RunData.from_bag(run.bag_dir)   # read once: the intruders and the metrics
+        compromised = _compromised(data.intrusions, run.bag_dir)
         if compromised is not None:
             raise compromised
     except KeyboardInterrupt:
@@ -199,7 +200,7 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
         raise RunError(f'interrupted by {sig} ({"during" if run.started else "before"} the run); {kept}') from None
     except BaseException as exc:
         graph.stop_all()
-        compromised = _compromised(run) if isinstance(exc, RunError) else None
+        compromised = _compromised(bag_intrusions(run.bag_dir), run.bag_dir) if isinstance(exc, RunError) else None
         if compromised is not None and compromised is not exc:
             raise compromised from exc   # a node that stopped on the intrusion: name the intruder
         if not (run.started or recorded_state(run.bag_dir)):   # never delete recorded data
@@ -212,7 +213,7 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
         lease.release()
         for s, h in old_handlers.items():
             signal.signal(s, h)
-    metrics = run_metrics(RunData.from_bag(run.bag_dir), tol_deg)
+    metrics = run_metrics(data, tol_deg)
     (out / 'metrics.json').write_text(json.dumps(jsonable_metrics(metrics), indent=2))
     return metrics
 
