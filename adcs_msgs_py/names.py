@@ -19,6 +19,17 @@ REFERENCE = 'reference'
 FAULTS = 'faults'
 CONTROLLER_STATUS = 'controller/status'
 DYNAMICS_STATUS = 'dynamics/status'
+# attitude determination (adcs_msgs_py.conversions_determination): the dynamics node's sensor models
+# publish every step; an estimator answers with its estimate, on which a controller may fly (a remap
+# of its ``state`` to ESTIMATE_STATE).
+SENSOR_IMU = 'sensors/imu'
+SENSOR_STAR_TRACKER = 'sensors/star_tracker'
+SENSOR_SUN = 'sensors/sun'
+SENSOR_MAGNETOMETER = 'sensors/magnetometer'
+SENSOR_TOPICS = {'gyro': SENSOR_IMU, 'star_tracker': SENSOR_STAR_TRACKER, 'sun': SENSOR_SUN,
+                 'magnetometer': SENSOR_MAGNETOMETER}   # by adcs_msgs_py.measurements.SENSORS name
+ESTIMATE_STATE = 'estimate/state'
+ESTIMATOR_STATUS = 'estimator/status'
 
 # Command topics a controller may answer a state with (what the dynamics node can wait for).
 COMMAND_TOPICS = (WHEELS_CMD, TORQUE_CMD, THRUSTERS_CMD)
@@ -34,6 +45,8 @@ PUBLISHER_ROLES: dict[str, tuple[str, ...]] = {
     THRUSTERS_STATE: ('dynamics',), APPLIED_TORQUE: ('dynamics',), DYNAMICS_STATUS: ('dynamics',),
     WHEELS_CMD: ('controller',), TORQUE_CMD: ('controller',), THRUSTERS_CMD: ('controller',),
     CONTROLLER_STATUS: ('controller',), FAULTS: ('faults',), REFERENCE: (),
+    SENSOR_IMU: ('dynamics',), SENSOR_STAR_TRACKER: ('dynamics',), SENSOR_SUN: ('dynamics',),
+    SENSOR_MAGNETOMETER: ('dynamics',), ESTIMATE_STATE: ('estimator',), ESTIMATOR_STATUS: ('estimator',),
 }
 
 

@@ -36,11 +36,11 @@ from dataclasses import dataclass
 
 from builtin_interfaces.msg import Time  # noqa: F401  (re-exported for type hints)
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Vector3Stamped
+from geometry_msgs.msg import PoseWithCovarianceStamped, Vector3Stamped
 from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import Imu, JointState, MagneticField
 
 from adcs_msgs_py.names import (  # noqa: F401
     APPLIED_TORQUE,
@@ -48,8 +48,14 @@ from adcs_msgs_py.names import (  # noqa: F401
     COMMAND_TOPICS,
     CONTROLLER_STATUS,
     DYNAMICS_STATUS,
+    ESTIMATE_STATE,
+    ESTIMATOR_STATUS,
     FAULTS,
     REFERENCE,
+    SENSOR_IMU,
+    SENSOR_MAGNETOMETER,
+    SENSOR_STAR_TRACKER,
+    SENSOR_SUN,
     STATE,
     THRUSTERS_CMD,
     THRUSTERS_STATE,
@@ -143,6 +149,26 @@ TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in (
               'control-law mode, Lyapunov value, estimates, rejected-message counts'),
     TopicSpec(DYNAMICS_STATUS, DiagnosticArray, QOS_STATUS,
               'missed steps, stale and rejected commands, integration statistics'),
+    TopicSpec(SENSOR_IMU, Imu, QOS_LOCKSTEP,
+              'gyro: measured body rate (rad/s, body axes) with its covariance; orientation and '
+              'acceleration not measured (covariance[0] = -1); covariance[0] = -1 on the rate: no '
+              'measurement this step'),
+    TopicSpec(SENSOR_STAR_TRACKER, PoseWithCovarianceStamped, QOS_LOCKSTEP,
+              'star tracker: measured attitude (body in inertial, x y z w), rotation covariance about '
+              'the inertial axes (rad^2); covariance[21] = -1: no measurement (outage, not due)'),
+    TopicSpec(SENSOR_SUN, Vector3Stamped, QOS_LOCKSTEP,
+              'sun sensor: unit Sun direction in body axes; the zero vector: no Sun (eclipse, out of '
+              'the field of view, failed)'),
+    TopicSpec(SENSOR_MAGNETOMETER, MagneticField, QOS_LOCKSTEP,
+              'three-axis magnetometer: field in body axes (T) with its covariance (T^2); '
+              'covariance[0] = -1: no measurement'),
+    TopicSpec(ESTIMATE_STATE, Odometry, QOS_LOCKSTEP,
+              'estimated attitude and rate, the layout of state (a controller flies on it by a remap '
+              'of state), with the attitude covariance (pose, inertial axes) and rate covariance '
+              '(twist, body axes) filled in; stamped with the step of the measurements it used'),
+    TopicSpec(ESTIMATOR_STATUS, DiagnosticArray, QOS_STATUS,
+              'estimator diagnostics: bias estimate, innovations and their normalised squares (NIS), '
+              'measurements used and rejected'),
 )}
 
 
@@ -196,6 +222,18 @@ QOS_RATIONALE: dict[str, str] = {
                      'VOLATILE: a command answers one step only. KEEP_LAST lockstep depth.',
     'thrusters/state': 'RELIABLE: what the thrusters applied each step, recorded for the metrics. '
                        'VOLATILE, KEEP_LAST lockstep depth, as wheels/state.',
+    SENSOR_IMU: 'RELIABLE: the estimator propagates with every gyro sample; a lost one is a step it '
+                'cannot answer (a missed step downstream) and a hole in the recording. VOLATILE: a '
+                'late joiner must not integrate old rates. KEEP_LAST lockstep depth, as state.',
+    SENSOR_STAR_TRACKER: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as sensors/imu: published every '
+                         'step (marked when there is no measurement) so the estimator knows it has the '
+                         'whole step.',
+    SENSOR_SUN: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as sensors/star_tracker.',
+    SENSOR_MAGNETOMETER: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as sensors/star_tracker.',
+    ESTIMATE_STATE: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as state: a controller flying on the '
+                    'estimate answers each one; an old estimate must never reach a late joiner.',
+    ESTIMATOR_STATUS: 'RELIABLE, VOLATILE, KEEP_LAST status depth, as controller/status: the NIS and '
+                      'innovations of every step are recorded for the consistency analysis.',
     DYNAMICS_STATUS: 'RELIABLE: missed steps and their times come from it (the metrics and the '
                      'gap of a crashed controller). VOLATILE, KEEP_LAST status depth, as '
                      'controller/status.',

@@ -43,6 +43,7 @@ ROS_ROOTS = {'rclpy', 'rosgraph_msgs', 'nav_msgs', 'sensor_msgs', 'geometry_msgs
 # The modules that may import ROS besides the nodes: the interface's ROS side and the runner's
 # process handling.
 ROS_ALLOWED = {'adcs_msgs_py.topics', 'adcs_msgs_py.node', 'adcs_msgs_py.conversions',
+               'adcs_msgs_py.conversions_determination',
                'adcs_msgs_py.rcl_params', 'adcs_sim.app.graph', 'adcs_sim.app.runner'}
 # rcl's own params-file parser (through rclpy's C extension: no participant, no DDS). Scenario files
 # are read with it so that the runner sees what the nodes get; the pure modules reach it only

@@ -1,0 +1,65 @@
+"""What sensors measure and what an estimator estimates, as plain numpy (no ROS): the one layout the
+truth model's sensor models produce, the estimators consume and :mod:`adcs_msgs_py.conversions_determination`
+turns into (and back from) the standard messages.
+
+Conventions (the same as :mod:`adcs_core.attitude` and :mod:`adcs_controllers.estimators.mekf`):
+
+* vectors in **body axes**; the attitude quaternion ``q = [x, y, z, w]`` (scalar last) is the body in
+  the inertial frame;
+* a covariance given here is in **body axes**: for an attitude, that of the small rotation ``δθ`` with
+  ``q_true = q ⊗ δq(δθ)`` (rad²); for a rate, (rad/s)²; for a field, T²;
+* every array may carry a leading batch axis (one entry per run of a batch): ``value`` (..., 3) or
+  (..., 4), ``cov`` (..., 3, 3), ``valid`` (...,);
+* ``valid`` False: no measurement this step (a star tracker outage, not due at its update rate, a sun
+  sensor in eclipse, a failed magnetometer). The message still goes out every step (lockstep: an
+  estimator knows when it has all of a step's messages) with the "no measurement" marker of
+  :mod:`adcs_msgs_py.conversions_determination`; ``value`` is then meaningless.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+SENSORS = ('gyro', 'star_tracker', 'sun', 'magnetometer')  # the fields of Measurements, in this order
+
+
+@dataclass(frozen=True)
+class Reading:
+    """One sensor's reading at one step (of one run, or of each run of a batch)."""
+
+    value: np.ndarray   # (..., 3) vector, body axes; (..., 4) quaternion for the star tracker
+    cov: np.ndarray     # (..., 3, 3) body axes; zeros when the sensor reports none (the sun sensor)
+    valid: np.ndarray   # (...,) bool
+
+
+@dataclass(frozen=True)
+class Measurements:
+    """All sensor readings stamped ``t_ns`` (the step's simulated time); None: sensor not fitted."""
+
+    t_ns: int
+    gyro: Reading | None = None           # rad/s: true rate + bias + noise (sensor_msgs/Imu)
+    star_tracker: Reading | None = None   # attitude quaternion (geometry_msgs/PoseWithCovarianceStamped)
+    sun: Reading | None = None            # unit Sun direction (geometry_msgs/Vector3Stamped)
+    magnetometer: Reading | None = None   # field, T (sensor_msgs/MagneticField)
+
+    def fitted(self) -> tuple[str, ...]:
+        """Names (of :data:`SENSORS`) of the sensors this step carries."""
+        return tuple(name for name in SENSORS if getattr(self, name) is not None)
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """An estimator's output at ``t_ns`` (published on ``estimate/state`` and ``estimator/status``).
+
+    ``cov`` is the error-state covariance (..., 6, 6) of ``[δθ, Δβ]`` in body axes (rad², rad²/s,
+    (rad/s)²), as :mod:`adcs_controllers.estimators.mekf`; ``rate_cov`` (..., 3, 3) that of ``w``.
+    A single-frame estimator has no bias: ``bias`` zeros and its block of ``cov`` zeros.
+    """
+
+    t_ns: int
+    q: np.ndarray         # (..., 4) body in inertial, scalar last
+    w: np.ndarray         # (..., 3) rad/s, body axes (gyro rate minus the estimated bias)
+    bias: np.ndarray      # (..., 3) rad/s
+    cov: np.ndarray       # (..., 6, 6)
+    rate_cov: np.ndarray  # (..., 3, 3)
