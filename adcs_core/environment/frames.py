@@ -31,7 +31,7 @@ DAYS_PER_CENTURY = 36525.0
 TT_MINUS_UTC = 69.184           # s: TAI - UTC = 37 s (since 2017-01-01) + TT - TAI = 32.184 s
 ERA_AT_J2000 = 0.7790572732640  # revolutions, IERS 2010 eq. 5.15
 ERA_RATE = 1.00273781191135448  # revolutions per UT1 day, IERS 2010 eq. 5.15
-EARTH_ROTATION_RATE = 2.0 * math.pi * ERA_RATE / SECONDS_PER_DAY  # rad/s, 7.2921150e-5
+EARTH_ROTATION_RATE = 2.0 * math.pi * ERA_RATE / SECONDS_PER_DAY  # rad/s, 7.2921151467e-5
 ARCSEC = math.pi / (180.0 * 3600.0)
 # IERS 2010 eq. 5.32: GMST - ERA in arcsec, polynomial in Julian centuries of TT since J2000.
 _GMST_POLY = (0.014506, 4612.156534, 1.3915817, -0.00000044, -0.000029956, -0.0000000368)
