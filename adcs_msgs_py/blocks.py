@@ -7,8 +7,8 @@ import math
 
 import numpy as np
 
-from adcs_core.environment.environment import MAGNETIC_MODELS, ORBIT_KINDS, SHADOW_MODELS
 from adcs_core.environment.frames import parse_epoch
+from adcs_core.environment.options import MAGNETIC_MODELS, ORBIT_KINDS, SHADOW_MODELS
 from adcs_core.environment.tle import parse_tle, tle_line_problem
 from adcs_core.inertia import check_inertia, inertia_matrix
 from adcs_msgs_py.names import parse_publishers

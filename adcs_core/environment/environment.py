@@ -17,13 +17,11 @@ import numpy as np
 from adcs_core.environment.eclipse import shadow_conical, shadow_cylindrical
 from adcs_core.environment.frames import days_since_j2000, parse_epoch
 from adcs_core.environment.magnetic import DipoleModel, IgrfModel
+from adcs_core.environment.options import MAGNETIC_MODELS, ORBIT_KINDS, SHADOW_MODELS
 from adcs_core.environment.sun import sun_position_eci
 from adcs_core.environment.tle import CircularOrbitSource, OrbitSource, TleOrbit
 from adcs_core.orbit import CircularOrbit
 
-ORBIT_KINDS = ('circular', 'tle')
-MAGNETIC_MODELS = ('igrf', 'dipole')
-SHADOW_MODELS = ('cylindrical', 'conical')
 _SHADOWS = {'cylindrical': shadow_cylindrical, 'conical': shadow_conical}
 
 

@@ -58,8 +58,11 @@ def parse_tle(line1: str, line2: str) -> Satrec:
             raise ValueError(problem)
     line1, line2 = line1.rstrip(), line2.rstrip()
     try:
-        sgp4_io.twoline2rv(line1, line2, wgs72)   # the library's strict column parser
-    except ValueError as exc:
+        # The library's strict column parser; it also initialises its pure-Python SGP4, which on
+        # some corrupt values (a negative mean motion) fails with TypeError/ArithmeticError instead
+        # of ValueError: all of them mean the same to the user.
+        sgp4_io.twoline2rv(line1, line2, wgs72)
+    except (ValueError, TypeError, ArithmeticError, IndexError) as exc:
         raise ValueError(f'TLE is malformed: {" ".join(str(exc).split())}') from None
     sat = Satrec.twoline2rv(line1, line2, WGS72)
     if sat.error:
