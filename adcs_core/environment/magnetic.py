@@ -86,6 +86,8 @@ class IgrfModel:
         self.epochs = np.array([_days(d) for d in g.index.to_pydatetime()])   # days since J2000.0
         self.g = g[keys].to_numpy(dtype=float)          # (n_epochs, K), nT
         self.h = h[keys].to_numpy(dtype=float)
+        self._dg = np.diff(self.g, axis=0)               # change over each interval between epochs
+        self._dh = np.diff(self.h, axis=0)
         self.coefficient_file = coefficient_file
 
     def coefficients(self, d) -> tuple[np.ndarray, np.ndarray]:
@@ -99,7 +101,7 @@ class IgrfModel:
                              f'{d.min():.1f}..{d.max():.1f}')
         i = np.clip(np.searchsorted(self.epochs, d, side='right') - 1, 0, len(self.epochs) - 2)
         w = ((d - self.epochs[i]) / (self.epochs[i + 1] - self.epochs[i]))[..., None]
-        return (self.g[i] * (1.0 - w) + self.g[i + 1] * w, self.h[i] * (1.0 - w) + self.h[i + 1] * w)
+        return self.g[i] + w * self._dg[i], self.h[i] + w * self._dh[i]
 
     def field_spherical(self, radius, colatitude, longitude, d) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(B_r, B_theta, B_phi) in nT at geocentric radius (m), colatitude, longitude (rad) and time."""
@@ -108,16 +110,20 @@ class IgrfModel:
         theta = np.clip(theta, POLE_GUARD, math.pi - POLE_GUARD)
         g, h = self.coefficients(d)
         P, dP = schmidt_legendre(theta, self.max_degree)
-        Pk = np.stack([P[k] for k in self._keys], axis=-1)
-        dPk = np.stack([dP[k] for k in self._keys], axis=-1)
-        ratio = (REFERENCE_RADIUS / radius)[..., None]
-        scale = ratio ** (self.n + 2)
-        cos_m, sin_m = np.cos(self.m * phi[..., None]), np.sin(self.m * phi[..., None])
+        # (a/r)^(n+2) and cos/sin(m phi) per degree and order (..., 14), then spread over the K terms.
+        ratio = REFERENCE_RADIUS / radius
+        powers = np.cumprod(np.broadcast_to(ratio[..., None], ratio.shape + (self.max_degree + 3,)), axis=-1)
+        scale = powers[..., self.n + 1]                  # powers[..., j] = ratio^(j + 1)
+        orders = np.arange(self.max_degree + 1)
+        cos_m = np.cos(orders * phi[..., None])[..., self.m]
+        sin_m = np.sin(orders * phi[..., None])[..., self.m]
+        sP = scale * np.stack([P[k] for k in self._keys], axis=-1)
+        sdP = scale * np.stack([dP[k] for k in self._keys], axis=-1)
         even = g * cos_m + h * sin_m
-        odd = self.m * (-g * sin_m + h * cos_m)
-        b_r = np.sum((self.n + 1) * scale * even * Pk, axis=-1)
-        b_theta = -np.sum(scale * even * dPk, axis=-1)
-        b_phi = -np.sum(scale * odd * Pk, axis=-1) / np.sin(theta)
+        odd = self.m * (h * cos_m - g * sin_m)
+        b_r = np.sum((self.n + 1) * even * sP, axis=-1)
+        b_theta = -np.sum(even * sdP, axis=-1)
+        b_phi = -np.sum(odd * sP, axis=-1) / np.sin(theta)
         return b_r, b_theta, b_phi
 
     def field_ecef(self, r_ecef, d) -> np.ndarray:
@@ -155,7 +161,8 @@ class DipoleModel:
         r = np.asarray(r_ecef, dtype=float)
         radius = np.linalg.norm(r, axis=-1, keepdims=True)
         u = r / radius
-        gu = (u @ self.vector)[..., None]
+        g = self.vector
+        gu = (u[..., 0] * g[0] + u[..., 1] * g[1] + u[..., 2] * g[2])[..., None]   # fixed order, not BLAS
         return (REFERENCE_RADIUS / radius) ** 3 * (3.0 * gu * u - self.vector)
 
     def field_eci(self, r_eci, d) -> np.ndarray:
