@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from adcs_core.environment.frames import parse_epoch
-from adcs_core.environment.options import MAGNETIC_MODELS, ORBIT_KINDS, SHADOW_MODELS
+from adcs_core.environment.options import IGRF_YEARS, MAGNETIC_MODELS, ORBIT_KINDS, SHADOW_MODELS
 from adcs_core.environment.tle import parse_tle, tle_line_problem
 from adcs_core.inertia import check_inertia, inertia_matrix
 from adcs_msgs_py.names import parse_publishers
@@ -200,7 +200,12 @@ def environment_params() -> list[Param]:
 
 
 def check_environment(v: dict) -> None:
-    """Cross-check the environment block: a TLE orbit needs both lines, and SGP4 must accept them."""
+    """Cross-check the environment block: the epoch inside the IGRF's years (both field models take
+    its coefficients), a TLE orbit's two lines present and accepted by SGP4."""
+    year = 2000.0 + parse_epoch(v['environment.epoch']) / 365.25
+    if not IGRF_YEARS[0] <= year < IGRF_YEARS[1]:
+        raise ParameterError('environment.epoch', f'the IGRF-14 field models cover {IGRF_YEARS[0]}-{IGRF_YEARS[1]}, '
+                             f'got {v["environment.epoch"]!r}')
     if v['environment.orbit'] != 'tle':
         return
     for key in ('environment.tle.line1', 'environment.tle.line2'):

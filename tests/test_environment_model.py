@@ -12,6 +12,8 @@ from hypothesis import strategies as st
 from adcs_core.environment.eclipse import EARTH_RADIUS
 from adcs_core.environment.environment import Environment, EnvironmentSample, build_environment
 from adcs_core.environment.frames import parse_epoch
+from adcs_core.environment.magnetic import IgrfModel
+from adcs_core.environment.options import IGRF_YEARS
 from adcs_core.environment.tle import TleOrbit
 from adcs_msgs_py.blocks import check_environment, environment_params
 from adcs_msgs_py.params import ParameterError, Schema
@@ -89,6 +91,7 @@ def test_tle_dipole_cylindrical_from_params():
     ({'environment.epoch': '2026-13-01T00:00:00Z'}, 'environment.epoch', 'not an ISO-8601'),
     ({'environment.epoch': '2026-12-31T23:59:60Z'}, 'environment.epoch', 'not an ISO-8601'),
     ({'environment.epoch': '2150-01-01T00:00:00Z'}, 'environment.epoch', '1900-2100'),
+    ({'environment.epoch': '2031-01-01T00:00:00Z'}, 'environment.epoch', 'IGRF-14'),
     ({'environment.orbit': 'kepler'}, 'environment.orbit', 'must be one of'),
     ({'environment.circular.altitude': 0.0}, 'environment.circular.altitude', '> 0'),
     ({'environment.orbit': 'tle'}, 'environment.tle.line1', 'required'),
@@ -130,3 +133,17 @@ def test_non_finite_times_are_refused_and_finite_ones_give_finite_values(env, t)
     for field in ('r_eci', 'v_eci', 'sun_eci', 'sun_distance', 'shadow', 'b_eci', 'nadir_eci'):
         assert np.all(np.isfinite(getattr(s, field))), field
     assert np.all((s.shadow >= 0) & (s.shadow <= 1))
+
+
+def test_the_parameter_checks_igrf_span_is_the_coefficient_files():
+    """options.IGRF_YEARS (used by the parameter check, which must not import the model) is the span of
+    the file magnetic.IgrfModel reads."""
+    epochs = IgrfModel().epochs
+    assert parse_epoch(f'{IGRF_YEARS[0]}-01-01T00:00:00Z') == pytest.approx(epochs[0], abs=1e-9)
+    assert parse_epoch(f'{IGRF_YEARS[1]}-01-01T00:00:00Z') == pytest.approx(epochs[-1], abs=1e-9)
+
+
+def test_scalar_non_finite_time_is_refused(env):
+    for bad in (math.nan, math.inf):
+        with pytest.raises(ValueError, match='finite'):
+            env.sample(bad)

@@ -45,6 +45,10 @@ Orbit frame and attitude
     ECI), as :mod:`adcs_core.attitude`.
 Batch axis
     Every function takes a leading batch axis (times and/or runs): positions ``(..., 3)``, times
-    ``(...)``; nothing depends on which other elements share the batch beyond floating-point reduction
-    order in numpy's elementwise operations (none here sum across the batch).
+    ``(...)``. Products are written in a fixed order (no BLAS reductions), so an element computed alone
+    has the same bits as inside a batch (tests/test_environment_model.py checks it).
+
+This package module imports nothing: import the modules themselves (``magnetic`` brings ``ppigrf`` and
+pandas, about 1 s of import; the parameter schemas only need :mod:`.options`, :mod:`.frames` and
+:mod:`.tle`).
 """

@@ -19,7 +19,7 @@ the 5-year models (the IGRF's definition; valid 1900-2030 for IGRF-14). The sums
 rather than called through ``ppigrf.igrf_gc`` because that function re-reads and re-interpolates the
 coefficient file on every call and evaluates every date at every point: measured here, 32 ms for one
 point, 81 ms for 1000 and 520 ms for 10 000 (0.5 s import, pandas); this evaluation agrees with it to
-1e-9 relative (tests/test_environment_magnetic.py) and takes ~0.5 ms for one point. Near the poles the
+1e-9 relative (tests/test_environment_magnetic.py) and takes ~0.5-1 ms for one point. Near the poles the
 colatitude is kept >= 1e-9 rad from them (7 mm at LEO) so that ``1/sin(theta)`` stays finite.
 
 Dipole: the ``n = 1`` term alone, ``V = a^3 (g . r) / r^3`` with the dipole vector ``g = (g_1^1, h_1^1,

@@ -1,8 +1,9 @@
 """The Sun's position: the Astronomical Almanac's low-precision solar coordinates, as Vallado,
 Fundamentals of Astrodynamics and Applications (4th ed., 2013), alg. 29 "SUN" (the same series as
 Montenbruck & Gill, Satellite Orbits, 2000, section 3.3.2). Stated accuracy 0.01 deg in direction
-(1950-2050) and ~1e-4 au... 3e-4 au in distance; it is referred to the mean equator and equinox of date,
-which :func:`adcs_core.environment.frames.equinox_to_eci` takes to our ECI (package docstring).
+(1950-2050); its distance agrees with Meeus' Example 25.a to 1e-6 au (tests). It is referred to the
+mean equator and equinox of date, which :func:`adcs_core.environment.frames.equinox_to_eci` takes to
+our ECI (package docstring).
 
 Alg. 29, with ``T`` Julian centuries since J2000.0 (UT1 for the mean longitude, TDB ~= TT for the rest)::
 
