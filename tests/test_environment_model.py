@@ -40,6 +40,8 @@ def test_defaults_build_a_circular_igrf_conical_environment(env):
     assert 1.47e11 < s.sun_distance < 1.53e11
     assert 18e-6 < np.linalg.norm(s.b_eci) < 60e-6
     np.testing.assert_allclose(s.nadir_eci, -s.r_eci / np.linalg.norm(s.r_eci), atol=1e-16)
+    again = build_environment(SCHEMA.validate({'environment.epoch': EQUINOX}))
+    assert again.magnetic is env.magnetic and not env.magnetic.g.flags.writeable   # one read-only model
 
 
 def test_sample_batches_any_shape_and_is_deterministic(env):

@@ -16,7 +16,7 @@ import numpy as np
 
 from adcs_core.environment.eclipse import shadow_conical, shadow_cylindrical
 from adcs_core.environment.frames import days_since_j2000, parse_epoch
-from adcs_core.environment.magnetic import DipoleModel, IgrfModel
+from adcs_core.environment.magnetic import DipoleModel, IgrfModel, load_igrf
 from adcs_core.environment.options import MAGNETIC_MODELS, ORBIT_KINDS, SHADOW_MODELS
 from adcs_core.environment.sun import sun_position_eci
 from adcs_core.environment.tle import CircularOrbitSource, OrbitSource, TleOrbit
@@ -89,6 +89,6 @@ def build_environment(p: Mapping[str, Any]) -> Environment:
     model = p['environment.magnetic_model']
     if model not in MAGNETIC_MODELS:
         raise ValueError(f'environment.magnetic_model must be one of {list(MAGNETIC_MODELS)}, got {model!r}')
-    igrf = IgrfModel()
+    igrf = load_igrf()
     magnetic = igrf if model == 'igrf' else igrf.dipole(epoch_days)
     return Environment(epoch, orbit, magnetic, p['environment.shadow_model'])

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from datetime import datetime
+from functools import lru_cache
 
 import numpy as np
 from ppigrf import ppigrf as _ppigrf
@@ -88,6 +89,8 @@ class IgrfModel:
         self.h = h[keys].to_numpy(dtype=float)
         self._dg = np.diff(self.g, axis=0)               # change over each interval between epochs
         self._dh = np.diff(self.h, axis=0)
+        for table in (self.epochs, self.g, self.h, self._dg, self._dh):
+            table.flags.writeable = False                # shared by load_igrf: never modified
         self.coefficient_file = coefficient_file
 
     def coefficients(self, d) -> tuple[np.ndarray, np.ndarray]:
@@ -148,6 +151,13 @@ class IgrfModel:
         g, h = self.coefficients(d)
         col = {k: i for i, k in enumerate(self._keys)}
         return DipoleModel(g[col[1, 0]], g[col[1, 1]], h[col[1, 1]])
+
+
+@lru_cache(maxsize=4)
+def load_igrf(coefficient_file: str = DEFAULT_COEFFICIENTS, max_degree: int = 13) -> IgrfModel:
+    """A shared :class:`IgrfModel` per file and degree (reading the file takes ~30 ms: a Monte Carlo
+    builds one environment per run). The model is never modified after construction."""
+    return IgrfModel(coefficient_file, max_degree)
 
 
 class DipoleModel:
