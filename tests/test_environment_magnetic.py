@@ -2,11 +2,12 @@
 values and against ppigrf's own evaluation, and the tilted dipole's bound at LEO.
 
 Published values: NOAA NCEI's geomagnetic calculator (model "IGRF2020", i.e. IGRF-13 at 2020.0), as
-shipped with ppigrf's test data (test/data/2020-01-01/b_{e,n,z}.csv): 80 N, 5 km above the WGS-84
+shipped with ppigrf's test data (test/data/2020-01-01/b_{e,n,z}.csv): 5 km above the WGS-84
 ellipsoid, 2020-01-01:
 
-    lon   0 E:  B_e = -151.6 nT, B_n = 6560.4 nT, B_down = 54497.7 nT
-    lon 100 E:  B_e = 1167.5 nT, B_n = 1707.5 nT, B_down = 58517.5 nT
+    80 N,   0 E:  B_e =  -151.6 nT, B_n =  6560.4 nT, B_down =  54497.7 nT
+    80 N, 100 E:  B_e =  1167.5 nT, B_n =  1707.5 nT, B_down =  58517.5 nT
+     1 S,   0 E:  B_e = -2345.2 nT, B_n = 26731.4 nT, B_down = -16992.9 nT   (Gulf of Guinea: field upward)
 """
 from __future__ import annotations
 
@@ -20,7 +21,8 @@ import pytest
 from adcs_core.environment import frames as F
 from adcs_core.environment import magnetic as M
 
-NCEI_2020 = [(0.0, (-151.6, 6560.4, 54497.7)), (100.0, (1167.5, 1707.5, 58517.5))]
+NCEI_2020 = [(80.0, 0.0, (-151.6, 6560.4, 54497.7)), (80.0, 100.0, (1167.5, 1707.5, 58517.5)),
+             (-1.0, 0.0, (-2345.2, 26731.4, -16992.9))]
 
 
 @pytest.fixture(scope='module')
@@ -35,20 +37,20 @@ def _enu_down(model, lat_deg, lon_deg, h, epoch):
     return np.array([east, north, down])
 
 
-@pytest.mark.parametrize('lon, published', NCEI_2020)
-def test_igrf13_equals_the_ncei_calculator(lon, published):
+@pytest.mark.parametrize('lat, lon, published', NCEI_2020)
+def test_igrf13_equals_the_ncei_calculator(lat, lon, published):
     """With the IGRF-13 coefficients (the calculator's model) every component within 0.5 nT: the
-    published values are rounded to 0.1 nT; measured differences <= 0.36 nT (the calculator's own
+    published values are rounded to 0.1 nT; measured differences <= 0.38 nT (the calculator's own
     evaluation and geodetic conversion)."""
-    ours = _enu_down(M.IgrfModel(M.IGRF13_COEFFICIENTS), 80.0, lon, 5000.0, '2020-01-01T00:00:00Z')
+    ours = _enu_down(M.IgrfModel(M.IGRF13_COEFFICIENTS), lat, lon, 5000.0, '2020-01-01T00:00:00Z')
     np.testing.assert_allclose(ours, published, rtol=0, atol=0.5)
 
 
-@pytest.mark.parametrize('lon, published', NCEI_2020)
-def test_igrf14_default_is_within_its_revision_of_2020(igrf, lon, published):
+@pytest.mark.parametrize('lat, lon, published', NCEI_2020)
+def test_igrf14_default_is_within_its_revision_of_2020(igrf, lat, lon, published):
     """The default IGRF-14 replaces the IGRF-2020 coefficients by the definitive DGRF-2020: at these
-    points the components move by < 2 nT (measured 1.9 nT); tolerance 3 nT."""
-    np.testing.assert_allclose(_enu_down(igrf, 80.0, lon, 5000.0, '2020-01-01T00:00:00Z'), published, atol=3.0)
+    points the components move by < 4 nT (measured 3.8 nT, near the equator); tolerance 5 nT."""
+    np.testing.assert_allclose(_enu_down(igrf, lat, lon, 5000.0, '2020-01-01T00:00:00Z'), published, atol=5.0)
 
 
 def test_igrf_equals_ppigrf_igrf_gc_at_random_points_and_dates(igrf):
