@@ -9,6 +9,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from adcs_core.environment import eclipse as E
 from adcs_core.environment.sun import AU, SUN_RADIUS
@@ -94,3 +96,20 @@ def test_batch_broadcasts_positions_against_one_sun():
     nu = E.shadow_conical(r, SUN)
     assert nu.shape == (2, 7)
     np.testing.assert_array_equal(nu[1, 3], E.shadow_conical(r[1, 3], SUN))
+
+
+@settings(derandomize=True, max_examples=200, deadline=None)
+@given(r=st.lists(st.floats(-5e8, 5e8), min_size=3, max_size=3), s=st.lists(st.floats(-1, 1), min_size=3, max_size=3))
+def test_any_geometry_gives_a_fraction_in_unit_interval(r, s):
+    """Random satellite positions (inside the Earth, at the centre's side, far away) and Sun directions:
+    both models return a number in [0, 1], never NaN; conical umbra implies cylindrical shadow near the
+    Earth (r < 1e6 km: the umbra cone is inside the cylinder there)."""
+    r = np.array(r)
+    s = np.array(s)
+    if np.linalg.norm(s) < 1e-3 or np.linalg.norm(r) < 1.0:
+        return
+    sun = AU * s / np.linalg.norm(s)
+    con, cyl = float(E.shadow_conical(r, sun)), float(E.shadow_cylindrical(r, sun))
+    assert 0.0 <= con <= 1.0 and cyl in (0.0, 1.0)
+    if con == 0.0 and np.linalg.norm(r) > E.EARTH_RADIUS:
+        assert cyl == 0.0

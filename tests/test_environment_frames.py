@@ -126,3 +126,17 @@ def test_orbit_frame_from_state_equals_the_circular_orbit_frame():
         r, v = source.state(t / 86400.0)
         np.testing.assert_allclose(F.orbit_frame_from_state(r, v), orbit_frame_matrix(orbit, t), atol=1e-12)
         np.testing.assert_allclose(r / np.linalg.norm(r), orbit.position_unit(t), atol=1e-12)
+
+
+def test_earth_fixed_point_has_zero_velocity_relative_to_the_earth():
+    """A point fixed in ECEF moves in ECI with v = w_E x r: eci_to_ecef_velocity gives 0 (to round-off
+    of the 465 m/s equatorial speed) and the position it maps to does not change with time."""
+    r_ecef = F.geodetic_to_ecef(math.radians(20.0), math.radians(-70.0), 400e3)
+    d = F.parse_epoch('2026-03-20T12:00:00Z') + np.array([0.0, 0.01, 0.2])
+    r_eci = F.ecef_to_eci(r_ecef, d)
+    w = np.array([0.0, 0.0, F.EARTH_ROTATION_RATE])
+    v_eci = np.cross(w, r_eci)
+    np.testing.assert_allclose(F.eci_to_ecef_velocity(r_eci, v_eci, d), 0.0, atol=1e-9)
+    np.testing.assert_allclose(F.eci_to_ecef(r_eci, d), np.broadcast_to(r_ecef, (3, 3)), atol=1e-7)
+    # and the ERA's rate is that w: a sidereal day later the ECI position repeats
+    np.testing.assert_allclose(F.ecef_to_eci(r_ecef, d[0] + 1.0 / F.ERA_RATE), r_eci[0], atol=1e-6)
