@@ -1,11 +1,15 @@
 """Parameter blocks shared by several node schemas (the spacecraft's inertia and wheels, the
-thrusters, the start-up options), built on the schema machinery of :mod:`adcs_msgs_py.params`."""
+thrusters, the start-up options, the environment of attitude determination), built on the schema
+machinery of :mod:`adcs_msgs_py.params`."""
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
+from adcs_core.environment.frames import parse_epoch
+from adcs_core.environment.options import IGRF_YEARS, MAGNETIC_MODELS, ORBIT_KINDS, SHADOW_MODELS
+from adcs_core.environment.tle import parse_tle, tle_line_problem
 from adcs_core.inertia import check_inertia, inertia_matrix
 from adcs_msgs_py.names import parse_publishers
 from adcs_msgs_py.params import Param, ParameterError, all_non_negative, all_positive, non_negative, positive
@@ -156,3 +160,58 @@ def expect_faults_param() -> Param:
     return Param('startup.expect_faults', 'bool', default=False,
                  doc='wait for the complete fault schedule on `faults` (a fault_injector) before '
                      'the first step; the runner sets it when the scenario has a fault_injector')
+
+
+def _check_epoch(value) -> str | None:
+    try:
+        parse_epoch(value)
+    except ValueError as exc:
+        return str(exc)
+    return None
+
+
+def _tle_line_check(number: int):
+    return lambda line: None if line == '' else tle_line_problem(line, number)
+
+
+def environment_params() -> list[Param]:
+    """The ``environment.*`` block: what :func:`adcs_core.environment.environment.build_environment`
+    takes (epoch, orbit, magnetic and shadow models). Not yet in any node's schema."""
+    return [
+        Param('environment.epoch', 'string', default='2026-03-20T12:00:00Z', check=_check_epoch,
+              doc='UTC epoch of t = 0, ISO-8601 (e.g. "2026-03-20T12:00:00Z"; no offset means UTC)'),
+        Param('environment.orbit', 'string', default='circular', choices=ORBIT_KINDS,
+              doc='orbit propagation: circular (the elements below) or tle (SGP4 of environment.tle.*)'),
+        Param('environment.circular.altitude', 'double', default=500e3, check=positive,
+              doc='circular orbit altitude above the equatorial radius (m, > 0)'),
+        Param('environment.circular.inclination_deg', 'double', default=0.0, doc='deg'),
+        Param('environment.circular.raan_deg', 'double', default=0.0, doc='deg'),
+        Param('environment.circular.arg_latitude_deg', 'double', default=0.0,
+              doc='argument of latitude at t = 0 (deg)'),
+        Param('environment.tle.line1', 'string', default='', check=_tle_line_check(1),
+              doc='TLE line 1 (69 characters, checksum checked); required when environment.orbit is tle'),
+        Param('environment.tle.line2', 'string', default='', check=_tle_line_check(2),
+              doc='TLE line 2 (69 characters, checksum checked); required when environment.orbit is tle'),
+        Param('environment.magnetic_model', 'string', default='igrf', choices=MAGNETIC_MODELS,
+              doc='Earth field: igrf (IGRF-14, degree 13) or dipole (its first-degree terms at the epoch)'),
+        Param('environment.shadow_model', 'string', default='conical', choices=SHADOW_MODELS,
+              doc='Earth shadow: cylindrical (0 or 1) or conical (umbra, penumbra fraction)'),
+    ]
+
+
+def check_environment(v: dict) -> None:
+    """Cross-check the environment block: the epoch inside the IGRF's years (both field models take
+    its coefficients), a TLE orbit's two lines present and accepted by SGP4."""
+    year = 2000.0 + parse_epoch(v['environment.epoch']) / 365.25
+    if not IGRF_YEARS[0] <= year < IGRF_YEARS[1]:
+        raise ParameterError('environment.epoch', f'the IGRF-14 field models cover {IGRF_YEARS[0]}-{IGRF_YEARS[1]}, '
+                             f'got {v["environment.epoch"]!r}')
+    if v['environment.orbit'] != 'tle':
+        return
+    for key in ('environment.tle.line1', 'environment.tle.line2'):
+        if not v[key]:
+            raise ParameterError(key, 'required when environment.orbit is tle')
+    try:
+        parse_tle(v['environment.tle.line1'], v['environment.tle.line2'])
+    except ValueError as exc:
+        raise ParameterError('environment.tle.line1', str(exc)) from None

@@ -23,8 +23,9 @@ PACKAGES = ('adcs_core', 'adcs_msgs_py', 'adcs_controllers', 'adcs_sim')
 PIN = re.compile(r'^(?P<name>[A-Za-z0-9][A-Za-z0-9._-]*)(\[[a-z0-9_,-]+\])?==(?P<version>[0-9][0-9A-Za-z.+-]*)$')
 ROSDEP_ALIASES = {'pyyaml': 'yaml'}   # rosdep's key for PyYAML is python3-yaml
 # Optional imports, each inside the one function that needs it with a clear ImportError otherwise:
-# pandas for adcs_sim.app.api's RunResult.dataframe() (tests/test_api.py checks the error).
-OPTIONAL = {'pandas'}
+# (pandas was one, for adcs_sim.app.api's RunResult.dataframe(); it is a pinned runtime requirement
+# since ppigrf, adcs_core/environment's IGRF coefficient reader, imports it. None now.)
+OPTIONAL: set[str] = set()
 
 
 def _normal(name: str) -> str:
