@@ -54,7 +54,7 @@ from adcs_msgs_py.measurements import Estimate, Reading
 
 NO_MEASUREMENT = -1.0        # element 0 of a covariance: no measurement this step (REP 145)
 UNIT_VECTOR_TOLERANCE = 1e-6  # a sun vector whose norm is further than this from 1 (and not 0) is refused
-SYMMETRY_TOLERANCE = 1e-9     # relative; and a covariance's eigenvalues may not go below -this x its largest
+SYMMETRY_TOLERANCE = 1e-9     # on the correlation matrix: asymmetry and negative eigenvalues allowed
 
 _IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])
 _ZERO3 = np.zeros((3, 3))
@@ -63,12 +63,25 @@ _ZERO3 = np.zeros((3, 3))
 # --- covariances ------------------------------------------------------------------------------
 
 def _checked_cov(name: str, values, n: int) -> np.ndarray:
-    """A received row-major n x n covariance: finite, symmetric, positive semi-definite."""
+    """A received row-major n x n covariance: finite, non-negative variances, symmetric and positive
+    semi-definite. Checked on the correlation matrix (``c_ij / sqrt(c_ii c_jj)``), so the tolerances are
+    relative to each entry's own scale however different the variances; a zero variance needs its whole
+    row and column zero."""
     c = _finite(name, values, n * n).reshape(n, n)
-    u = c / (float(np.max(np.abs(c))) or 1.0)   # scaled to [-1, 1]: no overflow whatever the values
-    if np.max(np.abs(u - u.T)) > SYMMETRY_TOLERANCE:
+    var = np.diag(c).copy()
+    if (var < 0).any():
+        raise InvalidMessage(f'{name}: negative variance in {var.tolist()}')
+    zero = var == 0
+    if c[zero].any() or c[:, zero].any():
+        raise InvalidMessage(f'{name}: a zero variance with a non-zero covariance')
+    d = np.sqrt(np.where(zero, 1.0, var))
+    scale = d[:, None] * d[None, :]   # <= 1.8e308: no overflow
+    if (np.abs(c) > (1.0 + SYMMETRY_TOLERANCE) * scale).any():
+        raise InvalidMessage(f'{name}: a correlation beyond 1 (|c_ij| > sqrt(c_ii c_jj))')
+    r = c / scale
+    if np.max(np.abs(r - r.T)) > SYMMETRY_TOLERANCE:
         raise InvalidMessage(f'{name}: covariance is not symmetric')
-    if np.linalg.eigvalsh(0.5 * (u + u.T))[0] < -SYMMETRY_TOLERANCE:
+    if np.linalg.eigvalsh(0.5 * (r + r.T))[0] < -SYMMETRY_TOLERANCE:
         raise InvalidMessage(f'{name}: covariance is not positive semi-definite')
     return c
 

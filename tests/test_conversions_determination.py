@@ -192,3 +192,25 @@ def test_any_message_is_accepted_finite_or_rejected_with_a_reason(case):
     if out is not None and from_msg is not cd.estimate_from_msg and out[1].valid:
         cov = out[1].cov
         assert np.allclose(cov, cov.T, rtol=1e-6, atol=0) or not cov.any()
+
+
+@pytest.mark.parametrize('cov, reason', [
+    ([0, 0, 0, 0, 0, 0, 0, 1, 1e9], 'zero variance'),          # found by the fuzz test: accepted before
+    ([1, 0, 0, 0, -1, 0, 0, 0, 1], 'negative variance'),
+    ([1, 2, 0, 2, 1, 0, 0, 0, 1], 'correlation beyond 1'),
+    ([1e-300, 1e300, 0, 1e300, 1e-300, 0, 0, 0, 1], 'correlation beyond 1'),
+    ([1, 0.5, 0, 0.4, 1, 0, 0, 0, 1], 'not symmetric'),
+    ([1, 0.9, 0.9, 0.9, 1, -0.9, 0.9, -0.9, 1], 'not positive semi-definite'),
+])
+def test_a_covariance_that_is_not_one_is_refused_naming_why(cov, reason):
+    msg = cd.magnetometer_to_msg(T_NS, Reading(np.zeros(3), np.eye(3), np.bool_(True)))
+    msg.magnetic_field_covariance = [float(v) for v in cov]
+    with pytest.raises(InvalidMessage, match=reason):
+        cd.magnetometer_from_msg(msg)
+
+
+def test_covariances_of_very_different_scales_are_accepted():
+    cov = np.diag([1e-20, 1.0, 1e20])
+    cov[0, 1] = cov[1, 0] = 0.5e-10      # correlation 0.5
+    msg = cd.magnetometer_to_msg(T_NS, Reading(np.zeros(3), cov, np.bool_(True)))
+    assert np.array_equal(cd.magnetometer_from_msg(msg)[1].cov, cov)
