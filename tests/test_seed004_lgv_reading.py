@@ -2,8 +2,9 @@
 own GSMN figures with the batch engine (docs/seed004/lgv_readings.py prints the same table) and, for
 the inertia-weighted reading, its Lyapunov function V_I (dV/dt <= 0 in every mode).
 
-    'printed'           LgV = (w + γq)ᵀ I⁻¹   V of eq. (15)                        (default)
+    'printed'           LgV = (w + γq)ᵀ I⁻¹   V of eq. (15)                  (the pure functions' default)
     'inertia_weighted'  LgV = (w + γq)ᵀ       V_I = c(1 - q4) + ½wᵀIw + γqᵀIw, c = 2(kp + γkd) tr(I)/3
+                                                                    (the schemas' default: Table I's numbers)
 
 Each test states the paper's figure, ours under each reading and the tolerance with its reason; a test
 that pins a disagreement says so in its name. No ROS.
@@ -114,7 +115,9 @@ def test_inertia_weighted_torque_at_rest_is_kp1_qIq_over_qq_times_q():
     assert_allclose(u, -GAINS_T1['kp1'] * (qv @ I_T1 @ qv) / (qv @ qv) * qv, rtol=1e-14)
 
 
-def test_printed_reading_is_the_default_and_a_bad_reading_is_refused():
+def test_schemas_default_to_the_inertia_weighted_reading_pure_functions_to_the_printed_and_bad_refused():
+    """The nodes and the batch engine (schemas, section laws) default to (b), the reading Table I supports;
+    the pure functions keep the paper's printed text (a) as their default."""
     rng = np.random.default_rng(13)
     q, w = random_states(rng, 50, 1.0)
     u0, st0 = io.gsmn_torque(q, w, I_T1, **GAINS_T1, epsilon=70.0)
@@ -124,7 +127,7 @@ def test_printed_reading_is_the_default_and_a_bad_reading_is_refused():
     with pytest.raises(ValueError, match='lgv must be one of'):
         io.min_norm_torque(q, w, I_T1, 5.0, 5.0, 0.8, lgv='typo')
     for schema in (GSMN_SCHEMA, MINNORM_SCHEMA):
-        assert schema.by_name['lgv'].default == 'printed'
+        assert schema.by_name['lgv'].default == 'inertia_weighted' == io.DEFAULT_LGV
         assert schema.by_name['lgv'].choices == io.LGV_READINGS
 
 

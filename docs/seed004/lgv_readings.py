@@ -1,7 +1,7 @@
 """Seed 004, eq. (17): the two readings of the min-norm projection direction LgV on the paper's own GSMN figures.
 
-    (a) 'printed'           LgV = (w + γq)ᵀ I⁻¹   (V of eq. 15; the project's default)
-    (b) 'inertia_weighted'  LgV = (w + γq)ᵀ       (V_I = c(1 - q4) + ½wᵀIw + γqᵀIw)
+    (a) 'printed'           LgV = (w + γq)ᵀ I⁻¹   (V of eq. 15; the paper's text)
+    (b) 'inertia_weighted'  LgV = (w + γq)ᵀ       (V_I = c(1 - q4) + ½wᵀIw + γqᵀIw; the default: Table I)
 
 Runs Table I's GSMN case (config/table1_gsmn.yaml) and section III.F's GSMN slew
 (config/microsat_gsmn_slew.yaml) under each reading with the batch engine, the scenarios' own parameters
