@@ -397,9 +397,9 @@ def test_section_bound_laws_call_the_functions():
     ref = dict(q_ref=q_ref, w_ref=np.array([0.0, 0.001, 0.0]))
     cases = [
         (io.MinNormLaw({**base, 'kp': 0.02, 'kd': 0.15, 'gamma': 0.02, 'shortest_path': False}),
-         io.min_norm_torque(q, w, I_3F, 0.02, 0.15, 0.02, **ref)),
+         io.min_norm_torque(q, w, I_3F, 0.02, 0.15, 0.02, lgv=io.DEFAULT_LGV, **ref)),
         (io.GsmnLaw({**base, **GAINS_3F, 'epsilon': 0.01, 'shortest_path': False}),
-         io.gsmn_torque(q, w, I_3F, **GAINS_3F, epsilon=0.01, **ref)),
+         io.gsmn_torque(q, w, I_3F, **GAINS_3F, epsilon=0.01, lgv=io.DEFAULT_LGV, **ref)),
         (io.KtLaw({**base, 'k1': 0.5, 'k2': 0.1}), io.kt_torque(q, w, I_3F, 0.5, 0.1, **ref)),
     ]
     for law, (u, st) in cases:

@@ -10,7 +10,10 @@ The tests read it and state the paper's figures beside ours (docs/seed002.md):
   below 1° after settling over the recorded 300 s (graph) and over 1000 s (batch engine, the
   same code; what a test of < 60 s allows here: ~2 ms per step); the whole two orbits through
   the graph (one run, 0.98° max after settling) are in docs/seed002.md;
-* thruster impulse and firings: not given by the paper; ours pinned (1 %).
+* thruster impulse and firings: not given by the paper; ours pinned (1 %);
+* what the 38 s agreement means: the gains are ours (the paper gives none), and 9 of the 12 gain
+  pairs of the readings' grid pass the ±5 s check (the slew is thrust-saturated); the paper's own
+  "q_i = [±1 0 0 0]" start: either sign gives the same run.
 
 Also: the bag is what the current code computes (the batch engine, bit for bit), and a start
 5° from q̃ = [-1, 0, 0, 0] goes there directly (no unwinding).
@@ -128,3 +131,49 @@ def test_start_near_minus_one_does_not_unwind():
     assert eigen.max() < 5.5
     assert eigen[-1] < 1.0
     assert np.nansum(result.thruster_impulse[0, -1]) < 1.0
+
+
+def test_start_from_either_sign_of_q_is_the_same_run():
+    """Paper (4.2): the body starts from "q_i = [±1 0 0 0]ᵀ": either sign is the same attitude and must give the
+    same slew. Ours: the run from -q(0) is the run from +q(0) with q negated, the same errors, torques and
+    thruster impulses bit for bit (negation is exact in floating point and the law uses sgn(η̃))."""
+    from adcs_core.attitude import rotate_to_body
+    w0 = rotate_to_body(np.array([0.0, 0.0, 0.0, 1.0]), np.array([0.0, -1.1699887158899546e-3, 0.0]))
+    plus = _batch(60.0, [0.0, 0.0, 0.0, 1.0], w0)
+    minus = _batch(60.0, [0.0, 0.0, 0.0, -1.0], w0)
+    a, b = plus.run_data(0), minus.run_data(0)
+    assert_allclose(attitude_errors_deg(a)[0], attitude_errors_deg(b)[0], rtol=0, atol=1e-12)
+    assert_allclose(a.u, b.u, rtol=0, atol=0)
+    assert_allclose(a.q, -b.q, rtol=0, atol=0)
+    assert_allclose(plus.thruster_impulse, minus.thruster_impulse, rtol=0, atol=0)
+
+
+# The gain grid of docs/seed002_readings.md R9 (the paper gives no gains): K1 (rad/s) x K2 (N m s).
+GRID_K1 = (0.05, 0.1, 0.2, 0.4)
+GRID_K2 = (2.0, 4.0, 8.0)
+
+
+def test_the_38s_agreement_holds_for_9_of_the_12_gain_pairs_of_the_grid():
+    """What the ±5 s check does and does not mean. The paper gives no K1, K2; ours (0.1, 4) were chosen on the
+    R9 grid for fuel. Over that grid (120 s, batch engine) the 1° settling time is 30.0-63.8 s and 9 of the 12
+    pairs fall within 38 ± 5 s: the slew is thrust-saturated (~1-2 N m asked, ~0.07 N m available), so its
+    time is set by the thrusters, the inertia and the 135.68° angle, not by the gains. The agreement checks
+    the plant and the saturated law, not the gains nor the transient of the paper's Fig. 1."""
+    from adcs_sim.app.batch import BatchSimulation
+    from adcs_sim.app.scenario_files import validate_scenario
+    runs = []
+    for k1 in GRID_K1:
+        for k2 in GRID_K2:
+            sections = validate_scenario(ROOT / 'config' / 'eseo_backstepping.yaml')
+            sections.pop('recorder', None)
+            sections['dynamics']['duration'] = 120.0
+            sections['backstepping_controller'].update({'K1': k1, 'K2': k2})
+            runs.append(sections)
+    result = BatchSimulation.from_runs(runs).run()
+    ts = np.array([settling_time(result.run_data(i).t, attitude_errors_deg(result.run_data(i))[0], 1.0)
+                   for i in range(len(runs))])
+    within = np.abs(ts - PAPER_SETTLING) < 5.0
+    assert within.sum() == 9, ts
+    assert ts.min() > 25.0 and ts.max() < 70.0, ts
+    ours = GRID_K1.index(0.1) * len(GRID_K2) + GRID_K2.index(4.0)
+    assert within[ours]

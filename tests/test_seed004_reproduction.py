@@ -69,19 +69,25 @@ def test_recording_is_what_the_code_computes(name):
 # --- section III.F: the micro-satellite slew (0.01 N m wheels) --------------------------------
 
 def test_gsmn_settling_time_iii_f():
-    """Paper: GSMN settles to 0.5 deg on all 3 axes in 123.8 s. Ours: 128.1 s. Tolerance 5 %."""
+    """Paper: GSMN settles to 0.5 deg on all 3 axes in 123.8 s. Ours (LgV = (w + γq)ᵀ, the default;
+    0.1 s control period, a reading): 119.8 s (-3.3 %). Tolerance 5 %, the method's: the paper gives
+    neither the control period nor the wheels, and the period alone moves the figure by 2 % (117.7 s at
+    1 s, 119.4-120.1 s from 0.5 s to 0.01 s; docs/seed004.md)."""
     ours = metrics('microsat_gsmn_slew')['settling_euler213_0.5deg_s']
     assert rel(ours, 123.8) < 0.05, ours
 
 
 def test_gsmn_beats_pd_with_admissible_torque_iii_f():
     """Paper: GSMN 123.8 s vs PD 228.2 s, integrated torque 0.214 vs 0.245, "admissible
-    instantaneous torque". Ours: 128.1 s vs 183.1 s, 0.187 vs 0.268; GSMN's applied torque never
-    exceeds the PD's peak on any axis (nor the 0.01 N m limit: its demand stays below it)."""
+    instantaneous torque". Ours: 119.8 s (0.1 s period) vs 183.1 s (PD at 1 s; 186.3 s at 0.1 s),
+    0.181 vs 0.268; GSMN's applied torque never
+    exceeds the PD's peak (nor the 0.01 N m limit: its demand stays below it). The two peaks are the
+    t = 0 torques on X and equal: -kp1 (qᵀIq/qᵀq) q1 and -kp1 I_x q1 with qᵀIq/qᵀq = 12 = I_x for this
+    q(0), so the comparison allows round-off (1e-12 relative)."""
     g, p = metrics('microsat_gsmn_slew'), metrics('microsat_pd_slew')
     assert g['settling_euler213_0.5deg_s'] < 0.8 * p['settling_euler213_0.5deg_s']
     assert g['integrated_torque_Nms'] < p['integrated_torque_Nms']
-    assert max(g['peak_torque_Nm']) <= max(p['peak_torque_Nm'])
+    assert max(g['peak_torque_Nm']) <= max(p['peak_torque_Nm']) * (1 + 1e-12)
     demand = [float(s['demand_max']) for _, _, s in run('microsat_gsmn_slew').controller_status]
     assert max(demand) < 0.01
 
@@ -95,6 +101,32 @@ def test_high_gain_min_norm_exceeds_the_torque_limit_iii_f():
     assert max(metrics('microsat_minnorm_slew')['peak_torque_Nm']) == pytest.approx(0.01, rel=1e-9)
     modes = {s['mode'] for _, _, s in run('microsat_minnorm_slew').controller_status}
     assert modes == {'min_norm', 'zero_torque'}
+
+
+def pd_at(period: float) -> dict:
+    """The PD benchmark's metrics at another control period (batch engine; the PD bag is the 1 s run)."""
+    validated = validate_scenario(ROOT / 'config' / 'microsat_pd_slew.yaml')
+    validated['dynamics'].update({'control_period': period, 'integrator.max_step': period})
+    return run_metrics(BatchSimulation.from_runs([validated]).run().run_data(0))
+
+
+def test_saturated_high_gain_min_norm_settles_before_pd_iii_f():
+    """Paper (figure 2): the standard min-norm law with the higher gains settles faster than PD. Ours at the
+    0.1 s period the III.F scenarios read: 116.9 s against PD's 186.3 s at 0.1 s (183.1 s at 1 s, the PD
+    bag). No tolerance: an ordering."""
+    mn = metrics('microsat_minnorm_slew')['settling_euler213_0.5deg_s']
+    assert mn < pd_at(0.1)['settling_euler213_0.5deg_s']
+    assert mn < metrics('microsat_pd_slew')['settling_euler213_0.5deg_s']
+
+
+def test_sensitivity_at_a_1s_period_the_saturated_min_norm_is_slower_than_pd_iii_f():
+    """Why the III.F scenarios run at 0.1 s: at 1 s (the period used before) the saturated high-gain min-norm
+    law settles in 262.3 s, after PD's 183.1 s, against figure 2; the ordering flips between 0.5 s (241.7 s)
+    and 0.25 s (121.5 s). GSMN at 1 s: 117.7 s, still within 5 % of 123.8 s (docs/seed004.md)."""
+    validated = validate_scenario(ROOT / 'config' / 'microsat_minnorm_slew.yaml')
+    validated['dynamics'].update({'control_period': 1.0, 'integrator.max_step': 1.0})
+    mn = run_metrics(BatchSimulation.from_runs([validated]).run().run_data(0))['settling_euler213_0.5deg_s']
+    assert mn > metrics('microsat_pd_slew')['settling_euler213_0.5deg_s']
 
 
 def test_gsmn_uses_all_three_modes_iii_f():
@@ -115,22 +147,29 @@ def test_kt_integrated_torque_table1():
 
 def test_gsmn_saves_integrated_torque_over_kt_table1():
     """Paper (Table I): GSMN needs less integrated torque than KT (26.95 vs 35.66 N m s, a 24.4 %
-    saving). Ours: 27.66 vs 35.80 (22.7 %). The claim tested is the saving's sign; its size and
-    GSMN's own figure disagree with the paper (next test)."""
+    saving). Ours: 26.86 vs 35.79 (24.9 %). Tolerance on the saving: 1 point of percentage, the sum
+    of the two integrals' 1 % tolerances below and of test_kt_integrated_torque_table1 at most."""
     g = metrics('table1_gsmn')['integrated_torque_Nms']
     k = metrics('table1_krstic_tsiotras')['integrated_torque_Nms']
     assert g < k, (g, k)
+    assert abs((1 - g / k) - (1 - 26.95 / 35.66)) < 0.01, (g, k)
 
 
-def test_disagreement_table1_gsmn_integrated_torque_above_the_paper():
-    """DISAGREEMENT with Table I, pinned: GSMN's ∫‖u‖dt is 27.66 N m s against the paper's 26.95
-    (+2.6 %, outside the paper's four-digit precision and the 2 % the issue asks; the reading of
-    eq. 17 is in docs/seed004_readings.md). The recorded value is pinned to 0.1 % (the bag is
-    deterministic; 0.1 % leaves room for a re-recording on another machine's libm, not for a
-    change of the law)."""
+def test_gsmn_integrated_torque_table1():
+    """Paper: GSMN ∫‖u‖dt 26.95 N m s. Ours (recorded, LgV = (w + γq)ᵀ): 26.86 (-0.33 %). Tolerance 1 %,
+    the method's: the paper gives no control period, and 1 ms -> 10 ms moves ours by +1.0 % (the printed
+    I⁻¹ reading gives 27.66, +2.6 %: tests/test_seed004_lgv_reading.py)."""
     g = metrics('table1_gsmn')['integrated_torque_Nms']
-    assert rel(g, 27.66) < 1e-3, g
-    assert rel(g, 26.95) > 0.02, g
+    assert rel(g, 26.95) < 0.01, g
+
+
+def test_gsmn_peak_torques_table1():
+    """Paper: GSMN peaks X -40.4, Y -16.77, Z -69.98 N m. Ours (recorded): -40.41 / -16.77 / -70.00
+    (0.03 % / 0.004 % / 0.02 %). Tolerance 0.15 %, the coarsest printed precision (-40.4: half a unit of
+    the last digit is 0.12 %) plus q(0)'s rounding to 4 decimals (≤ 0.02 %); the issue asks 1 %. Per-axis
+    bands, and the Z miss of 1.6 units of its last digit, are in tests/test_seed004_lgv_reading.py."""
+    for ours, paper in zip(peak_signed('table1_gsmn'), (-40.4, -16.77, -69.98)):
+        assert rel(ours, paper) < 0.0015, (ours, paper)
 
 
 def test_gsmn_faster_than_kt_on_every_axis_table1():
@@ -143,9 +182,8 @@ def test_gsmn_faster_than_kt_on_every_axis_table1():
 
 def test_gsmn_peak_torque_below_kt_table1():
     """Paper: GSMN "tuned to deliver a lower maximum instantaneous torque" (69.98 vs 139 N m: the
-    claim is "lower", the paper's own ratio 0.503). Ours: 55.6 vs 133.5 N m. The paper's per-axis
-    GSMN peaks (X -40.4, Y -16.77, Z -69.98) are not reproduced: eq. 17's first torque already has
-    X = -53.06 N m (docs/seed004.md)."""
+    claim is "lower", the paper's own ratio 0.503). Ours: 70.00 vs 133.5 N m (0.524). Every peak is
+    negative, as Table I prints them."""
     g, k = np.abs(peak_signed('table1_gsmn')), np.abs(peak_signed('table1_krstic_tsiotras'))
     assert g.max() < k.max()
     assert np.all(peak_signed('table1_gsmn') < 0) and np.all(peak_signed('table1_krstic_tsiotras') < 0)
@@ -176,7 +214,7 @@ def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path, capsys):
     paper = ROOT / 'docs' / 'seed004' / 'paper.yaml'
     assert analyze([*bags, '--compare', '--reference', str(paper), '--out', str(tmp_path / 'cmp')]) == 0
     text = (tmp_path / 'cmp' / 'comparison.md').read_text()
-    assert '| microsat_gsmn_slew | `settling_euler213_all_0.5deg_s` | 123.8 | 128.124 | +3.5 % |' in text
+    assert '| microsat_gsmn_slew | `settling_euler213_all_0.5deg_s` | 123.8 | 119.776 | -3.3 % |' in text
     bad = tmp_path / 'bad.yaml'
     bad.write_text('source: x\nruns:\n  microsat_gsmn_slew:\n    settling_time: 1.0\n')
     assert analyze([*bags, '--compare', '--reference', str(bad), '--out', str(tmp_path / 'c2')]) == 2

@@ -103,6 +103,9 @@ MODE_CONTINUOUS = 4    # Krstic-Tsiotras: one continuous law
 # The two readings of the projection direction LgV of eq. (14)/(17) (docs/seed004_readings.md, eq. 17):
 # 'printed' LgV = (w + γq)ᵀ I⁻¹ with V of eq. (15); 'inertia_weighted' LgV = (w + γq)ᵀ with V_I.
 LGV_READINGS = ('printed', 'inertia_weighted')
+# The section laws' default (the node schemas' too): the reading Table I's numbers support. The pure
+# functions below keep lgv='printed' as their default, the paper's text.
+DEFAULT_LGV = 'inertia_weighted'
 
 
 # --- helpers -------------------------------------------------------------------------------------
@@ -364,7 +367,7 @@ class MinNormLaw(_BoundLaw):
     def __init__(self, p: dict) -> None:
         super().__init__(p)
         self.kp, self.kd, self.gamma = p['kp'], p['kd'], p['gamma']
-        self.lgv = p.get('lgv', 'printed')
+        self.lgv = p.get('lgv', DEFAULT_LGV)
 
     def control(self, t: float, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, dict]:
         return min_norm_torque(q, w, self.inertia, self.kp, self.kd, self.gamma, q_ref=self.q_ref,
@@ -378,7 +381,7 @@ class GsmnLaw(_BoundLaw):
         super().__init__(p)
         self.gains = tuple(p[k] for k in ('kp1', 'kd1', 'kp2', 'kd2', 'gamma'))
         self.epsilon = p['epsilon']
-        self.lgv = p.get('lgv', 'printed')
+        self.lgv = p.get('lgv', DEFAULT_LGV)
 
     def control(self, t: float, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, dict]:
         return gsmn_torque(q, w, self.inertia, *self.gains, epsilon=self.epsilon, q_ref=self.q_ref,
