@@ -1,0 +1,159 @@
+"""The ``sensors.*`` block of the ``dynamics`` section and the :class:`SensorSuite` built from it (no ROS).
+
+Every sensor is off by default (``sensors.<name>.enabled``), so a scenario without the block runs and
+records exactly as before. Units are SI and radians, except the geometry angles whose names end in
+``_deg``. The star tracker's update period and latency are whole multiples of ``control_period`` (its
+latency is exact: :class:`adcs_sim.truth.sensor_models.StarTracker`).
+"""
+from __future__ import annotations
+
+import math
+
+from adcs_msgs_py.params import Param, ParameterError, non_negative, positive
+from adcs_sim.truth.sensor_models import Gyro, Magnetometer, StarTracker, SunSensor
+from adcs_sim.truth.sensor_suite import SensorSuite
+
+# The environment models (Sun direction, eclipse, geomagnetic field) are not on this branch: the sun
+# sensor and the magnetometer are refused until they are wired in (then set True and pass a
+# SensorEnvironment to SensorSuite.measure in the dynamics node and the batch engine).
+ENVIRONMENT_AVAILABLE = False
+
+MAX_LATENCY_STEPS = 100_000   # the star tracker keeps one attitude per step of latency
+
+
+def _nonzero_vector(values) -> str | None:
+    return None if math.sqrt(sum(v * v for v in values)) > 1e-9 else f'must not be the zero vector, got {values}'
+
+
+def _scale_factor(values) -> str | None:
+    return None if all(v > -1.0 for v in values) else f'every scale-factor error must be > -1, got {values}'
+
+
+def _angle_below_180(v) -> str | None:
+    return None if 0.0 <= v < 180.0 else f'must be in [0, 180) deg, got {v}'
+
+
+def _half_angle(v) -> str | None:
+    return None if 0.0 < v <= 180.0 else f'must be in (0, 180] deg, got {v}'
+
+
+def _fraction_below_1(v) -> str | None:
+    return None if 0.0 <= v < 1.0 else f'must be in [0, 1), got {v}'
+
+
+def _enabled(name: str, what: str) -> Param:
+    return Param(f'sensors.{name}.enabled', 'bool', default=False, doc=f'fit the {what} (publishes {what} '
+                 'readings every step; off: not fitted)')
+
+
+def sensor_params() -> list[Param]:
+    """The ``sensors.*`` parameters of the dynamics section."""
+    zeros = [0.0, 0.0, 0.0]
+    return [
+        Param('sensors.seed', 'int', default=0, check=non_negative, batch=True,
+              doc='seed of the sensor noise (each sensor its own stream of it; >= 0)'),
+        _enabled('gyro', 'gyro'),
+        Param('sensors.gyro.arw', 'double', default=0.0, check=non_negative,
+              doc='angle random walk sigma_v (rad/sqrt(s))'),
+        Param('sensors.gyro.rrw', 'double', default=0.0, check=non_negative,
+              doc='rate random walk sigma_u of the bias (rad/s^1.5)'),
+        Param('sensors.gyro.bias', 'double_array', default=zeros, length=3, batch=True,
+              doc='bias at t = 0 (rad/s, body axes); constant when rrw = 0'),
+        Param('sensors.gyro.scale_factor', 'double_array', default=zeros, length=3, check=_scale_factor,
+              batch=True, doc='scale-factor error per axis (fraction, > -1; 1e-4 = 100 ppm)'),
+        Param('sensors.gyro.max_rate', 'double', default=math.inf, check=positive, finite=False,
+              doc='saturation: each axis reads at most this (rad/s; .inf for none)'),
+        Param('sensors.gyro.markov_std', 'double', default=0.0, check=non_negative,
+              doc='bias instability: stationary sigma of a first-order Gauss-Markov bias (rad/s; 0: none)'),
+        Param('sensors.gyro.markov_time', 'double', default=3600.0, check=positive,
+              doc='correlation time of the Gauss-Markov bias (s)'),
+        _enabled('star_tracker', 'star tracker'),
+        Param('sensors.star_tracker.boresight', 'double_array', default=[0.0, 0.0, 1.0], length=3,
+              check=_nonzero_vector, doc='boresight in body axes (need not be unit)'),
+        Param('sensors.star_tracker.cross_std', 'double', default=0.0, check=non_negative,
+              doc='cross-boresight noise (rad, 1 sigma per axis)'),
+        Param('sensors.star_tracker.about_std', 'double', default=0.0, check=non_negative,
+              doc='about-boresight noise (rad, 1 sigma)'),
+        Param('sensors.star_tracker.period', 'double', default=0.0, check=non_negative,
+              doc='update period (s): a multiple of control_period; 0: every step'),
+        Param('sensors.star_tracker.latency', 'double', default=0.0, check=non_negative,
+              doc='the reading at t_k is the attitude at t_k - latency (s): a multiple of control_period'),
+        Param('sensors.star_tracker.sun_exclusion_deg', 'double', default=0.0, check=_angle_below_180,
+              doc='no reading with the Sun within this angle of the boresight (deg; 0: none)'),
+        Param('sensors.star_tracker.earth_exclusion_deg', 'double', default=0.0, check=_angle_below_180,
+              doc="no reading with the boresight within this angle of the Earth's limb (deg; 0: none)"),
+        _enabled('sun', 'sun sensor'),
+        Param('sensors.sun.std', 'double', default=0.0, check=non_negative,
+              doc='angular noise of the sun vector (rad, 1 sigma per axis perpendicular to it)'),
+        Param('sensors.sun.boresight', 'double_array', default=[0.0, 0.0, 1.0], length=3,
+              check=_nonzero_vector, doc='axis of the field of view, body axes'),
+        Param('sensors.sun.fov_deg', 'double', default=90.0, check=_half_angle,
+              doc='field-of-view half angle (deg; 180: the whole sky)'),
+        Param('sensors.sun.min_illumination', 'double', default=0.0, check=_fraction_below_1,
+              doc='no reading unless the illuminated fraction of the Sun exceeds this (fraction; 0: none in umbra)'),
+        _enabled('magnetometer', 'magnetometer'),
+        Param('sensors.magnetometer.std', 'double', default=0.0, check=non_negative,
+              doc='noise (T, 1 sigma per axis)'),
+        Param('sensors.magnetometer.bias', 'double_array', default=[0.0, 0.0, 0.0], length=3, batch=True,
+              doc='constant bias (T, body axes)'),
+    ]
+
+
+def _steps(v: dict, key: str) -> int:
+    """A duration parameter as a whole number of control periods (ParameterError naming it if not)."""
+    period_ns = int(round(float(v['control_period']) * 1e9))
+    value_ns = int(round(float(v[key]) * 1e9))
+    if value_ns % period_ns:
+        raise ParameterError(key, f'must be a whole multiple of control_period ({v["control_period"]} s), '
+                             f'got {v[key]}')
+    return value_ns // period_ns
+
+
+def check_sensors(v: dict) -> None:
+    """Cross-check of the ``sensors.*`` block (the dynamics section's cross-check calls it)."""
+    _steps(v, 'sensors.star_tracker.period')
+    if _steps(v, 'sensors.star_tracker.latency') > MAX_LATENCY_STEPS:
+        raise ParameterError('sensors.star_tracker.latency', f'at most {MAX_LATENCY_STEPS} control periods, '
+                             f'got {v["sensors.star_tracker.latency"]} s')
+    if not ENVIRONMENT_AVAILABLE:
+        for name in ('sun', 'magnetometer'):
+            if v[f'sensors.{name}.enabled']:
+                raise ParameterError(f'sensors.{name}.enabled', 'needs environment.* (the Sun direction, '
+                                     'eclipse and geomagnetic field models), which this build does not have yet')
+
+
+def build_sensors(v: dict, seed=None) -> SensorSuite | None:
+    """The suite of a validated dynamics section (None when no sensor is fitted); ``seed`` one per run
+    for a batch (default ``sensors.seed``)."""
+    seed = v['sensors.seed'] if seed is None else seed
+    period_ns = int(round(float(v['control_period']) * 1e9))
+    parts = {}
+    if v['sensors.gyro.enabled']:
+        parts['gyro'] = Gyro(seed, period_ns / 1e9, v['sensors.gyro.arw'], v['sensors.gyro.rrw'],
+                             v['sensors.gyro.bias'], v['sensors.gyro.scale_factor'], v['sensors.gyro.max_rate'],
+                             v['sensors.gyro.markov_std'], v['sensors.gyro.markov_time'])
+    if v['sensors.star_tracker.enabled']:
+        st = 'sensors.star_tracker.'
+        parts['star_tracker'] = StarTracker(
+            seed, v[st + 'boresight'], v[st + 'cross_std'], v[st + 'about_std'],
+            max(1, _steps(v, st + 'period')), _steps(v, st + 'latency'),
+            math.radians(v[st + 'sun_exclusion_deg']), math.radians(v[st + 'earth_exclusion_deg']))
+    if v['sensors.sun.enabled']:
+        parts['sun'] = SunSensor(seed, v['sensors.sun.std'], v['sensors.sun.boresight'],
+                                 math.radians(v['sensors.sun.fov_deg']), v['sensors.sun.min_illumination'])
+    if v['sensors.magnetometer.enabled']:
+        parts['magnetometer'] = Magnetometer(seed, v['sensors.magnetometer.std'], v['sensors.magnetometer.bias'])
+    return SensorSuite(period_ns, **parts) if parts else None
+
+
+def fitted_sensors(v: dict) -> tuple[str, ...]:
+    """Names of the sensors a dynamics section fits (``adcs_msgs_py.measurements.SENSORS`` order)."""
+    return tuple(n for n in ('gyro', 'star_tracker', 'sun', 'magnetometer') if v[f'sensors.{n}.enabled'])
+
+
+def fault_targets(v: dict) -> set[str]:
+    """The sensor fault targets (:data:`adcs_core.faults.SENSOR_FAULT_MODES`) a dynamics section has."""
+    fitted = fitted_sensors(v)
+    out = {n for n in fitted if n != 'gyro'}
+    return out | ({'gyro.x', 'gyro.y', 'gyro.z'} if 'gyro' in fitted else set())
+
