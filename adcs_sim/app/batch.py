@@ -142,7 +142,8 @@ class BatchSimulation:
         seeds = np.broadcast_to(np.asarray(d['noise.seed']), (n_runs,))
         self.measurement = MeasurementModel(seeds, d['noise.attitude_std'], d['noise.rate_std'],
                                             d['noise.gyro_bias'])
-        self.sensors = build_sensors(d, np.broadcast_to(np.asarray(d['sensors.seed']), (n_runs,)))
+        self._sensor_seeds = np.broadcast_to(np.asarray(d['sensors.seed']), (n_runs,))
+        self.sensors = build_sensors(d, self._sensor_seeds)   # rebuilt by run(): each run from t = 0
         self.record_sensors = False   # set True to get every step's readings in BatchResult.sensors
         self._measured: tuple[int, Measurements] | None = None
         self.law = self.actuation = None
@@ -291,6 +292,7 @@ class BatchSimulation:
         x = np.broadcast_to(initial_state(plant, self.dynamics), (N, plant.n_states)).copy()
         hist = self._history(x, K)
         hist['sensors'] = {}
+        self.sensors, self._measured = build_sensors(self.dynamics, self._sensor_seeds), None
         failure: list = [None] * N
         fault_applied = -1
         active = self.n_steps > 0

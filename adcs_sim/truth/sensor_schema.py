@@ -21,12 +21,43 @@ ENVIRONMENT_AVAILABLE = False
 MAX_LATENCY_STEPS = 100_000   # the star tracker keeps one attitude per step of latency
 
 
+MAX_RATE_NOISE = 1.0     # rad/sqrt(s), rad/s^1.5: a gyro noisier than this measures nothing
+MAX_ANGLE_STD = 1.0      # rad: star tracker and sun sensor noise
+MAX_RATE_BIAS = 10.0     # rad/s: gyro bias and bias instability
+MAX_FIELD = 1e-3         # T: magnetometer noise and bias (the geomagnetic field is ~5e-5 T)
+
+
+def _rate_noise(v) -> str | None:
+    return None if 0.0 <= v <= MAX_RATE_NOISE else f'must be in [0, {MAX_RATE_NOISE}], got {v!r}'
+
+
+def _angle_std(v) -> str | None:
+    return None if 0.0 <= v <= MAX_ANGLE_STD else f'must be in [0, {MAX_ANGLE_STD}] rad, got {v!r}'
+
+
+def _rate_bias(v) -> str | None:
+    return None if 0.0 <= v <= MAX_RATE_BIAS else f'must be in [0, {MAX_RATE_BIAS}] rad/s, got {v!r}'
+
+
+def _rate_biases(values) -> str | None:
+    return None if all(abs(v) <= MAX_RATE_BIAS for v in values) else \
+        f'every value must be within +-{MAX_RATE_BIAS} rad/s, got {values}'
+
+
+def _field_std(v) -> str | None:
+    return None if 0.0 <= v <= MAX_FIELD else f'must be in [0, {MAX_FIELD}] T, got {v!r}'
+
+
+def _field_biases(values) -> str | None:
+    return None if all(abs(v) <= MAX_FIELD for v in values) else f'every value must be within +-{MAX_FIELD} T, got {values}'
+
+
 def _nonzero_vector(values) -> str | None:
     return None if math.sqrt(sum(v * v for v in values)) > 1e-9 else f'must not be the zero vector, got {values}'
 
 
 def _scale_factor(values) -> str | None:
-    return None if all(v > -1.0 for v in values) else f'every scale-factor error must be > -1, got {values}'
+    return None if all(-1.0 < v <= 1.0 for v in values) else f'every scale-factor error must be in (-1, 1], got {values}'
 
 
 def _angle_below_180(v) -> str | None:
@@ -53,26 +84,26 @@ def sensor_params() -> list[Param]:
         Param('sensors.seed', 'int', default=0, check=non_negative, batch=True,
               doc='seed of the sensor noise (each sensor its own stream of it; >= 0)'),
         _enabled('gyro', 'gyro'),
-        Param('sensors.gyro.arw', 'double', default=0.0, check=non_negative,
+        Param('sensors.gyro.arw', 'double', default=0.0, check=_rate_noise,
               doc='angle random walk sigma_v (rad/sqrt(s))'),
-        Param('sensors.gyro.rrw', 'double', default=0.0, check=non_negative,
+        Param('sensors.gyro.rrw', 'double', default=0.0, check=_rate_noise,
               doc='rate random walk sigma_u of the bias (rad/s^1.5)'),
-        Param('sensors.gyro.bias', 'double_array', default=zeros, length=3, batch=True,
+        Param('sensors.gyro.bias', 'double_array', default=zeros, length=3, check=_rate_biases, batch=True,
               doc='bias at t = 0 (rad/s, body axes); constant when rrw = 0'),
         Param('sensors.gyro.scale_factor', 'double_array', default=zeros, length=3, check=_scale_factor,
-              batch=True, doc='scale-factor error per axis (fraction, > -1; 1e-4 = 100 ppm)'),
+              batch=True, doc='scale-factor error per axis (fraction, in (-1, 1]; 1e-4 = 100 ppm)'),
         Param('sensors.gyro.max_rate', 'double', default=math.inf, check=positive, finite=False,
               doc='saturation: each axis reads at most this (rad/s; .inf for none)'),
-        Param('sensors.gyro.markov_std', 'double', default=0.0, check=non_negative,
+        Param('sensors.gyro.markov_std', 'double', default=0.0, check=_rate_bias,
               doc='bias instability: stationary sigma of a first-order Gauss-Markov bias (rad/s; 0: none)'),
         Param('sensors.gyro.markov_time', 'double', default=3600.0, check=positive,
               doc='correlation time of the Gauss-Markov bias (s)'),
         _enabled('star_tracker', 'star tracker'),
         Param('sensors.star_tracker.boresight', 'double_array', default=[0.0, 0.0, 1.0], length=3,
               check=_nonzero_vector, doc='boresight in body axes (need not be unit)'),
-        Param('sensors.star_tracker.cross_std', 'double', default=0.0, check=non_negative,
+        Param('sensors.star_tracker.cross_std', 'double', default=0.0, check=_angle_std,
               doc='cross-boresight noise (rad, 1 sigma per axis)'),
-        Param('sensors.star_tracker.about_std', 'double', default=0.0, check=non_negative,
+        Param('sensors.star_tracker.about_std', 'double', default=0.0, check=_angle_std,
               doc='about-boresight noise (rad, 1 sigma)'),
         Param('sensors.star_tracker.period', 'double', default=0.0, check=non_negative,
               doc='update period (s): a multiple of control_period; 0: every step'),
@@ -83,7 +114,7 @@ def sensor_params() -> list[Param]:
         Param('sensors.star_tracker.earth_exclusion_deg', 'double', default=0.0, check=_angle_below_180,
               doc="no reading with the boresight within this angle of the Earth's limb (deg; 0: none)"),
         _enabled('sun', 'sun sensor'),
-        Param('sensors.sun.std', 'double', default=0.0, check=non_negative,
+        Param('sensors.sun.std', 'double', default=0.0, check=_angle_std,
               doc='angular noise of the sun vector (rad, 1 sigma per axis perpendicular to it)'),
         Param('sensors.sun.boresight', 'double_array', default=[0.0, 0.0, 1.0], length=3,
               check=_nonzero_vector, doc='axis of the field of view, body axes'),
@@ -92,9 +123,10 @@ def sensor_params() -> list[Param]:
         Param('sensors.sun.min_illumination', 'double', default=0.0, check=_fraction_below_1,
               doc='no reading unless the illuminated fraction of the Sun exceeds this (fraction; 0: none in umbra)'),
         _enabled('magnetometer', 'magnetometer'),
-        Param('sensors.magnetometer.std', 'double', default=0.0, check=non_negative,
+        Param('sensors.magnetometer.std', 'double', default=0.0, check=_field_std,
               doc='noise (T, 1 sigma per axis)'),
-        Param('sensors.magnetometer.bias', 'double_array', default=[0.0, 0.0, 0.0], length=3, batch=True,
+        Param('sensors.magnetometer.bias', 'double_array', default=[0.0, 0.0, 0.0], length=3, check=_field_biases,
+              batch=True,
               doc='constant bias (T, body axes)'),
     ]
 
@@ -102,6 +134,8 @@ def sensor_params() -> list[Param]:
 def _steps(v: dict, key: str) -> int:
     """A duration parameter as a whole number of control periods (ParameterError naming it if not)."""
     period_ns = int(round(float(v['control_period']) * 1e9))
+    if float(v[key]) > v['duration'] + v['control_period'] and float(v[key]) > 1e9:
+        raise ParameterError(key, f'{v[key]} s is beyond any run (duration {v["duration"]} s)')
     value_ns = int(round(float(v[key]) * 1e9))
     if value_ns % period_ns:
         raise ParameterError(key, f'must be a whole multiple of control_period ({v["control_period"]} s), '
