@@ -356,3 +356,34 @@ def test_vector_sensors_need_the_environment():
     suite = SensorSuite(10**9, magnetometer=Magnetometer(0, 1e-7))
     with pytest.raises(ValueError, match='magnetic field'):
         suite.measure(0, 0.0, np.array([0, 0, 0, 1.0]), np.zeros(3))
+
+
+def test_readings_survive_their_messages():
+    """What an estimator on the graph reads back (``*_from_msg(*_to_msg(r))``) is the model's reading:
+    value and valid bit for bit, valid or not (canonical 'no measurement'); the star tracker's
+    covariance to rounding (rotated to the inertial axes and back), the others' exactly."""
+    from adcs_msgs_py import conversions_determination as cd
+    rng = np.random.default_rng(7)
+    q = random_quaternions(rng, 1)[0]
+    sun = np.array([0.0, 0.6, 0.8])
+    env = SensorEnvironment(sun=sun, illumination=np.float64(1.0), field=np.array([2e-5, -1e-5, 3e-5]))
+    for failed in (False, True):
+        suite = _suite(3)
+        suite.star_tracker.latency = 0
+        suite.star_tracker.history = type(suite.star_tracker.history)(maxlen=1)
+        suite.apply_faults({n: FaultState('failed' if failed else 'recovered')
+                            for n in ('star_tracker', 'sun', 'magnetometer')})
+        m = suite.measure(0, 0.0, q, np.array([0.01, -0.02, 0.03]), env)
+        pairs = {'gyro': (cd.imu_to_msg, cd.imu_from_msg), 'star_tracker': (cd.star_tracker_to_msg,
+                 cd.star_tracker_from_msg), 'sun': (cd.sun_to_msg, cd.sun_from_msg),
+                 'magnetometer': (cd.magnetometer_to_msg, cd.magnetometer_from_msg)}
+        for name, (to_msg, from_msg) in pairs.items():
+            r = getattr(m, name)
+            t_ns, back = from_msg(to_msg(m.t_ns, r))
+            assert t_ns == m.t_ns and bool(back.valid) == bool(r.valid), name
+            assert bool(r.valid) == (name == 'gyro' or not failed), name
+            assert_array_equal(back.value, r.value, err_msg=name)
+            if name == 'star_tracker':
+                assert_allclose(back.cov, r.cov, rtol=0, atol=1e-12 * np.abs(r.cov).max(initial=1e-300))
+            elif name != 'sun':
+                assert_array_equal(back.cov, r.cov, err_msg=name)

@@ -23,6 +23,7 @@ from adcs_core.attitude import cross, dot, matvec, quat_multiply, rotate_to_body
 from adcs_msgs_py.measurements import Reading
 
 GYRO_AXES = ('x', 'y', 'z')
+_IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])
 
 
 def run_generators(seed, stream: int) -> tuple[list[np.random.Generator], bool]:
@@ -154,7 +155,8 @@ class StarTracker(_Model):
     boresight): ``q̃_k = q(t_{k−L}) ⊗ exp(R_bs δθ_s / 2)``, covariance ``R_bs diag(σ_c², σ_c², σ_a²)
     R_bsᵀ`` in body axes (``R_bs`` :func:`sensor_frame`).
 
-    Valid at step ``k`` only when ``k`` is a multiple of ``every`` (the update rate), ``k >= L`` (the
+    With no measurement the reading is canonical, as its message reads back: the identity quaternion
+    and a zero covariance. Valid at step ``k`` only when ``k`` is a multiple of ``every`` (the update rate), ``k >= L`` (the
     first image is not out yet), the tracker is not failed (a fault from its step on), and it was
     not blinded when the image was taken: the boresight in inertial axes ``b = R(q) b_body`` within
     ``sun_exclusion`` of the Sun direction, or within ``earth_exclusion + ρ`` of the nadir (``ρ`` the
@@ -205,8 +207,9 @@ class StarTracker(_Model):
         q_seen, blinded = self.history[0]
         due = k % self.every == 0 and k >= self.latency and not self.failed
         dtheta = matvec(self.frame, self.std * n)
-        value = quat_multiply(q_seen, rotation_quaternion(dtheta))
-        return self._reading(value, self.cov, np.logical_and(due, ~blinded))
+        valid = np.logical_and(due, ~blinded)
+        value = np.where(valid[:, None], quat_multiply(q_seen, rotation_quaternion(dtheta)), _IDENTITY)
+        return self._reading(value, np.where(valid[:, None, None], self.cov, 0.0), valid)
 
 
 class SunSensor(_Model):
@@ -215,7 +218,7 @@ class SunSensor(_Model):
     ``s̃ = s cos|v| + (v × s) sin|v|/|v|``, a unit vector whose error has covariance ``σ² (I − s sᵀ)``
     to first order (the QUEST measurement model). Valid when the illuminated fraction exceeds
     ``min_illumination`` (0: not in umbra), the Sun is within ``fov`` of the boresight and the sensor
-    has not failed; the value is then the zero vector (what the message carries). The covariance is
+    has not failed; otherwise the value is the zero vector (what the message carries). The covariance is
     reported as zeros (the message type has none; estimators use their own parameters).
     """
 
@@ -244,7 +247,8 @@ class SunSensor(_Model):
 
 class Magnetometer(_Model):
     """Three-axis magnetometer: ``b̃ = R(q)ᵀ B_I + b + σ N`` (T, body axes), covariance ``σ² I``;
-    valid unless failed. Draws per step and run: ``N`` (3)."""
+    valid unless failed (then a zero covariance, as the message reads back). Draws per step and run:
+    ``N`` (3)."""
 
     STREAM = 4
 
@@ -258,4 +262,5 @@ class Magnetometer(_Model):
         q = self._batch(q, 4)
         n = _normals(self.rngs, 3)
         b = rotate_to_body(q, self._batch(field, 3)) + self.bias + self.std * n
-        return self._reading(b, self.cov, np.full(self.n_runs, not self.failed))
+        return self._reading(b, self.cov if not self.failed else np.zeros_like(self.cov),
+                             np.full(self.n_runs, not self.failed))
