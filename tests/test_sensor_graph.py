@@ -122,3 +122,28 @@ def test_node_survives_sensor_edge_cases(ros_domain, tmp_path):
     assert all((m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z) == (1e-9, -1e-9, 0.0) for m in imu)
     stars = [m for _, _, m in read_messages(bag_dir, {'/sensors/star_tracker'})]
     assert all(m.pose.covariance[21] == cd.NO_MEASUREMENT for m in stars)
+
+
+def test_node_waits_for_the_sensor_subscribers(ros_domain, tmp_path):
+    """startup.sensor_subscribers: 1 (what the runner sets for an estimator): the run starts only once
+    sensors/imu and sensors/star_tracker each have a subscriber, which then gets every step from t = 0."""
+    from adcs_msgs_py import topics
+    from adcs_sim.nodes.dynamics import DynamicsNode
+    n = 6
+    scenario = make_scenario(tmp_path, {
+        'dynamics': {'duration': float(n), 'lockstep.commands': ['none'], 'startup.sensor_subscribers': 1,
+                     'startup.timeout': 60.0, 'sensors.gyro.enabled': True, 'sensors.gyro.arw': 1e-4,
+                     'sensors.star_tracker.enabled': True, 'sensors.star_tracker.cross_std': 1e-5}},
+        drop=('pd_controller',))
+    got = {topics.SENSOR_IMU: [], topics.SENSOR_STAR_TRACKER: []}
+    with InProcessGraph(scenario) as graph:
+        listener = graph.plain('sensor_listener')
+        for name, out in got.items():
+            spec = topics.spec(name)
+            listener.create_subscription(spec.msg_type, name, lambda m, out=out: out.append(m),
+                                         topics.subscriber_qos(spec.qos))
+        dyn = graph.add(DynamicsNode)
+        dyn.run(graph.executor)
+        graph.spin_until(lambda: all(len(v) == n + 1 for v in got.values()))
+    for msgs in got.values():
+        assert [m.header.stamp.sec for m in msgs] == list(range(n + 1))

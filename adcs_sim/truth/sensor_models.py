@@ -95,7 +95,9 @@ class Gyro(_Model):
     (rad/√s), ``σ_u`` the rate random walk (rad/s^1.5), ``s`` the scale-factor errors. Optional bias
     instability as a first-order Gauss-Markov ``m_{k+1} = φ m_k + σ_m (1 − φ²)^½ N_m``,
     ``φ = exp(−Δt/τ)``, ``m_0 = 0``; ``b_f`` the fault bias (a bias jump). The output is clipped to
-    ``±max_rate`` per axis (saturation); a stuck axis repeats its reading. The reported covariance
+    ``±max_rate`` per axis (saturation); a stuck axis repeats its reading. The rate term is the
+    true rate at ``t_k`` (the state of the step; the plant's rate varies within the step, which the
+    estimator's constant-rate propagation does not model, as in flight). The reported covariance
     is that of the white part, ``(σ_v²/Δt + σ_u² Δt/12) I``. Draws per step and run: ``N_v`` (3),
     ``N_u`` (3), then ``N_m`` (3) when the Markov term is on.
     """
