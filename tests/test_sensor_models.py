@@ -18,6 +18,7 @@ from scipy.stats import chi2
 from adcs_core.attitude import quat_conjugate, quat_multiply, quat_normalize, rotate_to_body, rotation_from_quaternion
 from adcs_core.faults import FaultState
 from adcs_sim.truth.sensor_models import (
+    CoarseSunSensors,
     Gyro,
     Magnetometer,
     StarTracker,
@@ -387,3 +388,35 @@ def test_readings_survive_their_messages():
                 assert_allclose(back.cov, r.cov, rtol=0, atol=1e-12 * np.abs(r.cov).max(initial=1e-300))
             elif name != 'sun':
                 assert_array_equal(back.cov, r.cov, err_msg=name)
+
+
+CUBE = [1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1]
+
+
+def test_coarse_sun_sensors_least_squares_sun_vector():
+    """Six cosine detectors on the cube faces: noiseless, the three lit faces give the Sun exactly
+    (whatever the illuminated fraction); a Sun along an axis lights one face only (no reading); the
+    noisy error is sigma per axis perpendicular to the Sun (chi-square), zero along it to first order."""
+    rng = np.random.default_rng(8)
+    N = 12
+    q = random_quaternions(rng, N)
+    sun = rng.normal(size=(N, 3))
+    sun /= np.linalg.norm(sun, axis=-1, keepdims=True)
+    s_true = rotate_to_body(q, sun)
+    r = CoarseSunSensors(np.arange(N), CUBE).measure(q, sun, np.full(N, 0.3))
+    assert r.valid.all()
+    assert_allclose(r.value, s_true, atol=2e-15)
+    axis = CoarseSunSensors(0, CUBE).measure(np.array([0, 0, 0, 1.0]), np.array([1.0, 0, 0]), 1.0)
+    assert not axis.valid and not np.any(axis.value)
+    assert not CoarseSunSensors(0, CUBE).measure(q[0], sun[0], 0.0).valid     # umbra
+    sigma, K = 1e-4, 300
+    css = CoarseSunSensors(np.arange(N), CUBE, std=sigma)
+    err = np.stack([css.measure(q, sun, np.ones(N)).value - s_true for _ in range(K)])
+    assert chi2_ok(float(np.sum(err ** 2) / sigma ** 2), 2 * N * K)
+    assert np.abs(np.einsum('kni,ni->kn', err, s_true)).max() < 50 * sigma ** 2
+    # a run of the batch equals the run alone, bit for bit
+    for i in (0, 5):
+        alone = CoarseSunSensors(i, CUBE, std=sigma)
+        batch = CoarseSunSensors(np.arange(N), CUBE, std=sigma)
+        for _ in range(3):
+            assert_array_equal(alone.measure(q[i], sun[i], 1.0).value, batch.measure(q, sun, np.ones(N)).value[i])

@@ -59,7 +59,8 @@ BAD = [
     ('sensors.star_tracker.latency', 1e6, 'at most'),
     ('sensors.star_tracker.sun_exclusion_deg', 180.0, r'\[0, 180\)'),
     ('sensors.star_tracker.earth_exclusion_deg', -5.0, r'\[0, 180\)'),
-    ('sensors.sun.std', -1.0, 'rad'), ('sensors.sun.boresight', [1.0, 2.0], '3 values'),
+    ('sensors.sun.std', -1.0, 'rad'), ('sensors.sun.type', 'fine', 'one of'),
+    ('sensors.sun.normals', [1.0, 0.0, 0.0], 'only for sensors.sun.type'), ('sensors.sun.boresight', [1.0, 2.0], '3 values'),
     ('sensors.sun.fov_deg', 0.0, r'\(0, 180\]'), ('sensors.sun.min_illumination', 1.0, r'\[0, 1\)'),
     ('sensors.magnetometer.std', math.inf, 'finite'), ('sensors.magnetometer.bias', [1.0, math.nan, 0.0], 'finite'),
     ('sensors.sun.enabled', True, 'needs environment'), ('sensors.magnetometer.enabled', True, 'needs environment'),
@@ -71,6 +72,18 @@ def test_bad_sensor_values_are_refused_naming_the_key(key, value, text):
     with pytest.raises(ParameterError, match=text) as err:
         validate(**{key: value})
     assert err.value.key == key and f'dynamics.ros__parameters.{key}' in str(err.value)
+
+
+@pytest.mark.parametrize('normals, text', [
+    ([1.0, 0.0, 0.0, 0.0, 1.0, 0.0], 'at least 3'), ([1.0, 0.0, 0.0, 0.0, 1.0], 'at least 3'),
+    ([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0], 'non-zero'),
+    ([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0], 'span 3-D')])
+def test_coarse_sun_sensor_normals_are_checked(normals, text):
+    with pytest.raises(ParameterError, match=text) as err:
+        validate(**{'sensors.sun.type': 'coarse', 'sensors.sun.normals': normals})
+    assert err.value.key == 'sensors.sun.normals'
+    # a valid assembly passes the sensor checks
+    assert validate(**{'sensors.sun.type': 'coarse', 'sensors.sun.normals': [1.0, 0, 0, 0, 1, 0, 0, 0, 1]})
 
 
 def test_every_sensor_key_has_a_bad_case():

@@ -266,3 +266,57 @@ class Magnetometer(_Model):
         b = rotate_to_body(q, self._batch(field, 3)) + self.bias + self.std * n
         return self._reading(b, self.cov if not self.failed else np.zeros_like(self.cov),
                              np.full(self.n_runs, not self.failed))
+
+
+def _solve3(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``A⁻¹ b`` for (runs, 3, 3) symmetric ``A`` by the adjugate (element-wise per run, fixed order),
+    and ``det A``; rows with ``det A = 0`` give zeros."""
+    c0 = cross(A[:, 1], A[:, 2])
+    c1 = cross(A[:, 2], A[:, 0])
+    c2 = cross(A[:, 0], A[:, 1])
+    det = dot(A[:, 0], c0)
+    x = c0 * b[:, 0:1] + c1 * b[:, 1:2] + c2 * b[:, 2:3]   # adj(A) b for symmetric A
+    safe = np.where(det == 0.0, 1.0, det)
+    return np.where((det == 0.0)[:, None], 0.0, x / safe[:, None]), det
+
+
+class CoarseSunSensors(_Model):
+    """An assembly of cosine photodiodes (coarse sun sensors) with unit normals ``n_i`` (body axes):
+    each reads ``I_i = f max(0, n_i·s) + σ N_i`` clipped at 0 (``f`` the illuminated fraction; 0 when
+    the Sun is beyond the detector's ``fov`` from its normal), in units of the full-Sun signal. The
+    assembly's sun vector is the least-squares solution over the detectors that see the Sun,
+    ``ŝ = unit((Σ n_i n_iᵀ)⁻¹ Σ I_i n_i)``; valid when at least three detectors spanning 3-D see the
+    Sun (``det Σ n_i n_iᵀ > 1e-6``), the fraction exceeds ``min_illumination`` and it has not failed
+    (else the zero vector). Covariance reported as zeros, as :class:`SunSensor`. Draws per step and
+    run: one normal per detector."""
+
+    STREAM = 3   # the sun sensor's stream: one sun sensor is fitted, of either kind
+
+    def __init__(self, seed, normals, std: float = 0.0, fov: float = 0.5 * math.pi,
+                 min_illumination: float = 0.0) -> None:
+        super().__init__(seed, self.STREAM)
+        n = np.asarray(normals, dtype=float).reshape(-1, 3)
+        self.normals = n / np.linalg.norm(n, axis=-1, keepdims=True)
+        self.std = float(std)
+        self.cos_fov = math.cos(fov)
+        self.min_illumination = float(min_illumination)
+        self.cov = np.zeros((self.n_runs, 3, 3))
+
+    def measure(self, q, sun, illumination) -> Reading:
+        q = self._batch(q, 4)
+        noise = _normals(self.rngs, len(self.normals))
+        s = unit(rotate_to_body(q, self._batch(sun, 3)))
+        frac = np.broadcast_to(np.asarray(illumination, dtype=float), (self.n_runs,))
+        A, b = np.zeros((self.n_runs, 3, 3)), np.zeros((self.n_runs, 3))
+        for i, n_i in enumerate(self.normals):          # fixed order over the detectors
+            c = dot(s, np.broadcast_to(n_i, s.shape))
+            sees = (c > 0.0) & (c >= self.cos_fov)
+            signal = np.maximum(np.where(sees, frac * c, 0.0) + self.std * noise[:, i], 0.0)
+            w = sees.astype(float)
+            A = A + w[:, None, None] * np.outer(n_i, n_i)
+            b = b + (w * signal)[:, None] * n_i
+        x, det = _solve3(A, b)
+        norm = np.sqrt(dot(x, x))
+        valid = (det > 1e-6) & (norm > 0.0) & (frac > self.min_illumination) & (not self.failed)
+        value = np.where(valid[:, None], x / np.where(norm > 0.0, norm, 1.0)[:, None], 0.0)
+        return self._reading(value, self.cov, valid)

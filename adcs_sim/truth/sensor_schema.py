@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from adcs_msgs_py.params import Param, ParameterError, non_negative, positive
-from adcs_sim.truth.sensor_models import Gyro, Magnetometer, StarTracker, SunSensor
+from adcs_sim.truth.sensor_models import CoarseSunSensors, Gyro, Magnetometer, StarTracker, SunSensor
 from adcs_sim.truth.sensor_suite import SensorSuite
 
 # The environment models (Sun direction, eclipse, geomagnetic field) are not on this branch: the sun
@@ -114,12 +116,18 @@ def sensor_params() -> list[Param]:
         Param('sensors.star_tracker.earth_exclusion_deg', 'double', default=0.0, check=_angle_below_180,
               doc="no reading with the boresight within this angle of the Earth's limb (deg; 0: none)"),
         _enabled('sun', 'sun sensor'),
+        Param('sensors.sun.type', 'string', default='vector', choices=('vector', 'coarse'),
+              doc='vector: a sun vector sensor (std, boresight, fov_deg); coarse: an assembly of cosine '
+                  'detectors (normals, std, fov_deg per detector) and its least-squares sun vector'),
+        Param('sensors.sun.normals', 'double_array', default=[],
+              doc='coarse: detector normals in body axes, 3 per detector (at least 3 spanning 3-D)'),
         Param('sensors.sun.std', 'double', default=0.0, check=_angle_std,
-              doc='angular noise of the sun vector (rad, 1 sigma per axis perpendicular to it)'),
+              doc='vector: angular noise of the sun vector (rad, 1 sigma per axis perpendicular to it); '
+                  'coarse: noise of each detector, in units of the full-Sun signal'),
         Param('sensors.sun.boresight', 'double_array', default=[0.0, 0.0, 1.0], length=3,
               check=_nonzero_vector, doc='axis of the field of view, body axes'),
         Param('sensors.sun.fov_deg', 'double', default=90.0, check=_half_angle,
-              doc='field-of-view half angle (deg; 180: the whole sky)'),
+              doc='field-of-view half angle (deg; 180: the whole sky); coarse: of each detector'),
         Param('sensors.sun.min_illumination', 'double', default=0.0, check=_fraction_below_1,
               doc='no reading unless the illuminated fraction of the Sun exceeds this (fraction; 0: none in umbra)'),
         _enabled('magnetometer', 'magnetometer'),
@@ -149,11 +157,30 @@ def check_sensors(v: dict) -> None:
     if _steps(v, 'sensors.star_tracker.latency') > MAX_LATENCY_STEPS:
         raise ParameterError('sensors.star_tracker.latency', f'at most {MAX_LATENCY_STEPS} control periods, '
                              f'got {v["sensors.star_tracker.latency"]} s')
+    _check_coarse(v)
     if not ENVIRONMENT_AVAILABLE:
         for name in ('sun', 'magnetometer'):
             if v[f'sensors.{name}.enabled']:
                 raise ParameterError(f'sensors.{name}.enabled', 'needs environment.* (the Sun direction, '
                                      'eclipse and geomagnetic field models), which this build does not have yet')
+
+
+def _check_coarse(v: dict) -> None:
+    normals = v['sensors.sun.normals']
+    if v['sensors.sun.type'] != 'coarse':
+        if normals:
+            raise ParameterError('sensors.sun.normals', 'only for sensors.sun.type: coarse')
+        return
+    if len(normals) % 3 or len(normals) < 9:
+        raise ParameterError('sensors.sun.normals', f'expected 3 values per detector and at least 3 '
+                             f'detectors, got {len(normals)} values')
+    n = np.asarray(normals, dtype=float).reshape(-1, 3)
+    length = np.linalg.norm(n, axis=-1)
+    if np.any(~(length > 1e-9)) or not np.all(np.isfinite(length)):
+        raise ParameterError('sensors.sun.normals', 'every detector normal must be a finite non-zero vector')
+    u = n / length[:, None]
+    if np.linalg.matrix_rank(u, tol=1e-6) < 3:
+        raise ParameterError('sensors.sun.normals', 'the detector normals must span 3-D')
 
 
 def build_sensors(v: dict, seed=None) -> SensorSuite | None:
@@ -172,7 +199,10 @@ def build_sensors(v: dict, seed=None) -> SensorSuite | None:
             seed, v[st + 'boresight'], v[st + 'cross_std'], v[st + 'about_std'],
             max(1, _steps(v, st + 'period')), _steps(v, st + 'latency'),
             math.radians(v[st + 'sun_exclusion_deg']), math.radians(v[st + 'earth_exclusion_deg']))
-    if v['sensors.sun.enabled']:
+    if v['sensors.sun.enabled'] and v['sensors.sun.type'] == 'coarse':
+        parts['sun'] = CoarseSunSensors(seed, v['sensors.sun.normals'], v['sensors.sun.std'],
+                                        math.radians(v['sensors.sun.fov_deg']), v['sensors.sun.min_illumination'])
+    elif v['sensors.sun.enabled']:
         parts['sun'] = SunSensor(seed, v['sensors.sun.std'], v['sensors.sun.boresight'],
                                  math.radians(v['sensors.sun.fov_deg']), v['sensors.sun.min_illumination'])
     if v['sensors.magnetometer.enabled']:

@@ -15,7 +15,7 @@ import numpy as np
 
 from adcs_core.faults import FaultState
 from adcs_msgs_py.measurements import Measurements
-from adcs_sim.truth.sensor_models import GYRO_AXES, Gyro, Magnetometer, StarTracker, SunSensor
+from adcs_sim.truth.sensor_models import GYRO_AXES, CoarseSunSensors, Gyro, Magnetometer, StarTracker, SunSensor
 
 
 @dataclass(frozen=True)
@@ -37,7 +37,7 @@ class SensorSuite:
     """The fitted sensors (each None when not fitted) on the control step grid ``period_ns``."""
 
     def __init__(self, period_ns: int, gyro: Gyro | None = None, star_tracker: StarTracker | None = None,
-                 sun: SunSensor | None = None, magnetometer: Magnetometer | None = None) -> None:
+                 sun: SunSensor | CoarseSunSensors | None = None, magnetometer: Magnetometer | None = None) -> None:
         self.period_ns = int(period_ns)
         self.gyro, self.star_tracker, self.sun, self.magnetometer = gyro, star_tracker, sun, magnetometer
         self.faults: dict[str, FaultState] = {}
