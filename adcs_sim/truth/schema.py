@@ -165,8 +165,8 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
           doc='matched subscribers of `state` to wait for before t = 0 (-1: one per awaited command '
               'topic, plus the recorder)'),
     Param('startup.sensor_subscribers', 'int', default=-1,
-          doc='matched subscribers of each fitted sensor\'s topic (sensors/*) to wait for before t = 0 '
-              '(-1: the recorder, if expected; the runner sets it when an estimator listens)'),
+          doc='matched subscribers of each fitted sensor\'s topic (sensors/*) to wait for before t = 0, '
+              'the recorder included (-1: the recorder, if expected; the runner sets it when an estimator listens)'),
     *startup_params(),
     expect_faults_param(),
 ], cross_check=_dynamics_cross_check, doc='plant, simulated clock and lockstep loop')
