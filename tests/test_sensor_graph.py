@@ -79,7 +79,8 @@ def test_graph_sensor_messages_equal_the_batch_measurements(ros_domain, tmp_path
     q_graph = np.array([[m.pose.pose.orientation.x, m.pose.pose.orientation.y, m.pose.pose.orientation.z,
                          m.pose.pose.orientation.w] for _, m in sorted(truth.items())])
     assert_array_equal(q_graph, result.q[0])           # the same truth, bit for bit
-    checks = {'/sensors/imu': ('gyro', _assert_imu_equal), '/sensors/star_tracker': ('star_tracker', _assert_pose_equal)}
+    checks = {'/sensors/imu': ('gyro', _assert_imu_equal),
+              '/sensors/star_tracker': ('star_tracker', _assert_pose_equal)}
     seen = {topic: 0 for topic in checks}
     for topic, _, msg in read_messages(bag_dir, set(checks)):
         name, check = checks[topic]

@@ -158,7 +158,9 @@ class StarTracker(_Model):
     R_bsᵀ`` in body axes (``R_bs`` :func:`sensor_frame`).
 
     With no measurement the reading is canonical, as its message reads back: the identity quaternion
-    and a zero covariance. Valid at step ``k`` only when ``k`` is a multiple of ``every`` (the update rate), ``k >= L`` (the
+    and a zero covariance.
+
+    Valid at step ``k`` only when ``k`` is a multiple of ``every`` (the update rate), ``k >= L`` (the
     first image is not out yet), the tracker is not failed (a fault from its step on), and it was
     not blinded when the image was taken: the boresight in inertial axes ``b = R(q) b_body`` within
     ``sun_exclusion`` of the Sun direction, or within ``earth_exclusion + ρ`` of the nadir (``ρ`` the

@@ -51,7 +51,8 @@ def _field_std(v) -> str | None:
 
 
 def _field_biases(values) -> str | None:
-    return None if all(abs(v) <= MAX_FIELD for v in values) else f'every value must be within +-{MAX_FIELD} T, got {values}'
+    return None if all(abs(v) <= MAX_FIELD for v in values) else \
+        f'every value must be within +-{MAX_FIELD} T, got {values}'
 
 
 def _nonzero_vector(values) -> str | None:
@@ -59,7 +60,8 @@ def _nonzero_vector(values) -> str | None:
 
 
 def _scale_factor(values) -> str | None:
-    return None if all(-1.0 < v <= 1.0 for v in values) else f'every scale-factor error must be in (-1, 1], got {values}'
+    return None if all(-1.0 < v <= 1.0 for v in values) else \
+        f'every scale-factor error must be in (-1, 1], got {values}'
 
 
 def _angle_below_180(v) -> str | None:
