@@ -194,3 +194,19 @@ def test_batch_applies_sensor_faults_without_wheels_and_reruns_from_t0(tmp_path)
     second = sim.run()
     for name in ('gyro', 'star_tracker'):
         assert_array_equal(first.sensors[name]['value'], second.sensors[name]['value'])
+
+
+def test_batch_records_the_gyro_true_bias(tmp_path):
+    """BatchResult.sensors['gyro']['bias'] is the bias in each reading: a noiseless gyro with a bias
+    jump on x at 2 s reads rate * (1 + s) + that bias exactly."""
+    scenario = make_scenario(tmp_path, {
+        'dynamics': {'duration': 4.0, 'sensors.gyro.enabled': True, 'sensors.gyro.bias': [1e-3, 0.0, -2e-3]},
+        'fault_injector': {'schedule.time': [2.0], 'schedule.actuator': ['gyro.x'], 'schedule.mode': ['bias'],
+                           'schedule.value': [0.05]}})
+    sim = BatchSimulation.from_runs([validate_scenario(scenario)])
+    sim.record_sensors = True
+    result = sim.run()
+    bias = result.sensors['gyro']['bias'][0]
+    assert_array_equal(bias[:2], [[1e-3, 0.0, -2e-3]] * 2)
+    assert_array_equal(bias[2:], [[1e-3 + 0.05, 0.0, -2e-3]] * 3)
+    assert_array_equal(result.sensors['gyro']['value'][0], result.w[0] + bias)

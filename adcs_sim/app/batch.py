@@ -74,7 +74,8 @@ class BatchResult:
     thruster_impulse: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))  # (N, K + 1, n) N s
     pointing: tuple | None = None  # (σ̂, τ̂) of a pointing law (seed 003), as RunData.pointing
     # With record_sensors: {sensor: {'value': (N, K + 1, 3 or 4), 'cov': (N, K + 1, 3, 3), 'valid':
-    # (N, K + 1)}}, each step's reading (NaN / False where a run has no state)
+    # (N, K + 1)}}, each step's reading (NaN / False where a run has no state); the gyro's also 'bias'
+    # (N, K + 1, 3), the true bias in each reading (Gyro.true_bias)
     sensors: dict = field(default_factory=dict)
 
     @property
@@ -246,6 +247,9 @@ class BatchSimulation:
                 'cov': np.full((self.n_runs, K, 3, 3), math.nan), 'valid': np.zeros((self.n_runs, K), bool)})
             for key in ('value', 'cov', 'valid'):
                 rec[key][has_state, k] = getattr(r, key)[has_state]
+        if 'gyro' in hist['sensors']:   # the bias in each reading, for an estimator's bias error
+            rec = hist['sensors']['gyro'].setdefault('bias', np.full((self.n_runs, K, 3), math.nan))
+            rec[has_state, k] = self.sensors.gyro.true_bias[has_state]
 
     def _control(self, k: int, t: float, x: np.ndarray, observe) -> tuple:
         """Step ``k``'s commands as the controller node computes them: (values, momentum mode)."""
