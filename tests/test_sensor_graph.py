@@ -9,11 +9,16 @@ import numpy as np
 from conftest import InProcessGraph, make_scenario, run_lockstep_graph
 from numpy.testing import assert_array_equal
 
+from adcs_controllers.nodes.pd_controller import PdController
 from adcs_msgs_py import conversions_determination as cd
+from adcs_msgs_py import topics
 from adcs_msgs_py.measurements import Reading
 from adcs_sim.app.batch import BatchSimulation
 from adcs_sim.app.scenario_files import validate_scenario
 from adcs_sim.bag.reader import read_messages
+from adcs_sim.nodes.dynamics import DynamicsNode
+from adcs_sim.nodes.fault_injector import FaultInjectorNode
+from adcs_sim.nodes.recorder import RecorderNode
 
 SENSORS = {'sensors.seed': 11,
            'sensors.gyro.enabled': True, 'sensors.gyro.arw': 1e-4, 'sensors.gyro.rrw': 1e-6,
@@ -54,7 +59,6 @@ def _assert_pose_equal(got, want):
 
 
 def test_graph_sensor_messages_equal_the_batch_measurements(ros_domain, tmp_path):
-    from adcs_controllers.nodes.pd_controller import PdController
     n = 40
     bag_dir = tmp_path / 'bag'
     expect = {'startup.expect_recorder': True, 'startup.expect_faults': True}
@@ -95,9 +99,6 @@ def test_node_survives_sensor_edge_cases(ros_domain, tmp_path):
     """Free flight at zero rate with a gyro saturating at a tiny limit, a star tracker whose latency
     exceeds the run and that fails at t = 0: every step is published (no measurement marked), the run
     ends normally, nothing is rejected."""
-    from adcs_sim.nodes.dynamics import DynamicsNode
-    from adcs_sim.nodes.fault_injector import FaultInjectorNode
-    from adcs_sim.nodes.recorder import RecorderNode
     n = 12
     bag_dir = tmp_path / 'bag'
     scenario = make_scenario(tmp_path, {
@@ -128,8 +129,6 @@ def test_node_survives_sensor_edge_cases(ros_domain, tmp_path):
 def test_node_waits_for_the_sensor_subscribers(ros_domain, tmp_path):
     """startup.sensor_subscribers: 1 (what the runner sets for an estimator): the run starts only once
     sensors/imu and sensors/star_tracker each have a subscriber, which then gets every step from t = 0."""
-    from adcs_msgs_py import topics
-    from adcs_sim.nodes.dynamics import DynamicsNode
     n = 6
     scenario = make_scenario(tmp_path, {
         'dynamics': {'duration': float(n), 'lockstep.commands': ['none'], 'startup.sensor_subscribers': 1,

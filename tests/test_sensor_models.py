@@ -17,6 +17,7 @@ from scipy.stats import chi2
 
 from adcs_core.attitude import quat_conjugate, quat_multiply, quat_normalize, rotate_to_body, rotation_from_quaternion
 from adcs_core.faults import FaultState
+from adcs_msgs_py import conversions_determination as cd
 from adcs_sim.truth.sensor_models import (
     CoarseSunSensors,
     Gyro,
@@ -363,7 +364,6 @@ def test_readings_survive_their_messages():
     """What an estimator on the graph reads back (``*_from_msg(*_to_msg(r))``) is the model's reading:
     value and valid bit for bit, valid or not (canonical 'no measurement'); the star tracker's
     covariance to rounding (rotated to the inertial axes and back), the others' exactly."""
-    from adcs_msgs_py import conversions_determination as cd
     rng = np.random.default_rng(7)
     q = random_quaternions(rng, 1)[0]
     sun = np.array([0.0, 0.6, 0.8])
