@@ -21,7 +21,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from adcs_core.attitude import quat_norm
-from adcs_core.faults import FAULT_ERROR_MODES, FAULT_OK_MODES, FaultState
+from adcs_core.faults import FAULT_ERROR_MODES, FAULT_OK_MODES, SENSOR_FAULT_MODES, FaultState
 
 NS_PER_S = 1_000_000_000
 # A quaternion whose norm is further than this from 1 is rejected (not silently renormalised).
@@ -370,11 +370,13 @@ MAX_FAULT_EVENTS = 100  # snapshots in a schedule: the depth of the latched faul
 def _fault_status(status: DiagnosticStatus, known: Mapping[str, int]) -> tuple[str, FaultState, tuple[int, int]]:
     """``(actuator, FaultState, (event, events))`` of one status of a ``faults`` message."""
     name = status.name
-    if name not in known:
-        raise InvalidMessage(f'faults: unknown actuator {name!r} (known: {sorted(known)})')
+    if name not in known and name not in SENSOR_FAULT_MODES:
+        raise InvalidMessage(f'faults: unknown actuator {name!r} (known: {sorted(known)} and the sensor '
+                             f'targets {list(SENSOR_FAULT_MODES)})')
     values = {kv.key: kv.value for kv in status.values}
     mode = values.get('mode', status.message)
-    if mode not in FAULT_ERROR_MODES + FAULT_OK_MODES:
+    allowed = SENSOR_FAULT_MODES[name] if name in SENSOR_FAULT_MODES else FAULT_ERROR_MODES
+    if mode not in allowed + FAULT_OK_MODES:
         raise InvalidMessage(f'faults: unknown mode {mode!r} for {name!r}')
     try:
         value, t = float(values.get('value', '0')), float(values.get('time', '0'))

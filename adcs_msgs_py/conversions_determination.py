@@ -54,6 +54,9 @@ from adcs_msgs_py.measurements import Estimate, Reading
 
 NO_MEASUREMENT = -1.0        # element 0 of a covariance: no measurement this step (REP 145)
 UNIT_VECTOR_TOLERANCE = 1e-6  # a sun vector whose norm is further than this from 1 (and not 0) is refused
+# A sun vector within this of unit norm is taken as it is (not renormalised): the sensor model's unit
+# vectors then read back bit for bit, so an estimator on the graph sees the batch engine's numbers.
+UNIT_AS_IS = 8 * float(np.finfo(float).eps)
 SYMMETRY_TOLERANCE = 1e-9     # on the correlation matrix: asymmetry and negative eigenvalues allowed
 
 _IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])
@@ -194,7 +197,7 @@ def sun_from_msg(msg: Vector3Stamped, name: str = 'sensors/sun') -> tuple[int, R
         return t_ns, Reading(s, _ZERO3, np.bool_(False))
     if abs(n - 1.0) > UNIT_VECTOR_TOLERANCE:
         raise InvalidMessage(f'{name}: sun vector norm {n:.9g} is neither 1 nor 0')
-    return t_ns, Reading(s / n, _ZERO3, np.bool_(True))
+    return t_ns, Reading(s if abs(n - 1.0) <= UNIT_AS_IS else s / n, _ZERO3, np.bool_(True))
 
 
 # --- magnetometer: sensor_msgs/MagneticField ----------------------------------------------------

@@ -6,7 +6,10 @@ thousands of runs. This engine runs the *same* code as the graph with a leading 
 * the plant (:class:`adcs_sim.truth.plant.Plant`, built by :func:`adcs_sim.truth.schema.build_plant` from
   the ``dynamics`` section) with the same fixed-step RK4 and zero-order hold over each control
   period, on the same time grid (:func:`adcs_sim.truth.schema.step_timing`);
-* the same measurement model (:class:`adcs_sim.truth.sensors.MeasurementModel`);
+* the same measurement model (:class:`adcs_sim.truth.sensors.MeasurementModel`) and the same sensor
+  suite (:func:`adcs_sim.truth.sensor_schema.build_sensors`): :meth:`BatchSimulation._measure` gives
+  step ``k``'s :class:`~adcs_msgs_py.measurements.Measurements` (what the dynamics node publishes on
+  ``sensors/*``), recorded into :attr:`BatchResult.sensors` when ``record_sensors`` is set;
 * the controller section's law object (:data:`adcs_sim.app.registry.NODES` ``[section].law``, the
   one its node builds) and the same actuation (:class:`adcs_controllers.laws.allocation.Actuation`:
   minimum-norm allocation and saturation, or wheel speed commands for a law whose ``output`` is
@@ -36,7 +39,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from adcs_core.attitude import quat_normalize
-from adcs_core.faults import FAULT_ERROR_MODES
+from adcs_core.faults import FAULT_ERROR_MODES, split_snapshot
+from adcs_msgs_py.measurements import Measurements
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app.analysis import RunData, run_metrics
 from adcs_sim.app.registry import NODES
@@ -44,6 +48,7 @@ from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.fault_schedule import fault_schedule
 from adcs_sim.truth.plant import ReactionWheels, WheelCommand
 from adcs_sim.truth.schema import build_plant, initial_state, step_timing
+from adcs_sim.truth.sensor_schema import build_sensors
 from adcs_sim.truth.sensors import MeasurementModel
 from adcs_sim.truth.thrusters import Thrusters, step_pulsed
 
@@ -68,6 +73,10 @@ class BatchResult:
     thruster_on_time: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))  # (N, K, n) s
     thruster_impulse: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))  # (N, K + 1, n) N s
     pointing: tuple | None = None  # (σ̂, τ̂) of a pointing law (seed 003), as RunData.pointing
+    # With record_sensors: {sensor: {'value': (N, K + 1, 3 or 4), 'cov': (N, K + 1, 3, 3), 'valid':
+    # (N, K + 1)}}, each step's reading (NaN / False where a run has no state); the gyro's also 'bias'
+    # (N, K + 1, 3), the true bias in each reading (Gyro.true_bias)
+    sensors: dict = field(default_factory=dict)
 
     @property
     def n_runs(self) -> int:
@@ -134,6 +143,10 @@ class BatchSimulation:
         seeds = np.broadcast_to(np.asarray(d['noise.seed']), (n_runs,))
         self.measurement = MeasurementModel(seeds, d['noise.attitude_std'], d['noise.rate_std'],
                                             d['noise.gyro_bias'])
+        self._sensor_seeds = np.broadcast_to(np.asarray(d['sensors.seed']), (n_runs,))
+        self.sensors = build_sensors(d, self._sensor_seeds)   # rebuilt by run(): each run from t = 0
+        self.record_sensors = False   # set True to get every step's readings in BatchResult.sensors
+        self._measured: tuple[int, Measurements] | None = None
         self.law = self.actuation = None
         if self.controller is not None:
             p = sections[self.controller]
@@ -170,7 +183,11 @@ class BatchSimulation:
         due = max((i for i, (ts, _) in enumerate(self.fault_schedule) if ts <= t_ns), default=-1)
         if due <= applied:
             return applied
-        snapshot = self.fault_schedule[due][1]
+        snapshot, sensors = split_snapshot(self.fault_schedule[due][1])
+        if self.sensors is not None and sensors:
+            self.sensors.apply_faults(sensors)
+        if self.wheels is None:
+            return due
         self.wheels.apply_faults(snapshot)
         if self.actuation is not None and self.actuation.kind == 'wheels' \
                 and self.actuation.follow_faults(snapshot):
@@ -207,6 +224,32 @@ class BatchSimulation:
         if n_wheels:
             hist['speed'][:, 0] = x[:, plant.slices['wheels']][:, :n_wheels]
         return hist
+
+    def _measure(self, k: int, t: float, x: np.ndarray) -> Measurements | None:
+        """Step ``k``'s sensor readings of the state ``x`` (N, n) at ``t_k`` (None: no sensor fitted),
+        as the dynamics node measures them; computed once per step (a second call returns them)."""
+        if self.sensors is None:
+            return None
+        if self._measured is None or self._measured[0] != k:
+            self._measured = (k, self.sensors.measure(k, t, x[:, :4], x[:, 4:7]))
+        return self._measured[1]
+
+    def _sense(self, hist: dict, k: int, x: np.ndarray, has_state: np.ndarray) -> None:
+        """Measure step ``k`` (every step, whether recorded or not) and record the runs ``has_state``."""
+        m = self._measure(k, (k * self.period_ns) / NS_PER_S, x)
+        if m is None or not self.record_sensors:
+            return
+        K = hist['q'].shape[1]
+        for name in m.fitted():
+            r = getattr(m, name)
+            rec = hist['sensors'].setdefault(name, {
+                'value': np.full((self.n_runs, K) + r.value.shape[1:], math.nan),
+                'cov': np.full((self.n_runs, K, 3, 3), math.nan), 'valid': np.zeros((self.n_runs, K), bool)})
+            for key in ('value', 'cov', 'valid'):
+                rec[key][has_state, k] = getattr(r, key)[has_state]
+        if 'gyro' in hist['sensors']:   # the bias in each reading, for an estimator's bias error
+            rec = hist['sensors']['gyro'].setdefault('bias', np.full((self.n_runs, K, 3), math.nan))
+            rec[has_state, k] = self.sensors.gyro.true_bias[has_state]
 
     def _control(self, k: int, t: float, x: np.ndarray, observe) -> tuple:
         """Step ``k``'s commands as the controller node computes them: (values, momentum mode)."""
@@ -252,6 +295,8 @@ class BatchSimulation:
         period = self.period_ns / NS_PER_S
         x = np.broadcast_to(initial_state(plant, self.dynamics), (N, plant.n_states)).copy()
         hist = self._history(x, K)
+        hist['sensors'] = {}
+        self.sensors, self._measured = build_sensors(self.dynamics, self._sensor_seeds), None
         failure: list = [None] * N
         fault_applied = -1
         active = self.n_steps > 0
@@ -263,6 +308,7 @@ class BatchSimulation:
                 t = (k * self.period_ns) / NS_PER_S
                 if self.fault_schedule:
                     fault_applied = self._apply_faults(k * self.period_ns, fault_applied)
+                self._sense(hist, k, x, done_steps == k)
                 values, momentum = self._control(k, t, x, observe)
                 commands = self._commands(values, momentum, t, period)
                 u = plant.control_torque(t, x, commands)
@@ -281,6 +327,10 @@ class BatchSimulation:
                 active = active & finite & (done_steps < self.n_steps)
                 if progress is not None:
                     progress(k + 1)
+            if self.sensors is not None:   # the last state's readings, as the dynamics node publishes them
+                k_end = int(done_steps.max())
+                self._apply_faults(k_end * self.period_ns, fault_applied)
+                self._sense(hist, k_end, x, done_steps == k_end)
         return self._result(hist, K, done_steps, failure)
 
     def _result(self, hist: dict, K: int, done_steps: np.ndarray, failure: list) -> BatchResult:
@@ -293,4 +343,4 @@ class BatchSimulation:
                                    for name, (mode, _, _) in snap.items()],
                            thruster_names=list(self.thrusters.names) if self.thrusters else [],
                            thruster_on_time=hist['on'], thruster_impulse=hist['impulse'],
-                           pointing=self.pointing)
+                           pointing=self.pointing, sensors=hist.get('sensors', {}))

@@ -33,8 +33,8 @@ CONFIG = ROOT / 'config'
 REFERENCE = ROOT / 'docs' / 'parameters.md'
 
 # Units as the schemas write them (SI); matched as a whole piece of the doc text (see unit_of).
-UNITS = ('N m s/rad', 'rad/(N m s)', 'N m s', 'N s', 'N m', 'N', 'kg m^2', 'rad/s^2', 'rad/s', 'rad',
-         'deg', '1/s^2', '1/s', 's', 'm', 'bytes')
+UNITS = ('N m s/rad', 'rad/(N m s)', 'N m s', 'N s', 'N m', 'N', 'kg m^2', 'rad/s^2', 'rad/s^1.5', 'rad/s',
+         'rad/sqrt(s)', 'rad', 'deg', '1/s^2', '1/s', 's', 'm', 'T', 'bytes')
 # Phrases that give a unit in words.
 UNIT_WORDS = {'wall seconds': 's (wall clock)', 'sim seconds': 's', 'fraction': '1 (fraction)'}
 
@@ -50,6 +50,16 @@ CHECKS = {
     '_fraction': 'in [0, 1]',
     '_distinct_positive': 'three distinct values > 0',
     '_nonzero_vector': 'not the zero vector',
+    '_scale_factor': 'each in (-1, 1]',
+    '_rate_noise': 'in [0, 1]',
+    '_angle_std': 'in [0, 1] rad',
+    '_rate_bias': 'in [0, 10] rad/s',
+    '_rate_biases': 'each within +-10 rad/s',
+    '_field_std': 'in [0, 1e-3] T',
+    '_field_biases': 'each within +-1e-3 T',
+    '_angle_below_180': 'in [0, 180)',
+    '_half_angle': 'in (0, 180]',
+    '_fraction_below_1': 'in [0, 1)',
     '_check_publishers': 'entries `topic=node[,node...]` (empty after `=`: nobody may publish)',
 }
 LAMBDA_CHECKS = {

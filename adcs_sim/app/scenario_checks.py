@@ -17,6 +17,7 @@ from adcs_msgs_py import names as topics
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app.registry import NODES
 from adcs_sim.truth.schema import command_topics, step_timing
+from adcs_sim.truth.sensor_schema import fault_targets, fitted_sensors
 
 # Memory the dynamics node allocates per control step before the first one (the per-step
 # link-fault draws of adcs_sim/truth/link_faults.py: a float64 draw, int64 temporaries, int8 fates).
@@ -67,11 +68,11 @@ def check_agreement(validated: dict) -> None:
             _same_names('thrusters', dyn['thrusters.names'], params['thrusters.names'], name)
     faults = validated.get('fault_injector')
     if faults is not None:
-        unknown = sorted(set(faults['schedule.actuator']) - set(dyn['wheels.names']))
+        unknown = sorted(set(faults['schedule.actuator']) - set(dyn['wheels.names']) - fault_targets(dyn))
         if unknown:
-            raise ParameterError('schedule.actuator', f'fault on actuator(s) {unknown} that the dynamics '
-                                 f'section does not have (dynamics.wheels.names: {list(dyn["wheels.names"])})',
-                                 'fault_injector')
+            raise ParameterError('schedule.actuator', f'fault on actuator(s) or sensor(s) {unknown} that the '
+                                 f'dynamics section does not have (dynamics.wheels.names: {list(dyn["wheels.names"])}; '
+                                 f'sensors fitted: {list(fitted_sensors(dyn)) or "none"})', 'fault_injector')
         if faults['wheels.names']:
             _same_names('wheels', dyn['wheels.names'], faults['wheels.names'], 'fault_injector',
                         'else its fault messages describe another set of wheels')

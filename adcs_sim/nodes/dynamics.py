@@ -30,6 +30,15 @@ integrating ``[t_k, t_k+1]``, so a fault stamped ``t_k`` shows in ``wheels/state
 and acts over exactly that interval. A fault state received after its step is applied at the
 next step and counted as ``late_faults`` on ``dynamics/status``.
 
+Sensors (``sensors.*``, :mod:`adcs_sim.truth.sensor_schema`): each step, after ``state`` and
+``truth/state`` (always published when a sensor is fitted), the node measures the true state with its
+:class:`~adcs_sim.truth.sensor_suite.SensorSuite` and publishes every fitted sensor's reading on its
+``sensors/*`` topic stamped ``t_k`` (:mod:`adcs_msgs_py.conversions_determination`), valid or not;
+sensor faults of the schedule are applied at their step like the wheel faults. Before t = 0 it waits
+for ``startup.sensor_subscribers`` matched subscribers on each sensor topic (-1: the recorder's).
+No environment models yet: the star tracker has no exclusion (no Sun or nadir direction) and the sun
+sensor and the magnetometer are refused by the schema.
+
 The node exits with status 0 when ``duration`` is reached, after the last messages are
 acknowledged by their subscribers.
 """
@@ -39,19 +48,26 @@ import time
 
 import numpy as np
 
-from adcs_core.faults import FaultTracker
+from adcs_core.faults import FaultTracker, split_snapshot
 from adcs_msgs_py import conversions as cv
+from adcs_msgs_py import conversions_determination as cd
 from adcs_msgs_py import topics
 from adcs_msgs_py.node import AdcsNode, RunStopped, main_for
 from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.link_faults import DELAY, FATE_NAMES, OK, LinkFaults
 from adcs_sim.truth.plant import ReactionWheels, WheelCommand
 from adcs_sim.truth.schema import DYNAMICS_SCHEMA, build_plant, command_topics, initial_state, step_timing
+from adcs_sim.truth.sensor_schema import build_sensors
 from adcs_sim.truth.sensors import MeasurementModel
 from adcs_sim.truth.thrusters import Thrusters, step_pulsed
 
 # The plant's command key of each command topic (thrusters/cmd is held as on-times: self.on_time).
 COMMAND_KEYS = {topics.WHEELS_CMD: 'wheels', topics.TORQUE_CMD: 'torquers'}
+# Each sensor's topic and message conversion (adcs_msgs_py.measurements.SENSORS names).
+SENSOR_OUTPUTS = {'gyro': (topics.SENSOR_IMU, cd.imu_to_msg),
+                  'star_tracker': (topics.SENSOR_STAR_TRACKER, cd.star_tracker_to_msg),
+                  'sun': (topics.SENSOR_SUN, cd.sun_to_msg),
+                  'magnetometer': (topics.SENSOR_MAGNETOMETER, cd.magnetometer_to_msg)}
 
 
 class DynamicsNode(AdcsNode):
@@ -70,6 +86,7 @@ class DynamicsNode(AdcsNode):
         self.awaited = command_topics(p) if self.lockstep else []
         self.measurement = MeasurementModel(p['noise.seed'], p['noise.attitude_std'],
                                             p['noise.rate_std'], p['noise.gyro_bias'])
+        self.sensors = build_sensors(p)
         self.wheels: ReactionWheels | None = next(
             (a for a in self.plant.actuators if isinstance(a, ReactionWheels)), None)
         self.wheel_index = {name: i for i, name in enumerate(self.wheels.names)} if self.wheels else {}
@@ -89,13 +106,17 @@ class DynamicsNode(AdcsNode):
 
         self.pub_clock = self.publisher(topics.CLOCK)
         self.pub_state = self.publisher(topics.STATE)
-        self.pub_truth = self.publisher(topics.TRUTH_STATE) if self.measurement.active else None
+        truth = self.measurement.active or self.sensors is not None
+        self.pub_truth = self.publisher(topics.TRUTH_STATE) if truth else None
+        self.pub_sensors = {name: self.publisher(SENSOR_OUTPUTS[name][0])
+                            for name in (self.sensors.fitted() if self.sensors else ())}
         self.pub_wheels = self.publisher(topics.WHEELS_STATE) if self.wheels else None
         self.pub_applied = self.publisher(topics.APPLIED_TORQUE)
         self.pub_thrusters = self.publisher(topics.THRUSTERS_STATE) if self.thrusters else None
         self.pub_status = self.publisher(topics.DYNAMICS_STATUS)
         self._step_publishers = [p for p in (self.pub_clock, self.pub_state, self.pub_truth,
                                              self.pub_wheels) if p is not None]
+        self._step_publishers += list(self.pub_sensors.values())
         self._state_msg = None
         self._truth_msg = None
         self._wheel_msg = None
@@ -120,11 +141,19 @@ class DynamicsNode(AdcsNode):
     def apply_due_faults(self) -> None:
         """Apply the fault state due at the current step (if it changed)."""
         snapshot = self.faults.due(self.step_ns)
-        if snapshot is None or self.wheels is None:
+        if snapshot is None:
             return
-        self.wheels.apply_faults(snapshot)
+        wheels, sensors = split_snapshot(snapshot)
+        t = self.step_ns / cv.NS_PER_S
+        if sensors and self.sensors is not None:
+            self.sensors.apply_faults(sensors)
+            faulty = {n: f.mode for n, f in sensors.items() if f.mode not in ('nominal', 'recovered')}
+            self.get_logger().info(f't = {t:g} s: sensor faults {faulty or "none"}')
+        if self.wheels is None or not wheels:
+            return
+        self.wheels.apply_faults(wheels)
         faulty = {n: m for n, m in zip(self.wheels.names, self.wheels.modes) if m != 'nominal'}
-        self.get_logger().info(f't = {self.step_ns / cv.NS_PER_S:g} s: wheel faults {faulty or "none"}')
+        self.get_logger().info(f't = {t:g} s: wheel faults {faulty or "none"}')
 
     def wait_for_faults(self, executor) -> None:
         """Spin until the complete fault schedule is here (``startup.expect_faults``)."""
@@ -219,6 +248,16 @@ class DynamicsNode(AdcsNode):
             self._wheel_msg = cv.wheel_state_to_msg(t_ns, self.wheels.names, xa[n:], speed, torque,
                                                     self._wheel_msg)
             self.pub_wheels.publish(self._wheel_msg)
+        self.publish_sensors(t_ns, q, w)
+
+    def publish_sensors(self, t_ns: int, q: np.ndarray, w: np.ndarray) -> None:
+        """Every fitted sensor's reading of the true state at ``t_ns`` (measured every step, whoever
+        listens: the noise streams advance by step, not by subscriber)."""
+        if self.sensors is None:
+            return
+        m = self.sensors.measure(t_ns // self.period_ns, t_ns / cv.NS_PER_S, q, w)
+        for name, pub in self.pub_sensors.items():
+            pub.publish(SENSOR_OUTPUTS[name][1](t_ns, getattr(m, name)))
 
     def publish_status(self, final: bool = False) -> None:
         values = {'step': self.step_ns // self.period_ns if self.period_ns else 0,
@@ -249,6 +288,9 @@ class DynamicsNode(AdcsNode):
                     self.pub_thrusters):
             if pub is not None:
                 required[pub] = max(required.get(pub, 0), recorder)
+        sensor_subs = p['startup.sensor_subscribers']
+        for pub in self.pub_sensors.values():
+            required[pub] = recorder if sensor_subs < 0 else sensor_subs
         if topics.THRUSTERS_CMD in self.awaited and self.pub_wheels is not None:
             # A thruster + wheel controller (seed 002) allocates with the wheel speed: it answers
             # a step only with that step's wheels/state, so that must reach it from t = 0.

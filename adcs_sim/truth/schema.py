@@ -28,6 +28,7 @@ from adcs_msgs_py.blocks import (
 )
 from adcs_msgs_py.params import Param, ParameterError, Schema, all_positive, non_negative, positive
 from adcs_sim.truth.plant import Disturbance, Plant, ReactionWheels, Torquers
+from adcs_sim.truth.sensor_schema import check_sensors, sensor_params
 from adcs_sim.truth.thrusters import Thrusters
 
 
@@ -84,6 +85,7 @@ def _dynamics_cross_check(v: dict) -> None:
         raise ParameterError('lockstep.commands', 'waits for torque_cmd but torquers.enabled is false')
     if topics.THRUSTERS_CMD in command_topics(v) and not v['thrusters.names']:
         raise ParameterError('lockstep.commands', 'waits for thrusters/cmd but no thrusters are configured')
+    check_sensors(v)
 
 
 def command_topics(v: dict) -> list[str]:
@@ -158,9 +160,13 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
           doc='star-tracker noise, rad (1 sigma per axis, small-angle rotation)'),
     Param('noise.rate_std', 'double', default=0.0, check=non_negative, doc='gyro noise, rad/s (1 sigma)'),
     Param('noise.gyro_bias', 'double_array', default=[0.0] * 3, length=3, doc='constant gyro bias, rad/s'),
+    *sensor_params(),
     Param('startup.state_subscribers', 'int', default=-1,
           doc='matched subscribers of `state` to wait for before t = 0 (-1: one per awaited command '
               'topic, plus the recorder)'),
+    Param('startup.sensor_subscribers', 'int', default=-1,
+          doc='matched subscribers of each fitted sensor\'s topic (sensors/*) to wait for before t = 0, '
+              'the recorder included (-1: the recorder, if expected; the runner sets it when an estimator listens)'),
     *startup_params(),
     expect_faults_param(),
 ], cross_check=_dynamics_cross_check, doc='plant, simulated clock and lockstep loop')
