@@ -176,7 +176,8 @@ def _tle_line_check(number: int):
 
 def environment_params() -> list[Param]:
     """The ``environment.*`` block: what :func:`adcs_core.environment.environment.build_environment`
-    takes (epoch, orbit, magnetic and shadow models). Not yet in any node's schema."""
+    takes (epoch, orbit, magnetic and shadow models); in the dynamics section (the truth model's
+    environment) and in an estimator's (its onboard reference models)."""
     return [
         Param('environment.epoch', 'string', default='2026-03-20T12:00:00Z', check=_check_epoch,
               doc='UTC epoch of t = 0, ISO-8601 (e.g. "2026-03-20T12:00:00Z"; no offset means UTC)'),

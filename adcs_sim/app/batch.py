@@ -47,8 +47,9 @@ from adcs_sim.app.registry import NODES
 from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.fault_schedule import fault_schedule
 from adcs_sim.truth.plant import ReactionWheels, WheelCommand
-from adcs_sim.truth.schema import build_plant, initial_state, step_timing
+from adcs_sim.truth.schema import build_plant, build_truth_environment, initial_state, step_timing
 from adcs_sim.truth.sensor_schema import build_sensors
+from adcs_sim.truth.sensor_suite import sensor_environment
 from adcs_sim.truth.sensors import MeasurementModel
 from adcs_sim.truth.thrusters import Thrusters, step_pulsed
 
@@ -145,6 +146,7 @@ class BatchSimulation:
                                             d['noise.gyro_bias'])
         self._sensor_seeds = np.broadcast_to(np.asarray(d['sensors.seed']), (n_runs,))
         self.sensors = build_sensors(d, self._sensor_seeds)   # rebuilt by run(): each run from t = 0
+        self.environment = build_truth_environment(d) if self.sensors is not None else None
         self.record_sensors = False   # set True to get every step's readings in BatchResult.sensors
         self._measured: tuple[int, Measurements] | None = None
         self.law = self.actuation = None
@@ -231,7 +233,8 @@ class BatchSimulation:
         if self.sensors is None:
             return None
         if self._measured is None or self._measured[0] != k:
-            self._measured = (k, self.sensors.measure(k, t, x[:, :4], x[:, 4:7]))
+            env = sensor_environment(self.environment.sample(t)) if self.environment is not None else None
+            self._measured = (k, self.sensors.measure(k, t, x[:, :4], x[:, 4:7], env))
         return self._measured[1]
 
     def _sense(self, hist: dict, k: int, x: np.ndarray, has_state: np.ndarray) -> None:

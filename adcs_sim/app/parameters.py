@@ -61,11 +61,14 @@ CHECKS = {
     '_half_angle': 'in (0, 180]',
     '_fraction_below_1': 'in [0, 1)',
     '_check_publishers': 'entries `topic=node[,node...]` (empty after `=`: nobody may publish)',
+    '_check_epoch': 'an ISO-8601 UTC date and time',
 }
 LAMBDA_CHECKS = {
     'proposition': '1 or 2',
     'K_omega': 'in (0, 1)',
     'solution': '0, 1 or 2',
+    'environment.tle.line1': 'empty, or a TLE line 1 (69 characters, checksum)',
+    'environment.tle.line2': 'empty, or a TLE line 2 (69 characters, checksum)',
 }
 
 

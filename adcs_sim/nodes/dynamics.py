@@ -36,8 +36,10 @@ Sensors (``sensors.*``, :mod:`adcs_sim.truth.sensor_schema`): each step, after `
 ``sensors/*`` topic stamped ``t_k`` (:mod:`adcs_msgs_py.conversions_determination`), valid or not;
 sensor faults of the schedule are applied at their step like the wheel faults. Before t = 0 it waits
 for ``startup.sensor_subscribers`` matched subscribers on each sensor topic (-1: the recorder's).
-No environment models yet: the star tracker has no exclusion (no Sun or nadir direction) and the sun
-sensor and the magnetometer are refused by the schema.
+With ``environment.enabled`` the node samples the environment (:mod:`adcs_core.environment`: orbit,
+Sun, eclipse, IGRF or dipole field) at each ``t_k`` and gives the sensors their inputs
+(:func:`adcs_sim.truth.sensor_suite.sensor_environment`); without it the star tracker has no exclusion
+and the sun sensor and magnetometer are refused by the schema.
 
 The node exits with status 0 when ``duration`` is reached, after the last messages are
 acknowledged by their subscribers.
@@ -56,8 +58,16 @@ from adcs_msgs_py.node import AdcsNode, RunStopped, main_for
 from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.link_faults import DELAY, FATE_NAMES, OK, LinkFaults
 from adcs_sim.truth.plant import ReactionWheels, WheelCommand
-from adcs_sim.truth.schema import DYNAMICS_SCHEMA, build_plant, command_topics, initial_state, step_timing
+from adcs_sim.truth.schema import (
+    DYNAMICS_SCHEMA,
+    build_plant,
+    build_truth_environment,
+    command_topics,
+    initial_state,
+    step_timing,
+)
 from adcs_sim.truth.sensor_schema import build_sensors
+from adcs_sim.truth.sensor_suite import sensor_environment
 from adcs_sim.truth.sensors import MeasurementModel
 from adcs_sim.truth.thrusters import Thrusters, step_pulsed
 
@@ -87,6 +97,7 @@ class DynamicsNode(AdcsNode):
         self.measurement = MeasurementModel(p['noise.seed'], p['noise.attitude_std'],
                                             p['noise.rate_std'], p['noise.gyro_bias'])
         self.sensors = build_sensors(p)
+        self.environment = build_truth_environment(p) if self.sensors is not None else None
         self.wheels: ReactionWheels | None = next(
             (a for a in self.plant.actuators if isinstance(a, ReactionWheels)), None)
         self.wheel_index = {name: i for i, name in enumerate(self.wheels.names)} if self.wheels else {}
@@ -255,7 +266,9 @@ class DynamicsNode(AdcsNode):
         listens: the noise streams advance by step, not by subscriber)."""
         if self.sensors is None:
             return
-        m = self.sensors.measure(t_ns // self.period_ns, t_ns / cv.NS_PER_S, q, w)
+        t = t_ns / cv.NS_PER_S
+        env = sensor_environment(self.environment.sample(t)) if self.environment is not None else None
+        m = self.sensors.measure(t_ns // self.period_ns, t, q, w, env)
         for name, pub in self.pub_sensors.items():
             pub.publish(SENSOR_OUTPUTS[name][1](t_ns, getattr(m, name)))
 

@@ -13,13 +13,16 @@ import math
 
 import numpy as np
 
+from adcs_core.environment.environment import Environment, build_environment
 from adcs_core.inertia import check_inertia, inertia_matrix
 from adcs_core.orbit import CircularOrbit
 from adcs_msgs_py import names as topics
 from adcs_msgs_py.blocks import (
+    check_environment,
     check_thrusters,
     check_unit_quaternion,
     check_wheels,
+    environment_params,
     expect_faults_param,
     inertia_param,
     startup_params,
@@ -85,6 +88,8 @@ def _dynamics_cross_check(v: dict) -> None:
         raise ParameterError('lockstep.commands', 'waits for torque_cmd but torquers.enabled is false')
     if topics.THRUSTERS_CMD in command_topics(v) and not v['thrusters.names']:
         raise ParameterError('lockstep.commands', 'waits for thrusters/cmd but no thrusters are configured')
+    if v['environment.enabled']:
+        check_environment(v)
     check_sensors(v)
 
 
@@ -161,6 +166,10 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
     Param('noise.rate_std', 'double', default=0.0, check=non_negative, doc='gyro noise, rad/s (1 sigma)'),
     Param('noise.gyro_bias', 'double_array', default=[0.0] * 3, length=3, doc='constant gyro bias, rad/s'),
     *sensor_params(),
+    Param('environment.enabled', 'bool', default=False,
+          doc='compute the environment at each step (orbit, Sun, eclipse, field: environment.*) for the '
+              'sensors: needed by the sun sensor and the magnetometer, gives the star tracker its exclusions'),
+    *environment_params(),
     Param('startup.state_subscribers', 'int', default=-1,
           doc='matched subscribers of `state` to wait for before t = 0 (-1: one per awaited command '
               'topic, plus the recorder)'),
@@ -170,6 +179,12 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
     *startup_params(),
     expect_faults_param(),
 ], cross_check=_dynamics_cross_check, doc='plant, simulated clock and lockstep loop')
+
+
+def build_truth_environment(v: dict) -> Environment | None:
+    """The truth model's environment of a validated dynamics section (None unless
+    ``environment.enabled``): what its sensors measure."""
+    return build_environment(v) if v['environment.enabled'] else None
 
 
 def build_plant(v: dict) -> Plant:

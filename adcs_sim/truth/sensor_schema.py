@@ -15,10 +15,9 @@ from adcs_msgs_py.params import Param, ParameterError, non_negative, positive
 from adcs_sim.truth.sensor_models import CoarseSunSensors, Gyro, Magnetometer, StarTracker, SunSensor
 from adcs_sim.truth.sensor_suite import SensorSuite
 
-# The environment models (Sun direction, eclipse, geomagnetic field) are not on this branch: the sun
-# sensor and the magnetometer are refused until they are wired in (then set True and pass a
-# SensorEnvironment to SensorSuite.measure in the dynamics node and the batch engine).
-ENVIRONMENT_AVAILABLE = False
+# The sensors that cannot measure without the environment models (adcs_core.environment: the Sun
+# direction, the eclipse, the geomagnetic field): fitted, they need `environment.enabled: true`.
+NEEDS_ENVIRONMENT = ('sun', 'magnetometer')
 
 MAX_LATENCY_STEPS = 100_000   # the star tracker keeps one attitude per step of latency
 
@@ -160,11 +159,11 @@ def check_sensors(v: dict) -> None:
         raise ParameterError('sensors.star_tracker.latency', f'at most {MAX_LATENCY_STEPS} control periods, '
                              f'got {v["sensors.star_tracker.latency"]} s')
     _check_coarse(v)
-    if not ENVIRONMENT_AVAILABLE:
-        for name in ('sun', 'magnetometer'):
+    if not v['environment.enabled']:
+        for name in NEEDS_ENVIRONMENT:
             if v[f'sensors.{name}.enabled']:
-                raise ParameterError(f'sensors.{name}.enabled', 'needs environment.* (the Sun direction, '
-                                     'eclipse and geomagnetic field models), which this build does not have yet')
+                raise ParameterError(f'sensors.{name}.enabled', 'needs environment.enabled: true (the Sun '
+                                     'direction, eclipse and geomagnetic field at the orbit: environment.*)')
 
 
 def _check_coarse(v: dict) -> None:

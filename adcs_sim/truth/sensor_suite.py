@@ -13,7 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from adcs_core.environment.environment import EnvironmentSample
 from adcs_core.faults import FaultState
+from adcs_core.orbit import R_EARTH
 from adcs_msgs_py.measurements import Measurements
 from adcs_sim.truth.sensor_models import GYRO_AXES, CoarseSunSensors, Gyro, Magnetometer, StarTracker, SunSensor
 
@@ -31,6 +33,17 @@ class SensorEnvironment:
 
 
 NO_ENVIRONMENT = SensorEnvironment()
+
+
+def sensor_environment(sample: EnvironmentSample) -> SensorEnvironment:
+    """The sensors' inputs from the environment at a step (:meth:`adcs_core.environment.environment.
+    Environment.sample`): the Sun seen from the Earth's centre (the parallax of a LEO orbit, < 1e-4
+    rad, is below every sensor's noise), the illuminated fraction, nadir, the Earth's angular radius
+    ``asin(R_E / r)`` and the field."""
+    radius = np.linalg.norm(sample.r_eci, axis=-1)
+    return SensorEnvironment(sun=sample.sun_eci, illumination=sample.shadow, nadir=sample.nadir_eci,
+                             earth_angular_radius=np.arcsin(np.minimum(1.0, R_EARTH / radius)),
+                             field=sample.b_eci)
 
 
 class SensorSuite:
