@@ -158,6 +158,15 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
           doc='star-tracker noise, rad (1 sigma per axis, small-angle rotation)'),
     Param('noise.rate_std', 'double', default=0.0, check=non_negative, doc='gyro noise, rad/s (1 sigma)'),
     Param('noise.gyro_bias', 'double_array', default=[0.0] * 3, length=3, doc='constant gyro bias, rad/s'),
+    Param('visualization.enabled', 'bool', default=True,
+          doc='publish frames/body, frames/orbit, markers, error/eigenaxis and error/euler_213 for viewers '
+              '(adcs_msgs_py/visual.py; each built only while subscribed, as the recorder always is)'),
+    Param('visualization.target_attitude', 'double_array', default=[0.0, 0.0, 0.0, 1.0], length=4,
+          check=check_unit_quaternion,
+          doc="target [x, y, z, w] of error/* and of the target-axes markers; adcs-run sets it to the "
+              "controller section's target.attitude (the offline analysis' target)"),
+    Param('visualization.axis_length', 'double', default=1.0, check=positive,
+          doc='length of the body-axes markers (m); the other markers scale with it'),
     Param('startup.state_subscribers', 'int', default=-1,
           doc='matched subscribers of `state` to wait for before t = 0 (-1: one per awaited command '
               'topic, plus the recorder)'),
