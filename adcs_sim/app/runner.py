@@ -197,7 +197,7 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
     log_dir = out / 'logs'
     log_dir.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(scenario, out / 'scenario.yaml')
-    graph = Graph(graph_env(lease, allow_network), log_dir, keep_fds=(lease.fileno(),))
+    graph = Graph(graph_env(lease, allow_network), log_dir, keep_fds=lease.fds())
     run = _Run(scenario, validated, out / 'bag', graph, duration, restarts)
     print(f'adcs-run: ROS_DOMAIN_ID={lease.domain_id}, discovery '
           f'{graph.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]}', flush=True)
