@@ -23,10 +23,11 @@ DYNAMICS_STATUS = 'dynamics/status'
 # ``visualization.enabled`` (adcs_msgs_py/visual.py builds them), built only when subscribed.
 FRAMES_BODY = 'frames/body'          # geometry_msgs/TransformStamped inertial -> body
 FRAMES_ORBIT = 'frames/orbit'        # geometry_msgs/TransformStamped inertial -> orbit (with an orbit)
-MARKERS = 'markers'                  # visualization_msgs/MarkerArray
+MARKERS = 'markers'                  # visualization_msgs/MarkerArray: what moves (wheel momentum, thruster plumes)
+MARKERS_STATIC = 'markers/static'    # visualization_msgs/MarkerArray, latched: body box and axes, target axes
 ERROR_EIGENAXIS = 'error/eigenaxis'  # geometry_msgs/Vector3Stamped: x = eigenaxis error (deg)
 ERROR_EULER_213 = 'error/euler_213'  # geometry_msgs/Vector3Stamped: 2-1-3 Euler errors about x, y, z (deg)
-VISUAL_TOPICS = (FRAMES_BODY, FRAMES_ORBIT, MARKERS, ERROR_EIGENAXIS, ERROR_EULER_213)
+VISUAL_TOPICS = (FRAMES_BODY, FRAMES_ORBIT, MARKERS, MARKERS_STATIC, ERROR_EIGENAXIS, ERROR_EULER_213)
 FRAME_TOPICS = (FRAMES_BODY, FRAMES_ORBIT)
 # Written by the recorder into the bag only: the transforms received on FRAME_TOPICS as
 # tf2_msgs/TFMessage (no tf2_msgs wheel for Jazzy on PyPI: it cannot be published here), the

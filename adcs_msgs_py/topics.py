@@ -56,6 +56,7 @@ from adcs_msgs_py.names import (  # noqa: F401
     FRAMES_BODY,
     FRAMES_ORBIT,
     MARKERS,
+    MARKERS_STATIC,
     REFERENCE,
     STATE,
     THRUSTERS_CMD,
@@ -157,7 +158,9 @@ TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in (
     TopicSpec(FRAMES_ORBIT, TransformStamped, QOS_LOCKSTEP,
               'the orbit frame (x along track, z nadir): transform inertial -> orbit, with an orbit'),
     TopicSpec(MARKERS, MarkerArray, QOS_LOCKSTEP,
-              'body box and axes, wheel momentum vector, target attitude axes, firing thrusters'),
+              'what moves, every step: the wheel momentum vector, the plumes of the thrusters firing'),
+    TopicSpec(MARKERS_STATIC, MarkerArray, QOS_LATCHED,
+              'published once at t = 0: body box and axes (frame body), target attitude axes (frame inertial)'),
     TopicSpec(ERROR_EIGENAXIS, Vector3Stamped, QOS_LOCKSTEP,
               'x: eigenaxis angle (deg) of the true attitude relative to the target; y, z: 0'),
     TopicSpec(ERROR_EULER_213, Vector3Stamped, QOS_LOCKSTEP,
@@ -225,9 +228,14 @@ QOS_RATIONALE: dict[str, str] = {
                  'current attitude, not the past. KEEP_LAST lockstep depth, paced with the '
                  'recorder like every recorded per-step topic.',
     FRAMES_ORBIT: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as frames/body.',
-    MARKERS: 'RELIABLE: each array carries every marker (a viewer that seeks or joins late needs '
-             'only the latest), recorded every step. VOLATILE, KEEP_LAST lockstep depth, as '
+    MARKERS: 'RELIABLE: each array carries every moving marker (a viewer that seeks or joins late '
+             'needs only the latest), recorded every step. VOLATILE, KEEP_LAST lockstep depth, as '
              'frames/body.',
+    MARKERS_STATIC: 'RELIABLE and TRANSIENT_LOCAL: what never changes is sent once, before t = 0 (its '
+                    'serialisation would cost the loop every step); a viewer or recorder that joins '
+                    'late still gets it from the writer, and in a bag it is the latest message of its '
+                    'topic for every later instant (what a viewer backfills on a seek). KEEP_LAST '
+                    'depth 100 as faults (one message).',
     ERROR_EIGENAXIS: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth: a plotted series, one sample a '
                      'step, recorded; a hole would show as a gap in the plot.',
     ERROR_EULER_213: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as error/eigenaxis.',

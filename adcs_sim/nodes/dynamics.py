@@ -40,10 +40,17 @@ import time
 import numpy as np
 
 from adcs_core.faults import FaultTracker
-from adcs_core.orbit import orbit_frame_attitude
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
-from adcs_msgs_py.names import ERROR_EIGENAXIS, ERROR_EULER_213, FRAMES_BODY, FRAMES_ORBIT, MARKERS, VISUAL_TOPICS
+from adcs_msgs_py.names import (
+    ERROR_EIGENAXIS,
+    ERROR_EULER_213,
+    FRAMES_BODY,
+    FRAMES_ORBIT,
+    MARKERS,
+    MARKERS_STATIC,
+    VISUAL_TOPICS,
+)
 from adcs_msgs_py.node import AdcsNode, RunStopped, main_for
 from adcs_msgs_py.visual import VisualMessages
 from adcs_sim.truth.divergence import nonfinite_cause
@@ -122,9 +129,11 @@ class DynamicsNode(AdcsNode):
         w, th, orbit = self.wheels, self.thrusters, self.plant.orbit
         visual = VisualMessages(p['visualization.target_attitude'], p['visualization.axis_length'],
                                 *((w.axes, w.spin_inertia, w.max_speed) if w else (None, None, None)),
-                                *((th.positions, th.directions) if th else (None, None)), orbit=orbit is not None)
-        wanted = [t for t in VISUAL_TOPICS if t != FRAMES_ORBIT or orbit is not None]
-        return visual, {t: self.publisher(t) for t in wanted}
+                                *((th.positions, th.directions) if th else (None, None)), orbit=orbit)
+        skip = {FRAMES_ORBIT} if orbit is None else set()
+        if not visual.markers.markers:
+            skip.add(MARKERS)   # nothing moves but the body (torquers only)
+        return visual, {t: self.publisher(t) for t in VISUAL_TOPICS if t not in skip}
 
     # --- faults -----------------------------------------------------------------------------
 
@@ -221,8 +230,7 @@ class DynamicsNode(AdcsNode):
         if FRAMES_BODY in live:
             live[FRAMES_BODY].publish(self.visual.body_frame(t_ns, q))
         if FRAMES_ORBIT in live:
-            q_orbit = orbit_frame_attitude(self.plant.orbit, t_ns / cv.NS_PER_S)
-            live[FRAMES_ORBIT].publish(self.visual.orbit_frame(t_ns, q_orbit))
+            live[FRAMES_ORBIT].publish(self.visual.orbit_frame(t_ns))
         if ERROR_EIGENAXIS in live or ERROR_EULER_213 in live:
             for topic, msg in zip((ERROR_EIGENAXIS, ERROR_EULER_213), self.visual.errors(t_ns, q)):
                 if topic in live:
@@ -305,6 +313,8 @@ class DynamicsNode(AdcsNode):
             f'{self.params["mode"]} run: {self.n_steps} steps of {self.period:g} s, '
             f'waiting for {self.awaited or "no commands"}')
         self.publish_status()
+        if MARKERS_STATIC in self.pub_visual:   # latched: once, before t = 0
+            self.pub_visual[MARKERS_STATIC].publish(self.visual.static_markers(0))
         timeout = self.params['lockstep.timeout']
         pace = self.period / self.params['real_time_factor']
         wall0 = time.monotonic()
