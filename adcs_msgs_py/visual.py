@@ -44,6 +44,8 @@ from adcs_msgs_py.conversions import BODY_FRAME, INERTIAL_FRAME, NS_PER_S, stamp
 ORBIT_FRAME = 'orbit'
 AXIS_COLORS = ((0.9, 0.1, 0.1), (0.1, 0.8, 0.1), (0.1, 0.3, 0.95))   # x red, y green, z blue
 TARGET_ALPHA = 0.45
+MOMENTUM_COLOR = (0.55, 0.2, 0.85)     # purple
+PLUME_COLOR = (1.0, 0.5, 0.0)          # orange
 PLUME_LENGTH = 0.35    # of axis_length
 BOX_SIZE = 0.5         # edge of the body box, of axis_length
 
@@ -108,7 +110,7 @@ class VisualMessages:
         self.spin = np.asarray(spin_inertia if n else [], dtype=float)
         capacity = float(np.sum(self.spin * np.asarray(max_speed if n else [], dtype=float)))
         self.momentum_scale = self.length / capacity if math.isfinite(capacity) and capacity > 0 else self.length
-        self.momentum = (_arrow('wheel_momentum', 0, BODY_FRAME, (0, 0, 0), (0, 0, 0), (0.95, 0.6, 0.0), 1.0,
+        self.momentum = (_arrow('wheel_momentum', 0, BODY_FRAME, (0, 0, 0), (0, 0, 0), MOMENTUM_COLOR, 1.0,
                                 0.04 * self.length) if n else None)
         self.plumes = self._plumes(thruster_positions, thruster_directions)
         self.markers = MarkerArray(markers=[m for m in (self.momentum, self.plumes) if m is not None])
@@ -146,7 +148,7 @@ class VisualMessages:
         m.header.frame_id = BODY_FRAME
         m.pose.orientation.w = 1.0
         m.scale.x = 0.05 * self.length
-        m.color = _color((1.0, 0.35, 0.0), 0.9)
+        m.color = _color(PLUME_COLOR, 0.9)
         return m
 
     # --- per step ------------------------------------------------------------------------

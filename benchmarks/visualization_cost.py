@@ -12,6 +12,10 @@ Start-up, the recorder's close and the runner's analysis are outside it.
 
 ``--baseline`` runs the scenario file unchanged, one column: with ``PYTHONPATH=<a checkout older
 than the viewer topics>`` (the nodes inherit it) that is the code before them.
+
+``--micro`` also times, in this process, what the dynamics node adds per step (CPU, not wall):
+building and serialising the step's viewer messages (serialisation is what ``publish`` costs
+on top of the middleware), beside the same for the step's ``state`` message.
 """
 from __future__ import annotations
 
@@ -21,8 +25,10 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 STAMP = re.compile(r'\[INFO\] \[(\d+\.\d+)\] \[dynamics\]: (lockstep run: (\d+) steps|done at)')
@@ -64,13 +70,55 @@ def run_once(scenario: Path, enabled: bool | None, duration: float | None, work:
     return steps / seconds
 
 
+def micro(scenario: Path, steps: int = 2000) -> None:
+    """Per-step CPU of the viewer messages of ``scenario``'s dynamics section (this process)."""
+    from rclpy.serialization import serialize_message
+
+    from adcs_msgs_py.conversions import state_to_msg
+    from adcs_msgs_py.params_file import load_params_file
+    from adcs_msgs_py.visual import VisualMessages
+    from adcs_sim.truth.schema import DYNAMICS_SCHEMA, build_plant
+    v = DYNAMICS_SCHEMA.validate(load_params_file(str(scenario))['dynamics'])
+    plant = build_plant(v)
+    wheels = next((a for a in plant.actuators if hasattr(a, 'spin_inertia')), None)
+    thr = next((a for a in plant.actuators if hasattr(a, 'directions')), None)
+    vis = VisualMessages([0.0, 0.0, 0.0, 1.0], 1.0, *((wheels.axes, wheels.spin_inertia, wheels.max_speed)
+                         if wheels else (None,) * 3), *((thr.positions, thr.directions) if thr else (None,) * 2),
+                         orbit=plant.orbit)
+    q = np.array([0.1, 0.2, 0.3, 0.9]) / np.linalg.norm([0.1, 0.2, 0.3, 0.9])
+    speed = np.ones(wheels.count if wheels else 0)
+    on = np.ones(thr.count if thr else 0) * 0.1
+
+    def viewer(k: int) -> None:
+        t = k * 100_000_000
+        serialize_message(vis.body_frame(t, q))
+        if plant.orbit is not None:
+            serialize_message(vis.orbit_frame(t))
+        for msg in vis.errors(t, q):
+            serialize_message(msg)
+        if vis.markers.markers:
+            serialize_message(vis.marker_array(t, speed, on))
+
+    def state(k: int) -> None:
+        serialize_message(state_to_msg(k * 100_000_000, q, np.zeros(3)))
+
+    for name, f in (('viewer messages', viewer), ('state message (reference)', state)):
+        t0 = time.process_time()
+        for k in range(steps):
+            f(k)
+        print(f'{name}: {(time.process_time() - t0) / steps * 1e6:.0f} us CPU per step', flush=True)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('scenario', type=Path)
     ap.add_argument('--duration', type=float, default=None, help='override the simulated duration (s)')
     ap.add_argument('--repeat', type=int, default=2)
     ap.add_argument('--baseline', action='store_true', help='the scenario unchanged (no visualization key)')
+    ap.add_argument('--micro', action='store_true', help="also time the viewer messages' CPU per step here")
     args = ap.parse_args(argv)
+    if args.micro:
+        micro(args.scenario)
     if args.baseline:
         with tempfile.TemporaryDirectory(prefix='viz_cost_') as tmp:
             rates = [run_once(args.scenario.resolve(), None, args.duration, Path(tmp)) for _ in range(args.repeat)]

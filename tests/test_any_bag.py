@@ -262,7 +262,8 @@ def test_reference_recordings_exist_for_every_scenario_and_are_small():
         if layouts:
             assert sorted(p.name for p in (folder / 'layouts').iterdir()) == ['foxglove.json', 'plotjuggler.xml']
         if folder.name.startswith(NO_REPORT_PREFIXES):
-            assert sorted(p.name for p in folder.iterdir()) == sorted(['bag', 'metrics.json', 'scenario.yaml', *layouts])
+            expected = sorted(['bag', 'metrics.json', 'scenario.yaml', *layouts])
+            assert sorted(p.name for p in folder.iterdir()) == expected
             continue
         assert sorted(p.name for p in folder.iterdir()) == sorted(['bag', 'metrics.json', 'report', 'scenario.yaml',
                                                                    *layouts])

@@ -41,6 +41,7 @@ from adcs_sim.bag.writer import BagWriter, qos_dicts
 BAG = ROOT / 'bags' / 'eseo_backstepping_slew'
 TYPES = {'/tf': 'tf2_msgs/msg/TFMessage', '/frames/body': 'geometry_msgs/msg/TransformStamped',
          '/frames/orbit': 'geometry_msgs/msg/TransformStamped', '/markers': 'visualization_msgs/msg/MarkerArray',
+         '/markers/static': 'visualization_msgs/msg/MarkerArray',
          '/error/eigenaxis': 'geometry_msgs/msg/Vector3Stamped', '/error/euler_213': 'geometry_msgs/msg/Vector3Stamped'}
 
 
@@ -99,7 +100,7 @@ def test_tf_is_the_frames_and_the_body_frame_is_the_state(decoded, run):
                          math.radians(o['arg_latitude_deg']))
     for t, m in list(orbit.items())[::500]:
         r = m.transform.rotation
-        assert_allclose([r.x, r.y, r.z, r.w], orbit_frame_attitude(circ, t * 1e-9), atol=1e-15)
+        assert_allclose([r.x, r.y, r.z, r.w], orbit_frame_attitude(circ, t * 1e-9), atol=1e-12)
 
 
 def test_error_topics_are_the_analysis_errors(decoded, run):
@@ -116,27 +117,34 @@ def _by_ns(markers) -> dict:
 
 
 def test_markers_show_target_wheel_momentum_and_the_firing_thrusters(decoded, run):
+    (stamp, static), = decoded['/markers/static']   # once, latched, at t = 0
+    m = _by_ns(static.markers)
+    assert stamp == 0 and set(m) == {('body', 0), *(('body_axes', i) for i in range(3)),
+                                     *(('target_axes', i) for i in range(3))}
+    assert all(mk.header.frame_id == 'body' and mk.frame_locked for (ns, _), mk in m.items() if ns != 'target_axes')
+    for i in range(3):
+        o = m[('target_axes', i)].pose.orientation
+        assert m[('target_axes', i)].header.frame_id == 'inertial'
+        assert_allclose([o.x, o.y, o.z, o.w], run.q_ref, atol=1e-15)   # the analysis' target
     arrays = decoded['/markers']
     assert len(arrays) == len(run.t_thrusters) == 3000
     dyn = run.scenario['dynamics']['ros__parameters']
-    js, max_speed = dyn['wheels']['spin_inertia'][0], dyn['wheels']['max_speed'][0]
+    max_speed = dyn['wheels']['max_speed'][0]
+    ends = {}   # thruster -> its plume's segment (body axes)
+    for i, (p, d) in enumerate(zip(np.reshape(dyn['thrusters']['positions'], (4, 3)),
+                                   np.reshape(dyn['thrusters']['directions'], (4, 3)))):
+        ends[i] = np.concatenate([p, p - 0.35 * d / np.linalg.norm(d)])
     firing = 0
-    for k in (0, 1, 5, 100, 2999):
-        stamp, msg = arrays[k]
+    for k, (stamp, msg) in enumerate(arrays):
         m = _by_ns(msg.markers)
-        assert stamp == round(run.t_thrusters[k] * 1e9)
-        assert {ns for ns, _ in m} == {'body', 'body_axes', 'target_axes', 'wheel_momentum', 'thrusters'}
-        o = m[('target_axes', 0)].pose.orientation
-        assert_allclose([o.x, o.y, o.z, o.w], run.q_ref, atol=1e-15)
+        assert stamp == round(run.t_thrusters[k] * 1e9) and set(m) == {('wheel_momentum', 0), ('thrusters', 0)}
         head = m[('wheel_momentum', 0)].points[1]
         # h = Js * speed along the pitch axis (y), drawn at 1 m per the wheel's capacity Js * max_speed
         assert_allclose([head.x, head.y, head.z], [0.0, run.wheel_speed[k, 0] / max_speed, 0.0], atol=1e-12)
-        assert js > 0
-    for k, (_, msg) in enumerate(arrays):
-        plumes = sorted((mk.id, mk.action) for mk in msg.markers if mk.ns == 'thrusters')
-        on = run.thruster_on_time[k] > 0
-        assert [action == 0 for _, action in plumes] == on.tolist()   # ADD (0) while firing, DELETE (2) off
-        firing += int(on.sum())
+        on = np.flatnonzero(run.thruster_on_time[k] > 0)
+        points = np.array([[q.x, q.y, q.z] for q in m[('thrusters', 0)].points]).reshape(-1, 6)
+        assert_allclose(points, np.array([ends[i] for i in on]).reshape(-1, 6), atol=1e-12)
+        firing += len(on)
     assert firing == 608   # seed 002's firings over the recording (test_seed002_reproduction)
 
 
@@ -208,11 +216,13 @@ def test_committed_layouts_are_current_and_name_only_what_the_bag_has(run, tmp_p
     panels = fox['configById']
     assert {k.split('!')[0] for k in panels} == {'3D', 'Plot', 'StateTransitions'}
     paths = [p['value'] for c in panels.values() for p in c.get('paths', [])]
-    assert len(paths) >= 20
+    # eigenaxis 1, Euler 3, rates 3, the pitch wheel's speed and torque 2, applied torque 3, four
+    # thrusters' on-times 4, the backstepping controller's mode 1
+    assert len(paths) == 17
     for path in paths:
         _resolve_foxglove(path, types, run)
     scene = panels['3D!adcsscene']
-    assert set(scene['topics']) == {'/markers'} and scene['followTf'] == 'inertial'
+    assert set(scene['topics']) == {'/markers', '/markers/static'} and scene['followTf'] == 'inertial'
     assert {'frame:body', 'frame:orbit'} <= set(scene['transforms'])
     leaves, todo = [], [fox['layout']]
     while todo:

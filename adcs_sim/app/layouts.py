@@ -95,12 +95,13 @@ def _joint(topic: str, names_: list[str], field_name: str, unit: str) -> list[Se
 
 
 def _scene(layout: Layout, ns: str, types: dict, counts: dict) -> None:
-    tf, markers = ns + names.TF, ns + names.MARKERS
+    tf = ns + names.TF
     if types.get(tf) == TF_TYPE and counts.get(names.TF):
         layout.scene_topics.append(tf)
         layout.frames = ['body'] + (['orbit'] if counts.get(names.FRAMES_ORBIT) else [])
-        if types.get(markers) == MARKER_ARRAY and counts.get(names.MARKERS):
-            layout.scene_topics.append(markers)
+        for rel in (names.MARKERS, names.MARKERS_STATIC):
+            if types.get(ns + rel) == MARKER_ARRAY and counts.get(rel):
+                layout.scene_topics.append(ns + rel)
     else:
         layout.left_out.append(f'3D view (no {tf} of type {TF_TYPE}: recorded before the viewer topics)')
 
@@ -135,7 +136,8 @@ def layout_for(run, types: dict[str, str]) -> Layout:
     layout.plots.append(('body rate (rad/s)', _vector(state, ODOMETRY, ('twist', 'twist', 'angular'), 'w')))
     if data.wheel_names:
         wheels = ns + names.WHEELS_STATE
-        layout.plots.append(('wheel speed (rad/s, relative to the body)', _joint(wheels, data.wheel_names, 'velocity', 'rad/s')))
+        layout.plots.append(('wheel speed (rad/s, relative to the body)',
+                             _joint(wheels, data.wheel_names, 'velocity', 'rad/s')))
         layout.plots.append(('wheel motor torque (N m)', _joint(wheels, data.wheel_names, 'effort', 'N m')))
     torques = []
     if counts.get(names.APPLIED_TORQUE):
