@@ -264,3 +264,16 @@ def test_layout_writers_refuse_what_they_cannot_use_in_one_line(tmp_path, capsys
     _one_line_error([bag, bag, *out], capsys, status=2)
     assert 'cannot write' in _one_line_error([bag, '--plotjuggler-layout', str(tmp_path)], capsys)
     assert not (tmp_path / 'f.json').exists()
+
+
+def test_a_hostile_status_name_stays_out_of_the_layouts_paths():
+    """A foreign bag's status names go into Foxglove path filters: only ROS node names are used."""
+    from types import SimpleNamespace
+
+    from adcs_sim.app.layouts import layout_for
+    data = RunData(t=np.zeros(1), q=np.array([[0.0, 0.0, 0.0, 1.0]]), w=np.zeros((1, 3)))
+    data.topic_counts = {'state': 1, 'controller/status': 2}
+    data.controller_status = [(0.0, 'x"}.evil{key=="', {'mode': 'a'}), (0.0, 'pd_controller', {'mode': 'b'})]
+    layout = layout_for(SimpleNamespace(name='foreign', data=data), {'/state': 'nav_msgs/msg/Odometry'})
+    assert [s.path for s in layout.modes] == [('status', 'pd_controller', 'mode')]
+    assert not layout.scene_topics and 'evil' not in json.dumps(foxglove_layout(layout))

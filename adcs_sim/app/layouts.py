@@ -30,6 +30,7 @@ A bag that is not a bag of the graph (not a bag, damaged beyond use, no ``state`
 from __future__ import annotations
 
 import json
+import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,6 +45,7 @@ JOINT_STATE = 'sensor_msgs/msg/JointState'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 MARKER_ARRAY = 'visualization_msgs/msg/MarkerArray'
 MODE_KEYS = ('mode', 'phase', 'stage')   # controller status keys that name a law's mode
+ROS_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_/]{0,200}')   # node names (what a controller's status is named)
 AXES = ('x', 'y', 'z')
 COLORS = ('#1f77b4', '#d62728', '#2ca02c', '#ff7f0e', '#9467bd', '#8c564b', '#e377c2', '#17becf')
 
@@ -153,6 +155,8 @@ def layout_for(run, types: dict[str, str]) -> Layout:
                              _joint(ns + names.THRUSTERS_STATE, data.thruster_names, 'velocity', 's')))
     keys = {}
     for _, status_name, values in data.controller_status:
+        if not ROS_NAME.fullmatch(status_name):   # a foreign bag's status name goes into a path filter
+            continue
         for key in MODE_KEYS:
             if key in values:
                 keys.setdefault((status_name, key), None)
