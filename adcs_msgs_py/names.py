@@ -30,6 +30,20 @@ SENSOR_TOPICS = {'gyro': SENSOR_IMU, 'star_tracker': SENSOR_STAR_TRACKER, 'sun':
                  'magnetometer': SENSOR_MAGNETOMETER}   # by adcs_msgs_py.measurements.SENSORS name
 ESTIMATE_STATE = 'estimate/state'
 ESTIMATOR_STATUS = 'estimator/status'
+# For viewers (Foxglove, RViz, PlotJuggler): published by the dynamics node with
+# ``visualization.enabled`` (adcs_msgs_py/visual.py builds them), built only when subscribed.
+FRAMES_BODY = 'frames/body'          # geometry_msgs/TransformStamped inertial -> body
+FRAMES_ORBIT = 'frames/orbit'        # geometry_msgs/TransformStamped inertial -> orbit (with an orbit)
+MARKERS = 'markers'                  # visualization_msgs/MarkerArray: what moves (wheel momentum, thruster plumes)
+MARKERS_STATIC = 'markers/static'    # visualization_msgs/MarkerArray, latched: body box and axes, target axes
+ERROR_EIGENAXIS = 'error/eigenaxis'  # geometry_msgs/Vector3Stamped: x = eigenaxis error (deg)
+ERROR_EULER_213 = 'error/euler_213'  # geometry_msgs/Vector3Stamped: 2-1-3 Euler errors about x, y, z (deg)
+VISUAL_TOPICS = (FRAMES_BODY, FRAMES_ORBIT, MARKERS, MARKERS_STATIC, ERROR_EIGENAXIS, ERROR_EULER_213)
+FRAME_TOPICS = (FRAMES_BODY, FRAMES_ORBIT)
+# Written by the recorder into the bag only: the transforms received on FRAME_TOPICS as
+# tf2_msgs/TFMessage (no tf2_msgs wheel for Jazzy on PyPI: it cannot be published here), the
+# topic RViz and Foxglove read transforms from. Relative: /tf for a run in the root namespace.
+TF = 'tf'
 
 # Command topics a controller may answer a state with (what the dynamics node can wait for).
 COMMAND_TOPICS = (WHEELS_CMD, TORQUE_CMD, THRUSTERS_CMD)
@@ -47,6 +61,7 @@ PUBLISHER_ROLES: dict[str, tuple[str, ...]] = {
     CONTROLLER_STATUS: ('controller',), FAULTS: ('faults',), REFERENCE: (),
     SENSOR_IMU: ('dynamics',), SENSOR_STAR_TRACKER: ('dynamics',), SENSOR_SUN: ('dynamics',),
     SENSOR_MAGNETOMETER: ('dynamics',), ESTIMATE_STATE: ('estimator',), ESTIMATOR_STATUS: ('estimator',),
+    **{topic: ('dynamics',) for topic in VISUAL_TOPICS},
 }
 
 

@@ -36,11 +36,12 @@ from dataclasses import dataclass
 
 from builtin_interfaces.msg import Time  # noqa: F401  (re-exported for type hints)
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseWithCovarianceStamped, Vector3Stamped
+from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped, Vector3Stamped
 from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, MagneticField
+from visualization_msgs.msg import MarkerArray
 
 from adcs_msgs_py.names import (  # noqa: F401
     APPLIED_TORQUE,
@@ -48,9 +49,16 @@ from adcs_msgs_py.names import (  # noqa: F401
     COMMAND_TOPICS,
     CONTROLLER_STATUS,
     DYNAMICS_STATUS,
+    ERROR_EIGENAXIS,
+    ERROR_EULER_213,
     ESTIMATE_STATE,
     ESTIMATOR_STATUS,
     FAULTS,
+    FRAME_TOPICS,
+    FRAMES_BODY,
+    FRAMES_ORBIT,
+    MARKERS,
+    MARKERS_STATIC,
     REFERENCE,
     SENSOR_IMU,
     SENSOR_MAGNETOMETER,
@@ -61,6 +69,7 @@ from adcs_msgs_py.names import (  # noqa: F401
     THRUSTERS_STATE,
     TORQUE_CMD,
     TRUTH_STATE,
+    VISUAL_TOPICS,
     WHEELS_CMD,
     WHEELS_STATE,
 )
@@ -169,6 +178,19 @@ TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in (
     TopicSpec(ESTIMATOR_STATUS, DiagnosticArray, QOS_STATUS,
               'estimator diagnostics: bias estimate, innovations and their normalised squares (NIS), '
               'measurements used and rejected'),
+    # For viewers (visualization.enabled; adcs_msgs_py/visual.py), true state, every step.
+    TopicSpec(FRAMES_BODY, TransformStamped, QOS_LOCKSTEP,
+              'the body frame: transform inertial -> body (rotation = true attitude, no translation)'),
+    TopicSpec(FRAMES_ORBIT, TransformStamped, QOS_LOCKSTEP,
+              'the orbit frame (x along track, z nadir): transform inertial -> orbit, with an orbit'),
+    TopicSpec(MARKERS, MarkerArray, QOS_LOCKSTEP,
+              'what moves, every step: the wheel momentum vector, the plumes of the thrusters firing'),
+    TopicSpec(MARKERS_STATIC, MarkerArray, QOS_LATCHED,
+              'published once at t = 0: body box and axes (frame body), target attitude axes (frame inertial)'),
+    TopicSpec(ERROR_EIGENAXIS, Vector3Stamped, QOS_LOCKSTEP,
+              'x: eigenaxis angle (deg) of the true attitude relative to the target; y, z: 0'),
+    TopicSpec(ERROR_EULER_213, Vector3Stamped, QOS_LOCKSTEP,
+              '2-1-3 Euler angles (deg) of the attitude error: x, y, z = the rotations about body x, y, z'),
 )}
 
 
@@ -237,4 +259,22 @@ QOS_RATIONALE: dict[str, str] = {
     DYNAMICS_STATUS: 'RELIABLE: missed steps and their times come from it (the metrics and the '
                      'gap of a crashed controller). VOLATILE, KEEP_LAST status depth, as '
                      'controller/status.',
+    # for viewers: nobody in the loop acts on them; what they cost is kept off the controllers'
+    # critical path (published after the state, built only when subscribed)
+    FRAMES_BODY: 'RELIABLE: recorded every step (the bag\'s /tf is made from it, a lost one is a '
+                 'frame missing in the replay). VOLATILE: a viewer that joins late wants the '
+                 'current attitude, not the past. KEEP_LAST lockstep depth, paced with the '
+                 'recorder like every recorded per-step topic.',
+    FRAMES_ORBIT: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as frames/body.',
+    MARKERS: 'RELIABLE: each array carries every moving marker (a viewer that seeks or joins late '
+             'needs only the latest), recorded every step. VOLATILE, KEEP_LAST lockstep depth, as '
+             'frames/body.',
+    MARKERS_STATIC: 'RELIABLE and TRANSIENT_LOCAL: what never changes is sent once, before t = 0 (its '
+                    'serialisation would cost the loop every step); a viewer or recorder that joins '
+                    'late still gets it from the writer, and in a bag it is the latest message of its '
+                    'topic for every later instant (what a viewer backfills on a seek). KEEP_LAST '
+                    'depth 100 as faults (one message).',
+    ERROR_EIGENAXIS: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth: a plotted series, one sample a '
+                     'step, recorded; a hole would show as a gap in the plot.',
+    ERROR_EULER_213: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as error/eigenaxis.',
 }

@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Regenerate the reference recordings in ``bags/``: one ``adcs-run`` per scenario in ``config/``.
 
-``bags/<scenario>/`` gets the run's ``bag/`` (rosbag2 MCAP), ``metrics.json`` and
-``scenario.yaml``; the run's ``logs/`` are not kept. Each run goes to ``bags/<scenario>.tmp/``
+``bags/<scenario>/`` gets the run's ``bag/`` (rosbag2 MCAP), ``metrics.json``, ``scenario.yaml``
+and ``layouts/`` (Foxglove and PlotJuggler, :mod:`adcs_sim.app.layouts`); the run's ``logs/`` are
+not kept. Each run goes to ``bags/<scenario>.tmp/``
 first (ignored by git) and replaces the old recording only when it succeeded.
 
     .venv/bin/python bags/regenerate.py                 # every config/*.yaml (but NOT_RECORDED)
@@ -69,6 +70,13 @@ def regenerate(name: str) -> Path:
     from adcs_sim.app.analyze import main as analyze
     if not name.startswith(NO_REPORT_PREFIXES) and analyze([str(tmp / 'bag'), '--out', str(tmp / 'report')]) != 0:
         raise SystemExit(f'regenerate: adcs-analyze failed for {name}; output kept in {tmp}')
+    # Its viewer layouts (adcs-analyze --foxglove-layout / --plotjuggler-layout; a recording made
+    # now carries the viewer topics: /tf, markers, error/*).
+    layouts = tmp / 'layouts'
+    layouts.mkdir()
+    if analyze([str(tmp / 'bag'), '--foxglove-layout', str(layouts / 'foxglove.json'),
+                '--plotjuggler-layout', str(layouts / 'plotjuggler.xml')]) != 0:
+        raise SystemExit(f'regenerate: the layouts failed for {name}; output kept in {tmp}')
     dest = HERE / name
     shutil.rmtree(dest, ignore_errors=True)
     tmp.rename(dest)

@@ -257,10 +257,16 @@ def test_reference_recordings_exist_for_every_scenario_and_are_small():
     scenarios = sorted(p.stem for p in (ROOT / 'config').glob('*.yaml') if p.stem not in NOT_RECORDED)
     assert [p.name for p in RECORDINGS] == scenarios
     for folder in RECORDINGS:
+        # recordings made since the viewer topics also keep their viewer layouts (layouts/)
+        layouts = ['layouts'] if (folder / 'layouts').exists() else []
+        if layouts:
+            assert sorted(p.name for p in (folder / 'layouts').iterdir()) == ['foxglove.json', 'plotjuggler.xml']
         if folder.name.startswith(NO_REPORT_PREFIXES):
-            assert sorted(p.name for p in folder.iterdir()) == ['bag', 'metrics.json', 'scenario.yaml']
+            expected = sorted(['bag', 'metrics.json', 'scenario.yaml', *layouts])
+            assert sorted(p.name for p in folder.iterdir()) == expected
             continue
-        assert sorted(p.name for p in folder.iterdir()) == ['bag', 'metrics.json', 'report', 'scenario.yaml']
+        assert sorted(p.name for p in folder.iterdir()) == sorted(['bag', 'metrics.json', 'report', 'scenario.yaml',
+                                                                   *layouts])
         assert (folder / 'report' / 'report.md').is_file()  # what the docs link to
     total = sum(f.stat().st_size for folder in RECORDINGS for f in folder.rglob('*') if f.is_file())
     assert total < MAX_TOTAL_BYTES <= 100_000_000

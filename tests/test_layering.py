@@ -38,13 +38,15 @@ LAYERS = [
 ]
 PACKAGE_DOCS = {'adcs_sim', 'adcs_controllers'}   # package __init__ modules: a docstring, no imports
 ROS_ROOTS = {'rclpy', 'rosgraph_msgs', 'nav_msgs', 'sensor_msgs', 'geometry_msgs', 'std_msgs',
-             'diagnostic_msgs', 'builtin_interfaces', 'rcl_interfaces'}
+             'diagnostic_msgs', 'builtin_interfaces', 'rcl_interfaces', 'visualization_msgs'}
 # ament_index_python (a file lookup, no middleware) is allowed anywhere: scenario_files uses it.
 # The modules that may import ROS besides the nodes: the interface's ROS side and the runner's
 # process handling.
+# adcs_msgs_py.visual builds the viewer messages (TransformStamped, MarkerArray, Vector3Stamped) of
+# the dynamics node: message construction, like conversions, belongs to the interface's ROS side.
 ROS_ALLOWED = {'adcs_msgs_py.topics', 'adcs_msgs_py.node', 'adcs_msgs_py.conversions',
                'adcs_msgs_py.conversions_determination',
-               'adcs_msgs_py.rcl_params', 'adcs_sim.app.graph', 'adcs_sim.app.runner'}
+               'adcs_msgs_py.rcl_params', 'adcs_msgs_py.visual', 'adcs_sim.app.graph', 'adcs_sim.app.runner'}
 # rcl's own params-file parser (through rclpy's C extension: no participant, no DDS). Scenario files
 # are read with it so that the runner sees what the nodes get; the pure modules reach it only
 # when they read a file (a function-level import, which the run-time check below confirms).

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from conftest import InProcessGraph, make_scenario
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Vector3Stamped
+from geometry_msgs.msg import TransformStamped, Vector3Stamped
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from nav_msgs.msg import Odometry
@@ -29,6 +29,7 @@ from sensor_msgs.msg import JointState
 
 from adcs_msgs_py import conversions as cv
 from adcs_sim.app.domains import DomainLease
+from adcs_sim.bag.tf import tf_message_cdr
 
 FUZZ = settings(derandomize=True, max_examples=40, deadline=None, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
@@ -200,6 +201,43 @@ def test_recorder_survives_any_bytes_and_keeps_recording(graphs, msg, garbage):
     written = rec.bag.topics[topic].count - count
     assert written == (not _refused(lambda: cv.checked_cdr_stamp(topic, data))) + \
         (not _refused(lambda: cv.checked_cdr_stamp(topic, garbage)))
+
+
+FRAME_IDS = st.one_of(st.sampled_from(['inertial', 'body', 'orbit', '', 'x' * 300, 'bad\nid']), st.text(max_size=6))
+
+
+@st.composite
+def transforms(draw):
+    msg = _stamp(TransformStamped(), draw(SEC), draw(NANOSEC))
+    msg.header.frame_id, msg.child_frame_id = draw(FRAME_IDS), draw(FRAME_IDS)
+    t = msg.transform.translation
+    t.x, t.y, t.z = draw(st.one_of(st.lists(ANY_FLOAT, min_size=3, max_size=3), st.just([0.0] * 3)))
+    r = msg.transform.rotation
+    r.x, r.y, r.z, r.w = draw(st.one_of(st.lists(ANY_FLOAT, min_size=4, max_size=4), st.just([0.0, 0.0, 0.6, 0.8])))
+    return msg
+
+
+def _tf(topic: str, data: bytes) -> bytes:
+    cv.checked_cdr_stamp(topic, data)
+    try:
+        return tf_message_cdr(data)
+    except ValueError as exc:
+        raise cv.InvalidMessage(str(exc)) from None
+
+
+@FUZZ
+@given(msg=transforms(), garbage=st.binary(max_size=60))
+def test_recorder_writes_tf_only_from_valid_transforms(graphs, msg, garbage):
+    """frames/body is recorded when its stamp is valid (as every topic); it goes on /tf only when
+    it is a well-formed transform (frame ids, finite, unit rotation), else it is counted, once."""
+    _, nodes, _, _ = graphs
+    rec = nodes['recorder']
+    topic = '/frames/body'
+    for data in (serialize_message(msg), garbage):
+        tf_before = rec.bag.topics['/tf'].count if '/tf' in rec.bag.topics else 0
+        feed(rec, rec.subs[topic], data, lambda: _tf(topic, data))
+        tf_after = rec.bag.topics['/tf'].count if '/tf' in rec.bag.topics else 0
+        assert tf_after - tf_before == (not _refused(lambda: _tf(topic, data)))
 
 
 def test_the_fuzzed_graph_runs_to_the_end(graphs):

@@ -11,7 +11,10 @@ instead (``comparison.csv``, ``comparison.md``, overlaid figures) to ``--out DIR
 ``comparison/`` in the current directory (never among the inputs: bags under ``bags/`` are the
 repository's reference data); with ``--reference FILE`` (published figures per run, e.g.
 ``docs/seed004/paper.yaml``) it adds a published-vs-ours table with the differences.
-``--no-report`` only prints the metrics.
+``--no-report`` only prints the metrics. ``--foxglove-layout OUT.json`` and / or
+``--plotjuggler-layout OUT.xml`` write the viewer layouts of one bag instead (no metrics, no
+report; :mod:`adcs_sim.app.layouts`): 3D view, attitude error, rates, wheels, torques, controller
+mode, from the topics the bag has (the panels left out are named on stderr).
 
 A path that is not a readable bag gives a one-line error on stderr and exit status 1 (the other
 bags are still analysed). A damaged bag (a CRC or bounds check fails; every check is in
@@ -28,6 +31,7 @@ import sys
 from pathlib import Path
 
 from adcs_sim.app.analysis import format_metrics, jsonable_metrics, run_metrics
+from adcs_sim.app.layouts import LayoutError, write_layouts
 from adcs_sim.app.report.loading import BagError, default_report_dir, load_run
 
 
@@ -65,6 +69,24 @@ def _warn_compromised(runs: dict) -> int:
     return 1 if lines else 0
 
 
+def _layouts(args) -> int:
+    """``--foxglove-layout`` / ``--plotjuggler-layout``: the layouts of one bag, exit status."""
+    if len(args.bags) != 1:
+        print('adcs-analyze: --foxglove-layout / --plotjuggler-layout take exactly one bag', file=sys.stderr)
+        return 2
+    try:
+        layout = write_layouts(args.bags[0], args.foxglove_layout, args.plotjuggler_layout)
+    except LayoutError as exc:
+        print(f'adcs-analyze: {exc}', file=sys.stderr)
+        return 1
+    for what in layout.left_out:
+        print(f'adcs-analyze: note: left out: {what}', file=sys.stderr)
+    for name, path in (('foxglove', args.foxglove_layout), ('plotjuggler', args.plotjuggler_layout)):
+        if path is not None:
+            print(f'{name} layout ({layout.kind}): {path}')
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog='adcs-analyze', description=__doc__.splitlines()[0])
     parser.add_argument('bags', nargs='+', help='bag folder(s) or .mcap file(s)')
@@ -82,7 +104,14 @@ def main(argv=None) -> int:
                         help='with --compare: a YAML of published figures per run (e.g. a paper\'s), '
                              'added to the comparison with the relative differences')
     parser.add_argument('--no-report', action='store_true', help='only print the metrics')
+    parser.add_argument('--foxglove-layout', type=Path, default=None, metavar='OUT.json',
+                        help="write a Foxglove layout for the bag's topics (3D view, errors, rates, wheels, "
+                             'torques, mode) and exit')
+    parser.add_argument('--plotjuggler-layout', type=Path, default=None, metavar='OUT.xml',
+                        help='write a PlotJuggler layout for the bag (the same plots) and exit')
     args = parser.parse_args(argv)
+    if args.foxglove_layout is not None or args.plotjuggler_layout is not None:
+        return _layouts(args)
     runs, status = _load(args.bags)
     results = {p: run_metrics(r.data, args.tolerance_deg, args.eigen_tolerance_deg) for p, r in runs.items()}
     status = max(status, _warn_compromised(runs))

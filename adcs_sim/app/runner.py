@@ -36,7 +36,14 @@ from pathlib import Path
 
 from adcs_msgs_py import names
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app.analysis import RunData, bag_intrusions, format_metrics, jsonable_metrics, run_metrics
+from adcs_sim.app.analysis import (
+    RunData,
+    bag_intrusions,
+    format_metrics,
+    jsonable_metrics,
+    run_metrics,
+    target_attitude,
+)
 from adcs_sim.app.graph import PROGRESS_NODE, Graph, Progress, graph_env, lease_domain, recorded_state
 from adcs_sim.app.parameters import explain
 from adcs_sim.app.registry import NODES
@@ -77,6 +84,15 @@ def _compromised(found: list[str], bag_dir: Path) -> RunError | None:
                     + f'; bag kept in {bag_dir} (topic {names.INTRUSIONS})')
 
 
+def run_target(validated: dict) -> list[float]:
+    """The target of the dynamics node's error topics and target markers: the offline analysis'
+    (:func:`~adcs_sim.app.analysis.target_attitude`: a controller section's ``target.attitude``),
+    so that ``error/*`` in the bag are the errors ``adcs-analyze`` computes."""
+    sections = {name: {'ros__parameters': {'target': {'attitude': list(values['target.attitude'])}}}
+                for name, values in validated.items() if name != 'dynamics' and 'target.attitude' in values}
+    return [float(v) for v in target_attitude(sections)]
+
+
 @dataclass
 class _Run:
     """One run under way: its validated sections, files, graph and what has happened so far."""
@@ -110,7 +126,8 @@ def _start_graph(run: _Run, show_progress: bool):
         extra = expect_faults if NODES[name].role == 'controller' else []
         graph.start(name, NODES[name].module, [*common, '-p', 'startup.expect_recorder:=true', *extra])
     dyn_args = [*common, '-p', 'startup.expect_recorder:=true', *expect_faults,
-                '-p', f'startup.state_subscribers:={n_state_subscribers}']
+                '-p', f'startup.state_subscribers:={n_state_subscribers}',
+                '-p', f'visualization.target_attitude:={json.dumps(run_target(validated))}']
     if run.duration is not None:
         dyn_args += ['-p', f'duration:={float(run.duration)!r}']
     graph.check()
@@ -180,7 +197,7 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
     log_dir = out / 'logs'
     log_dir.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(scenario, out / 'scenario.yaml')
-    graph = Graph(graph_env(lease, allow_network), log_dir, keep_fds=(lease.fileno(),))
+    graph = Graph(graph_env(lease, allow_network), log_dir, keep_fds=lease.fds())
     run = _Run(scenario, validated, out / 'bag', graph, duration, restarts)
     print(f'adcs-run: ROS_DOMAIN_ID={lease.domain_id}, discovery '
           f'{graph.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]}', flush=True)

@@ -32,16 +32,31 @@ STAMP_FIRST_TYPES = frozenset({
     'nav_msgs/msg/Odometry', 'sensor_msgs/msg/JointState', 'geometry_msgs/msg/Vector3Stamped',
     'diagnostic_msgs/msg/DiagnosticArray', 'rosgraph_msgs/msg/Clock',
     'geometry_msgs/msg/PoseStamped', 'geometry_msgs/msg/TwistStamped', 'std_msgs/msg/Header',
+    'geometry_msgs/msg/TransformStamped',
 })
+# Types that are a sequence of stamped messages (the graph's markers, the bag's /tf): log time = the
+# first element's stamp (after the uint32 length), or the latest /clock when empty or out of range.
+STAMPED_ARRAY_TYPES = frozenset({'visualization_msgs/msg/MarkerArray', 'tf2_msgs/msg/TFMessage'})
 
 
-def cdr_stamp_ns(data: bytes) -> int | None:
-    """Stamp of a CDR message whose first field is a ``builtin_interfaces/Time``, in ns."""
-    if len(data) < 12:
+def cdr_stamp_ns(data: bytes, offset: int = 4) -> int | None:
+    """Stamp of a CDR message whose first field is a ``builtin_interfaces/Time``, in ns (``offset``
+    8: of the first element of a sequence of such messages)."""
+    if len(data) < offset + 8:
         return None
     fmt = '<iI' if data[1] & 1 else '>iI'
-    sec, nanosec = struct.unpack_from(fmt, data, 4)
+    sec, nanosec = struct.unpack_from(fmt, data, offset)
     return sec * 1_000_000_000 + nanosec
+
+
+def cdr_array_stamp_ns(data: bytes) -> int | None:
+    """Stamp of the first element of a CDR sequence of stamped messages (:data:`STAMPED_ARRAY_TYPES`);
+    None when the sequence is empty or the stamp is out of range."""
+    if len(data) < 16 or struct.unpack_from('<I' if data[1] & 1 else '>I', data, 4)[0] == 0:
+        return None
+    fmt = '<iI' if data[1] & 1 else '>iI'
+    sec, nanosec = struct.unpack_from(fmt, data, 8)
+    return sec * 1_000_000_000 + nanosec if sec >= 0 and nanosec < 1_000_000_000 else None
 
 
 def qos_dicts(qos) -> list[dict[str, Any]]:
@@ -68,6 +83,7 @@ class _Topic:
     qos: list[dict[str, Any]]
     count: int = 0
     stamped: bool = False
+    array: bool = False    # a sequence of stamped messages (STAMPED_ARRAY_TYPES)
 
 
 @dataclass
@@ -116,13 +132,14 @@ class BagWriter:
         cid = self._writer.register_channel(
             topic=name, message_encoding='cdr', schema_id=self._schemas[type_name],
             metadata={'offered_qos_profiles': yaml.safe_dump(qos, sort_keys=False)})
-        self.topics[name] = _Topic(cid, type_name, qos, stamped=type_name in STAMP_FIRST_TYPES)
+        self.topics[name] = _Topic(cid, type_name, qos, stamped=type_name in STAMP_FIRST_TYPES,
+                                   array=type_name in STAMPED_ARRAY_TYPES)
 
     def write(self, topic: str, data: bytes, log_time_ns: int | None = None) -> None:
         """Append one serialized message; log time = its stamp (or the latest /clock)."""
         t = self.topics[topic]
         if log_time_ns is None:
-            stamp = cdr_stamp_ns(data) if t.stamped else None
+            stamp = cdr_stamp_ns(data) if t.stamped else cdr_array_stamp_ns(data) if t.array else None
             log_time_ns = stamp if stamp is not None else self.clock_ns
         if t.type_name == 'rosgraph_msgs/msg/Clock':
             self.clock_ns = max(self.clock_ns, log_time_ns)

@@ -54,7 +54,17 @@ from adcs_core.faults import FaultTracker, split_snapshot
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import conversions_determination as cd
 from adcs_msgs_py import topics
+from adcs_msgs_py.names import (
+    ERROR_EIGENAXIS,
+    ERROR_EULER_213,
+    FRAMES_BODY,
+    FRAMES_ORBIT,
+    MARKERS,
+    MARKERS_STATIC,
+    VISUAL_TOPICS,
+)
 from adcs_msgs_py.node import AdcsNode, RunStopped, main_for
+from adcs_msgs_py.visual import VisualMessages
 from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.link_faults import DELAY, FATE_NAMES, OK, LinkFaults
 from adcs_sim.truth.plant import ReactionWheels, WheelCommand
@@ -131,6 +141,8 @@ class DynamicsNode(AdcsNode):
         self._state_msg = None
         self._truth_msg = None
         self._wheel_msg = None
+        self.visual, self.pub_visual = self._visual_setup(p)
+        self._visual_speed = None   # wheel speeds at the start of the step being integrated
 
         self.subs = {}
         if self.wheels:
@@ -141,6 +153,19 @@ class DynamicsNode(AdcsNode):
             self.subs[topics.THRUSTERS_CMD] = self.subscription(topics.THRUSTERS_CMD, self._on_thruster_cmd)
         self.faults = FaultTracker()
         self.sub_faults = self.subscription(topics.FAULTS, self._on_faults)
+
+    def _visual_setup(self, p) -> tuple[VisualMessages | None, dict]:
+        """The viewer messages (adcs_msgs_py/visual.py) and their publishers, if enabled."""
+        if not p['visualization.enabled']:
+            return None, {}
+        w, th, orbit = self.wheels, self.thrusters, self.plant.orbit
+        visual = VisualMessages(p['visualization.target_attitude'], p['visualization.axis_length'],
+                                *((w.axes, w.spin_inertia, w.max_speed) if w else (None, None, None)),
+                                *((th.positions, th.directions) if th else (None, None)), orbit=orbit)
+        skip = {FRAMES_ORBIT} if orbit is None else set()
+        if not visual.markers.markers:
+            skip.add(MARKERS)   # nothing moves but the body (torquers only)
+        return visual, {t: self.publisher(t) for t in VISUAL_TOPICS if t not in skip}
 
     # --- faults -----------------------------------------------------------------------------
 
@@ -219,6 +244,8 @@ class DynamicsNode(AdcsNode):
         control torque at ``t``."""
         if self.thrusters is not None:
             self.commands['thrusters'] = self.thrusters.command(t, self.on_time, self.period)
+        if self.visual is not None and self.wheels is not None:
+            self._visual_speed = self.x[self.plant.slices['wheels']][:self.wheels.count].copy()
         torque = self.plant.control_torque(t, self.x, self.commands)
         if self.thrusters is not None:
             self.x = step_pulsed(self.plant, t, self.x, self.commands, self.period, self.max_step)
@@ -236,6 +263,27 @@ class DynamicsNode(AdcsNode):
             self.thrusters.forces(t, cmd)))
 
     # --- publishing -----------------------------------------------------------------------
+
+    def publish_visual_state(self, t_ns: int, q) -> None:
+        """frames/* and error/* of the true attitude at ``t_ns``, to what is subscribed."""
+        live = {t: pub for t, pub in self.pub_visual.items() if pub.get_subscription_count()}
+        if FRAMES_BODY in live:
+            live[FRAMES_BODY].publish(self.visual.body_frame(t_ns, q))
+        if FRAMES_ORBIT in live:
+            live[FRAMES_ORBIT].publish(self.visual.orbit_frame(t_ns))
+        if ERROR_EIGENAXIS in live or ERROR_EULER_213 in live:
+            for topic, msg in zip((ERROR_EIGENAXIS, ERROR_EULER_213), self.visual.errors(t_ns, q)):
+                if topic in live:
+                    live[topic].publish(msg)
+
+    def publish_markers(self, t_ns: int) -> None:
+        """markers of the step just integrated (stamp ``t_ns`` = its start): the wheel momentum at
+        its start, the thrusters that fired in it."""
+        pub = self.pub_visual.get(MARKERS)
+        if pub is None or not pub.get_subscription_count():
+            return
+        on_time = self.commands['thrusters'].on_time if self.thrusters is not None else ()
+        pub.publish(self.visual.marker_array(t_ns, self._visual_speed, on_time))
 
     def publish_state(self) -> None:
         t_ns = self.step_ns
@@ -260,6 +308,8 @@ class DynamicsNode(AdcsNode):
                                                     self._wheel_msg)
             self.pub_wheels.publish(self._wheel_msg)
         self.publish_sensors(t_ns, q, w)
+        if self.visual is not None:
+            self.publish_visual_state(t_ns, q)
 
     def publish_sensors(self, t_ns: int, q: np.ndarray, w: np.ndarray) -> None:
         """Every fitted sensor's reading of the true state at ``t_ns`` (measured every step, whoever
@@ -298,7 +348,7 @@ class DynamicsNode(AdcsNode):
             state_subs = (1 if self.awaited else 0) + recorder
         required = {self.pub_state: state_subs}
         for pub in (self.pub_clock, self.pub_truth, self.pub_wheels, self.pub_applied, self.pub_status,
-                    self.pub_thrusters):
+                    self.pub_thrusters, *self.pub_visual.values()):
             if pub is not None:
                 required[pub] = max(required.get(pub, 0), recorder)
         sensor_subs = p['startup.sensor_subscribers']
@@ -318,6 +368,8 @@ class DynamicsNode(AdcsNode):
             f'{self.params["mode"]} run: {self.n_steps} steps of {self.period:g} s, '
             f'waiting for {self.awaited or "no commands"}')
         self.publish_status()
+        if MARKERS_STATIC in self.pub_visual:   # latched: once, before t = 0
+            self.pub_visual[MARKERS_STATIC].publish(self.visual.static_markers(0))
         timeout = self.params['lockstep.timeout']
         pace = self.period / self.params['real_time_factor']
         wall0 = time.monotonic()
@@ -343,6 +395,8 @@ class DynamicsNode(AdcsNode):
             if self.pub_applied.get_subscription_count():
                 self.pub_applied.publish(cv.vector_to_msg(k * self.period_ns, torque))
             self.publish_thrusters(t, k * self.period_ns)
+            if self.visual is not None:
+                self.publish_markers(k * self.period_ns)
         self.publish_status(final=True)
         self._drain_acks()
         self.get_logger().info(f'done at t = {self.step_ns / cv.NS_PER_S:g} s; '
@@ -370,7 +424,7 @@ class DynamicsNode(AdcsNode):
                 executor.spin_once(timeout_sec=remaining)
         # The controllers answering is not enough when a recorder listens (pace_recorder); in
         # free flight nothing else paces the loop, so wait for the acknowledgements every step.
-        recorded = self._step_publishers + [self.pub_applied, self.pub_thrusters]
+        recorded = self._step_publishers + [self.pub_applied, self.pub_thrusters, *self.pub_visual.values()]
         if awaited:
             self.pace_recorder(self.step_ns // self.period_ns, recorded, timeout)
         else:
@@ -438,7 +492,8 @@ class DynamicsNode(AdcsNode):
             executor.spin_once(timeout_sec=remaining)
 
     def _drain_acks(self) -> None:
-        self.wait_acked(self._step_publishers + [self.pub_applied, self.pub_status, self.pub_thrusters], 5.0)
+        self.wait_acked(self._step_publishers + [self.pub_applied, self.pub_status, self.pub_thrusters,
+                                                 *self.pub_visual.values()], 5.0)
 
 
 def main(args=None) -> None:

@@ -3,7 +3,9 @@
 Subscriptions are ``raw`` (CDR bytes; nothing is deserialised). All topics of the interface
 (:data:`adcs_msgs_py.topics.TOPICS`, each with its own QoS so transient-local faults are received
 too) are subscribed at start; other topics appearing in the node's namespace are picked up by a
-periodic graph look-up. The file is flushed every ``flush_period`` wall seconds.
+periodic graph look-up. The file is flushed every ``flush_period`` wall seconds. Each transform
+received on ``frames/*`` is also written on ``/tf`` as a ``tf2_msgs/TFMessage`` (:mod:`adcs_sim.bag.tf`:
+why, and what is refused).
 
 On SIGINT / SIGTERM the node stops taking new work, drains what DDS has already delivered, and
 closes the bag (summary + ``metadata.yaml``). After SIGKILL, everything up to the last flush is
@@ -28,6 +30,7 @@ from adcs_msgs_py import names, topics
 from adcs_msgs_py.guard import Intruder
 from adcs_msgs_py.node import AdcsNode, main_for
 from adcs_sim.bag.schema import RECORDER_SCHEMA
+from adcs_sim.bag.tf import TF_TYPE, tf_message_cdr
 from adcs_sim.bag.writer import STAMP_FIRST_TYPES, BagWriter, qos_dicts
 
 IGNORED_TOPICS = ('/rosout', '/parameter_events')
@@ -81,6 +84,7 @@ class RecorderNode(AdcsNode):
         self.received = 0
         self.subs = {}
         self.skipped: set[str] = set()   # discovered topics that cannot be recorded (said once)
+        self.tf_topic = self.resolve_topic_name(names.TF)   # written from frames/* (adcs_sim.bag.tf)
         wanted = p['topics']
         self.record_all = 'all' in wanted
         for spec in topics.TOPICS.values():
@@ -100,6 +104,7 @@ class RecorderNode(AdcsNode):
         type_name = _type_name(msg_type)
         self.bag.add_topic(resolved, type_name, qos_dicts(offered))
         stamped = type_name in STAMP_FIRST_TYPES
+        derive_tf = name in names.FRAME_TOPICS
 
         def on_message(data: bytes, topic=resolved) -> None:
             # the stamp is the log time: a negative or out-of-range one is rejected (counted)
@@ -107,8 +112,23 @@ class RecorderNode(AdcsNode):
                 return
             self.bag.write(topic, data)
             self.received += 1
+            if derive_tf:
+                self._write_tf(topic, data)
 
         self.subs[resolved] = self.subscription(name, on_message, qos=qos, msg_type=msg_type, raw=True)
+
+    def _write_tf(self, topic: str, data: bytes) -> None:
+        """The transform just recorded on ``topic``, also on ``/tf`` as a TFMessage (a malformed one
+        is rejected and counted under ``topic``; its raw message stays recorded)."""
+        def convert() -> bytes:
+            try:
+                return tf_message_cdr(data)
+            except ValueError as exc:
+                raise cv.InvalidMessage(f'{topic}: not written on {self.tf_topic}: {exc}') from None
+        tf = self.rejects.accept(topic, convert)
+        if tf is not None:
+            self.bag.add_topic(self.tf_topic, TF_TYPE, qos_dicts(topics.QOS_LOCKSTEP))
+            self.bag.write(self.tf_topic, tf)
 
     def _discover(self) -> None:
         """Subscribe to topics that appeared in the graph (in this namespace) since the last look."""
@@ -116,7 +136,7 @@ class RecorderNode(AdcsNode):
         reserved = (self.resolve_topic_name(names.INTRUSIONS), ns + names.QUARANTINE_PREFIX + '/')
         for name, types in self.get_topic_names_and_types():
             if (name in self.subs or name in self.skipped or name in IGNORED_TOPICS or not name.startswith(ns)
-                    or len(types) != 1 or name.startswith(reserved)):
+                    or len(types) != 1 or name.startswith(reserved) or name == self.tf_topic):
                 continue
             try:
                 self._subscribe_discovered(name, types[0])

@@ -170,6 +170,15 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
           doc='compute the environment at each step (orbit, Sun, eclipse, field: environment.*) for the '
               'sensors: needed by the sun sensor and the magnetometer, gives the star tracker its exclusions'),
     *environment_params(),
+    Param('visualization.enabled', 'bool', default=True,
+          doc='publish frames/body, frames/orbit, markers, error/eigenaxis and error/euler_213 for viewers '
+              '(adcs_msgs_py/visual.py; each built only while subscribed, as the recorder always is)'),
+    Param('visualization.target_attitude', 'double_array', default=[0.0, 0.0, 0.0, 1.0], length=4,
+          check=check_unit_quaternion,
+          doc="target [x, y, z, w] of error/* and of the target-axes markers; adcs-run sets it to the "
+              "controller section's target.attitude (the offline analysis' target)"),
+    Param('visualization.axis_length', 'double', default=1.0, check=positive,
+          doc='length of the body-axes markers (m); the other markers scale with it'),
     Param('startup.state_subscribers', 'int', default=-1,
           doc='matched subscribers of `state` to wait for before t = 0 (-1: one per awaited command '
               'topic, plus the recorder)'),
