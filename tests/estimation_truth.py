@@ -73,3 +73,26 @@ class Truth:
 def perturbed(q_true: np.ndarray, dtheta: np.ndarray) -> np.ndarray:
     """The estimate q with ``q_true = q ⊗ δq(δθ)``: an initial error of ``δθ`` (body axes)."""
     return quat_multiply(q_true, quat_conjugate(mekf.rotation_quaternion(dtheta)))
+
+
+class StateSensors:
+    """A sensor source for the batch engine (``sensors(k, t_ns, q, w) -> Measurements``) on the plant's
+    true state: per run ``i`` its own generator seeded ``seeds[i]``; gyro = ω(t_k) + β_k + white noise
+    of σ_v/√Δt (β a random walk of σ_u, from ``bias0``), star tracker = q(t_k) ⊗ exp(σ_st n / 2) every
+    step; ``true_bias`` is β_k of the last step measured."""
+
+    def __init__(self, seeds, dt: float, sigma_v: float, sigma_u: float, sigma_st: float, bias0) -> None:
+        self.rngs = [np.random.default_rng(int(s)) for s in seeds]
+        self.dt, self.sigma_v, self.sigma_u, self.sigma_st = dt, sigma_v, sigma_u, sigma_st
+        self.beta = np.broadcast_to(np.asarray(bias0, dtype=float), (len(self.rngs), 3)).copy()
+        self.true_bias = None
+
+    def __call__(self, k: int, t_ns: int, q: np.ndarray, w: np.ndarray) -> Measurements:
+        draws = np.stack([rng.normal(size=(3, 3)) for rng in self.rngs])   # (N, [gyro, bias, star], 3)
+        self.true_bias = self.beta.copy()
+        gyro = w + self.beta + self.sigma_v / np.sqrt(self.dt) * draws[:, 0]
+        self.beta = self.beta + self.sigma_u * np.sqrt(self.dt) * draws[:, 1]
+        q_meas = quat_multiply(q, mekf.rotation_quaternion(self.sigma_st * draws[:, 2]))
+        valid = np.ones(len(self.rngs), dtype=bool)
+        return Measurements(t_ns, gyro=Reading(gyro, np.zeros((3, 3)), valid),
+                            star_tracker=Reading(q_meas, self.sigma_st ** 2 * np.eye(3), valid.copy()))

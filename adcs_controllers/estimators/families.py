@@ -36,7 +36,7 @@ from typing import Any, Callable
 import numpy as np
 
 from adcs_controllers.estimators import mekf, single_frame
-from adcs_core.attitude import cross, dot, quat_conjugate, quat_multiply, rotate_to_body
+from adcs_core.attitude import cross, dot, quat_conjugate, quat_multiply, quat_norm, rotate_to_body
 from adcs_msgs_py.blocks import check_unit_quaternion, startup_params
 from adcs_msgs_py.measurements import SENSORS, Estimate, Measurements
 from adcs_msgs_py.params import Param, ParameterError, Schema, all_positive, positive
@@ -65,6 +65,10 @@ def estimator_params(sensors_default: list[str], sensor_choice: str) -> list[Par
               doc=f'the fitted sensors this estimator uses ({sensor_choice}); their topics are sensors/*'),
         Param('gyro.sigma_v', 'double', default=1e-5, check=positive, batch=True,
               doc='angle random walk the filter assumes (rad/s^0.5)'),
+        Param('gyro.propagation', 'string', default='hold', choices=('hold', 'average'),
+              doc="the rate over [t_k-1, t_k]: 'hold' the sample of t_k-1 (a sample that is the mean rate "
+                  "over the step after it, the Farrenkopf model); 'average' the mean of the samples of t_k-1 "
+                  "and t_k (instantaneous samples: the trapezoidal rule)"),
         Param('sun.sigma', 'double', default=1e-3, check=positive, batch=True,
               doc='sun sensor direction noise, 1 sigma perpendicular to the vector (rad)'),
         Param('magnetometer.sigma', 'double', default=1e-7, check=positive, batch=True,
@@ -165,6 +169,7 @@ class _Base:
         self.sensors = tuple(p['sensors'])
         self.references = references or constant_references(p)
         self.sigma_v = np.asarray(p['gyro.sigma_v'], dtype=float)
+        self.average = p['gyro.propagation'] == 'average'
         self.sigma_dir = {'sun': np.asarray(p['sun.sigma'], dtype=float),
                           'magnetometer': np.asarray(p['magnetometer.sigma'], dtype=float)}
         self.t_ns: int | None = None
@@ -184,7 +189,8 @@ class _Base:
         return dt
 
     def _gyro(self, m: Measurements, shape) -> tuple[np.ndarray, np.ndarray]:
-        """(this step's gyro rate, where valid); the last valid rate is kept for the next interval."""
+        """(this step's gyro rate, the rate over the interval that ends here: the last valid sample,
+        or with ``gyro.propagation: average`` its mean with this one where this one is valid)."""
         if m.gyro is None:
             raise ValueError('estimator: no gyro reading (the gyro is not fitted)')
         valid = _valid(m.gyro, shape)
@@ -194,8 +200,9 @@ class _Base:
         self._count('rejected_gyro', valid & ~ok)
         last = np.zeros(shape + (3,)) if self.rate is None else self.rate
         rate = _placeholder(m.gyro.value, ok, last)
+        interval = np.where(ok[..., None], 0.5 * (last + rate), last) if self.average else last
         self.rate = rate
-        return rate, ok
+        return rate, interval
 
     def _vector(self, m: Measurements, name: str, shape, t_ns: int):
         """(measured unit vectors, reference unit vectors, direction σ, where usable) of one vector sensor."""
@@ -246,7 +253,7 @@ class MekfEstimator(_Base):
         self.R_st = s_st[..., :, None] ** 2 * np.eye(3)
         self.gate = float(p['gate.nis'])
         q0 = np.asarray(p['initial.attitude'], dtype=float)
-        self.q = q0 / np.sqrt((q0 * q0).sum(axis=-1))[..., None]
+        self.q = q0 / quat_norm(q0)[..., None]
         self.beta = np.asarray(p['initial.bias'], dtype=float)
         var = np.concatenate(np.broadcast_arrays(np.asarray(p['initial.attitude_sigma'], dtype=float),
                                                  np.asarray(p['initial.bias_sigma'], dtype=float)), axis=-1) ** 2
@@ -274,7 +281,7 @@ class MekfEstimator(_Base):
         valid = _valid(reading, shape)
         ok = _finite_rows(reading.value, valid)
         q_meas = _placeholder(reading.value, ok, self.q)
-        q_meas = q_meas / np.sqrt((q_meas * q_meas).sum(axis=-1))[..., None]
+        q_meas = q_meas / quat_norm(q_meas)[..., None]
         dq = quat_multiply(quat_conjugate(self.q), q_meas)
         ok &= np.abs(dq[..., 3]) > MIN_DQ4          # 180 degrees away: no small-rotation innovation
         self._count('missing_star_tracker', ~valid)
@@ -301,13 +308,13 @@ class MekfEstimator(_Base):
         measurements; return the estimate at ``m.t_ns`` and the status values."""
         shape = np.shape(m.gyro.valid) if m.gyro is not None else ()
         dt = self._interval(m)
+        rate, interval = self._gyro(m, shape)
         if dt is None:
             self._start(shape)
         else:
-            self.q, self.beta, self.P = mekf.propagate(self.q, self.beta, self.P, self.rate, dt,
+            self.q, self.beta, self.P = mekf.propagate(self.q, self.beta, self.P, interval, dt,
                                                        self.sigma_v, self.sigma_u)
             self.dt = dt
-        rate, _ = self._gyro(m, shape)
         nis, innovation, used = {}, {}, {}
         self._star_tracker(m, shape, nis, innovation, used)
         self._vectors(m, shape, nis, innovation, used)
@@ -333,7 +340,7 @@ class SingleFrameEstimator(_Base):
         self.method = p['method']
         self.bias = np.asarray(p['gyro.bias'], dtype=float)
         q0 = np.asarray(p['initial.attitude'], dtype=float)
-        self.q = q0 / np.sqrt((q0 * q0).sum(axis=-1))[..., None]
+        self.q = q0 / quat_norm(q0)[..., None]
         self.P = np.asarray(p['initial.attitude_sigma'], dtype=float)[..., :, None] ** 2 * np.eye(3)
 
     def _solve(self, b: np.ndarray, r: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -345,16 +352,16 @@ class SingleFrameEstimator(_Base):
     def step(self, m: Measurements) -> tuple[Estimate, dict]:
         shape = np.shape(m.gyro.valid) if m.gyro is not None else ()
         dt = self._interval(m)
+        rate, interval = self._gyro(m, shape)
         if dt is None:
             self.q = np.broadcast_to(self.q, shape + (4,)).copy()
             self.P = np.broadcast_to(self.P, shape + (3, 3)).copy()
         else:   # propagate (what an outage keeps): exact rotation, P grows by σ_v² Δt
             P6 = np.zeros(shape + (6, 6))
             P6[..., :3, :3] = self.P
-            self.q, _, P6 = mekf.propagate(self.q, np.zeros(shape + (3,)), P6, self.rate - self.bias, dt,
+            self.q, _, P6 = mekf.propagate(self.q, np.zeros(shape + (3,)), P6, interval - self.bias, dt,
                                            self.sigma_v, 0.0)
             self.P, self.dt = P6[..., :3, :3], dt
-        rate, _ = self._gyro(m, shape)
         sun = self._vector(m, 'sun', shape, m.t_ns)
         mag = self._vector(m, 'magnetometer', shape, m.t_ns)
         if sun is None or mag is None:

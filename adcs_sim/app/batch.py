@@ -14,7 +14,11 @@ thousands of runs. This engine runs the *same* code as the graph with a leading 
   thrusters + pitch wheel, :class:`adcs_controllers.laws.backstepping.ThrusterActuation`, with
   the plant stepped by :func:`adcs_sim.truth.thrusters.step_pulsed` as the dynamics node does).
 
-Each step mirrors the lockstep graph: the state at ``t_k`` is measured, the law computes a torque,
+Each step mirrors the lockstep graph: the state at ``t_k`` is measured (with an estimator section:
+the sensors' readings of ``t_k``, from the ``sensors`` callable the engine is given, go through the
+estimator family's step, :mod:`adcs_controllers.estimators.families`, the node's very object, and a
+controller with ``feedback: estimate`` flies on the estimate; the estimates are in
+``BatchResult.estimate``), the law computes a torque,
 the actuation turns it into commands, the applied body torque is recorded (``actuators/torque``)
 and the plant integrates ``[t_k, t_k+1]`` holding the commands. A ``fault_injector`` section's
 schedule is applied as the graph applies it (the latest snapshot stamped ``<= t_k``, at step
@@ -32,11 +36,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
-from adcs_core.attitude import quat_normalize
+from adcs_core.attitude import quat_norm, quat_normalize
 from adcs_core.faults import FAULT_ERROR_MODES
+from adcs_msgs_py.measurements import Estimate, Measurements, Reading
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app.analysis import RunData, run_metrics
 from adcs_sim.app.registry import NODES
@@ -68,6 +74,9 @@ class BatchResult:
     thruster_on_time: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))  # (N, K, n) s
     thruster_impulse: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))  # (N, K + 1, n) N s
     pointing: tuple | None = None  # (σ̂, τ̂) of a pointing law (seed 003), as RunData.pointing
+    # with an estimator section: {'q' (N, K, 4), 'w', 'bias' (N, K, 3), 'cov' (N, K, 6, 6), 'rate_cov'
+    # (N, K, 3, 3), 'bias_true' (N, K, 3) when the sensors give it, 'status': {key: (N, K)}} at t[:K]
+    estimate: dict | None = None
 
     @property
     def n_runs(self) -> int:
@@ -100,15 +109,17 @@ class BatchSimulation:
     """
 
     @classmethod
-    def from_runs(cls, runs: list[dict[str, dict]]) -> 'BatchSimulation':
+    def from_runs(cls, runs: list[dict[str, dict]], sensors: 'SensorSource | None' = None,
+                  references=None) -> 'BatchSimulation':
         """A batch of N runs, each given as its validated sections (``{section: params}``, as
         :func:`adcs_sim.app.runner.validate_scenario` returns them); the ``recorder`` section is left
         out. Raises ParameterError for a parameter that differs but cannot (:meth:`Schema.stack`)."""
         sections = {name: NODES[name].schema.stack([r[name] for r in runs]) for name in runs[0]
                     if NODES[name].role != 'recorder'}
-        return cls(sections, len(runs))
+        return cls(sections, len(runs), sensors, references)
 
-    def __init__(self, sections: dict[str, dict], n_runs: int) -> None:
+    def __init__(self, sections: dict[str, dict], n_runs: int, sensors: 'SensorSource | None' = None,
+                 references=None) -> None:
         if n_runs < 1:
             raise ValueError(f'a batch needs at least one run, got {n_runs}')
         if 'dynamics' not in sections:
@@ -117,11 +128,11 @@ class BatchSimulation:
         self.dynamics = d = sections['dynamics']
         controllers = [s for s in sections if s in NODES and NODES[s].role == 'controller']
         unsupported = [s for s in sections if s in NODES and NODES[s].role not in
-                       ('dynamics', 'controller', 'recorder', 'faults')]
+                       ('dynamics', 'controller', 'recorder', 'faults', 'estimator')]
         if unsupported:
             raise ParameterError(unsupported[0], f'section {unsupported[0]!r} is not supported by '
-                                 'the batch engine (it simulates the dynamics, controller and '
-                                 'fault_injector sections)')
+                                 'the batch engine (it simulates the dynamics, controller, estimator '
+                                 'and fault_injector sections)')
         faults = [s for s in sections if s in NODES and NODES[s].role == 'faults']
         self.fault_schedule = fault_schedule(sections[faults[0]]) if faults else []
         if len(controllers) > 1:
@@ -143,6 +154,7 @@ class BatchSimulation:
             if self.actuation.kind not in self.plant.slices:
                 raise ParameterError('actuator', f'the controller commands {self.actuation.kind} '
                                      'but the dynamics section has none', self.controller)
+        self._build_estimator(sections, sensors, references)
         # The regulation target the metrics measure errors from (as analysis.target_attitude):
         # the law's own (normalised) target, identity in free flight.
         self.q_ref = self.law.q_ref if self.law is not None else np.array([0.0, 0.0, 0.0, 1.0])
@@ -162,6 +174,39 @@ class BatchSimulation:
                 raise ParameterError('wheels.names', f'wheel(s) {missing} of the controller are not '
                                      f'in the dynamics section ({names})', self.controller)
             self.momentum_index = np.array([names.index(n) for n in self.actuation.wheel_names])
+
+    def _build_estimator(self, sections: dict, sensors, references) -> None:
+        """The estimator section's family object (what its node builds) and the sensors feeding it."""
+        names = [s for s in sections if s in NODES and NODES[s].role == 'estimator']
+        self.estimator, self.sensors = None, sensors
+        self.feedback = sections[self.controller]['feedback'] if self.controller else 'state'
+        if len(names) > 1:
+            raise ParameterError(names[1], f'more than one estimator section ({names})')
+        if names:
+            if sensors is None:
+                raise ParameterError(names[0], 'the batch engine needs the sensors (a callable k, t_ns, q, w '
+                                     '-> Measurements) to run an estimator section')
+            self.estimator = NODES[names[0]].family.build(sections[names[0]], references)
+        elif self.feedback == 'estimate':
+            raise ParameterError('feedback', "'estimate' needs an estimator section", self.controller)
+
+    def _estimate(self, k: int, x: np.ndarray, hist: dict) -> Estimate:
+        """Step ``k``'s estimate from the sensors' readings of ``t_k``, as the node receives them; recorded."""
+        m = as_received(self.sensors(k, k * self.period_ns, x[:, :4], x[:, 4:7]))
+        est, status = self.estimator.step(m)
+        rec = hist.setdefault('estimate', {'status': {}})
+        values = {'q': est.q, 'w': est.w, 'bias': est.bias, 'cov': est.cov, 'rate_cov': est.rate_cov}
+        bias_true = getattr(self.sensors, 'true_bias', None)
+        if bias_true is not None:
+            values['bias_true'] = np.broadcast_to(bias_true, est.bias.shape)
+        for key, v in [*values.items(), *((('status', key), v) for key, v in status.items())]:
+            store = rec['status'] if isinstance(key, tuple) else rec
+            name = key[1] if isinstance(key, tuple) else key
+            v = np.broadcast_to(np.asarray(v, dtype=float), (self.n_runs,) + np.shape(v)[1:])
+            if name not in store:
+                store[name] = np.full((self.n_runs, self.K) + v.shape[1:], math.nan)
+            store[name][self.active, k] = v[self.active]
+        return est
 
     def _apply_faults(self, t_ns: int, applied: int) -> int:
         """Apply the latest fault snapshot stamped ``<= t_ns`` if newer than snapshot ``applied``
@@ -208,13 +253,16 @@ class BatchSimulation:
             hist['speed'][:, 0] = x[:, plant.slices['wheels']][:, :n_wheels]
         return hist
 
-    def _control(self, k: int, t: float, x: np.ndarray, observe) -> tuple:
+    def _control(self, k: int, t: float, x: np.ndarray, observe, est: Estimate | None = None) -> tuple:
         """Step ``k``'s commands as the controller node computes them: (values, momentum mode)."""
         if self.law is None:
             return None, False
         N = self.n_runs
         wheel_sl = self.plant.slices.get('wheels')
-        q_m, w_m = self.measurement.measure(x[:, :4], x[:, 4:7])
+        if self.feedback == 'estimate':   # the controller's state:=estimate/state
+            q_m, w_m = est.q, est.w
+        else:
+            q_m, w_m = self.measurement.measure(x[:, :4], x[:, 4:7])
         q_m = quat_normalize(q_m)  # what a controller does to the attitude it receives
         momentum = self.law.output == 'wheel_momentum'
         if self.needs_wheel_momentum:
@@ -256,6 +304,7 @@ class BatchSimulation:
         fault_applied = -1
         active = self.n_steps > 0
         done_steps = np.zeros(N, dtype=np.int64)
+        self.K = K
         with np.errstate(all='ignore'):  # a diverging run's overflow is recorded, not warned
             for k in range(K):
                 if not active.any():
@@ -263,7 +312,9 @@ class BatchSimulation:
                 t = (k * self.period_ns) / NS_PER_S
                 if self.fault_schedule:
                     fault_applied = self._apply_faults(k * self.period_ns, fault_applied)
-                values, momentum = self._control(k, t, x, observe)
+                self.active = active
+                est = self._estimate(k, x, hist) if self.estimator is not None else None
+                values, momentum = self._control(k, t, x, observe, est)
                 commands = self._commands(values, momentum, t, period)
                 u = plant.control_torque(t, x, commands)
                 if self.thrusters is not None:
@@ -293,4 +344,27 @@ class BatchSimulation:
                                    for name, (mode, _, _) in snap.items()],
                            thruster_names=list(self.thrusters.names) if self.thrusters else [],
                            thruster_on_time=hist['on'], thruster_impulse=hist['impulse'],
-                           pointing=self.pointing)
+                           pointing=self.pointing, estimate=hist.get('estimate'))
+
+
+SensorSource = Callable[[int, int, np.ndarray, np.ndarray], Measurements]
+"""``sensors(k, t_ns, q, w) -> Measurements`` of step ``k`` (true state (N, 4), (N, 3)), batch axis N;
+an optional attribute ``true_bias`` (N, 3) is the gyro's true bias at that step (6-dof NEES)."""
+
+
+def as_received(m: Measurements) -> Measurements:
+    """The readings as an estimator node receives them from the messages
+    (:mod:`adcs_msgs_py.conversions_determination`): the star tracker's quaternion divided by its
+    norm, the sun vector by its ``math.hypot``; the rest as sent. So a batch run's estimator sees
+    the very bits of the graph's."""
+    out = {}
+    for name in m.fitted():
+        r = getattr(m, name)
+        value, valid = np.asarray(r.value, dtype=float), np.asarray(r.valid, dtype=bool)[..., None]
+        if name == 'star_tracker':   # no measurement: the message carries the identity
+            value = np.where(valid, value / quat_norm(value)[..., None], [0.0, 0.0, 0.0, 1.0])
+        elif name == 'sun':          # no measurement: the zero vector
+            n = np.array([math.hypot(*v) for v in value.reshape(-1, 3)]).reshape(value.shape[:-1] + (1,))
+            value = np.where(valid & (n > 0), value / np.where(n > 0, n, 1.0), 0.0)
+        out[name] = Reading(value, r.cov, r.valid)
+    return Measurements(m.t_ns, **out)
