@@ -44,6 +44,7 @@ from adcs_msgs_py.params import Param, ParameterError, Schema, all_positive, pos
 NS_PER_S = 1_000_000_000
 VECTOR_SENSORS = ('sun', 'magnetometer')
 MIN_DQ4 = 1e-6   # a star tracker quaternion this close to 180 degrees from the estimate is rejected
+MAX_RATE = 100.0  # rad/s per axis: a gyro sample beyond is not a rate (rejected, counted), whatever its type allows
 References = Callable[[int], dict]
 
 
@@ -152,7 +153,8 @@ def _finite_rows(value, valid: np.ndarray) -> np.ndarray:
     """``valid`` and the reading's value finite and non-zero (a bad reading is a rejection, not a crash)."""
     v = np.asarray(value, dtype=float)
     with np.errstate(invalid='ignore', over='ignore'):
-        return valid & np.isfinite(v).all(axis=-1) & ((v * v).sum(axis=-1) > 0)
+        n2 = (v * v).sum(axis=-1)
+        return valid & np.isfinite(v).all(axis=-1) & (n2 > 0) & np.isfinite(n2)
 
 
 def _placeholder(value, ok: np.ndarray, fill: np.ndarray) -> np.ndarray:
@@ -194,8 +196,9 @@ class _Base:
         if m.gyro is None:
             raise ValueError('estimator: no gyro reading (the gyro is not fitted)')
         valid = _valid(m.gyro, shape)
-        with np.errstate(invalid='ignore'):
-            ok = valid & np.isfinite(np.asarray(m.gyro.value, dtype=float)).all(axis=-1)
+        value = np.asarray(m.gyro.value, dtype=float)
+        with np.errstate(invalid='ignore', over='ignore'):
+            ok = valid & np.isfinite(value).all(axis=-1) & (np.abs(value) <= MAX_RATE).all(axis=-1)
         self._count('missing_gyro', ~valid)
         self._count('rejected_gyro', valid & ~ok)
         last = np.zeros(shape + (3,)) if self.rate is None else self.rate
