@@ -56,6 +56,7 @@ def test_the_pd_slew_flown_on_the_mekf_estimate_settles_as_on_the_truth(tmp_path
     assert np.abs(est['bias'][0, -1] - est['bias_true'][0, -1]).max() < 5e-6   # the bias is found
     assert_array_equal(est['bias'][0, 0], 0.0)                                    # and was not known
     assert est['status']['used_star_tracker'][0].all()
+    assert m_est['nees6_mean'] > 0 and 'estimation_attitude_error_rms_deg' in m_est   # Monte Carlo rows
 
 
 def test_a_run_of_an_estimator_batch_is_the_run_alone(tmp_path):

@@ -45,6 +45,7 @@ from adcs_core.faults import FAULT_ERROR_MODES
 from adcs_msgs_py.measurements import Estimate, Measurements, Reading
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app.analysis import RunData, run_metrics
+from adcs_sim.app.estimation import estimation_metrics, series_from_batch
 from adcs_sim.app.registry import NODES
 from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.fault_schedule import fault_schedule
@@ -96,8 +97,12 @@ class BatchResult:
         return run
 
     def metrics(self, i: int, tol_deg: float = 0.5) -> dict:
-        """:func:`adcs_sim.app.analysis.run_metrics` of run ``i``."""
-        return run_metrics(self.run_data(i), tol_deg)
+        """:func:`adcs_sim.app.analysis.run_metrics` of run ``i`` and, with an estimator section,
+        :func:`adcs_sim.app.estimation.estimation_metrics` (a Monte Carlo row gets both)."""
+        out = run_metrics(self.run_data(i), tol_deg)
+        if self.estimate is not None:
+            out.update(estimation_metrics(series_from_batch(self, i)))
+        return out
 
 
 class BatchSimulation:
