@@ -111,3 +111,24 @@ def test_batch_consistency_of_a_still_spacecraft(tmp_path):
     fig = figures.estimation_figure(s)
     assert len(fig.axes) == 5      # attitude, rate, bias, NEES, NIS
     assert len(figures.consistency_figure(c, result.t, 40).axes) == 1
+
+
+def test_the_run_analysis_of_a_bag_with_an_estimate_reads_the_state_not_the_estimate(tmp_path):
+    """estimate/state has the layout of state: the run analysis (RunData) must still read state (or
+    truth/state), never the estimate, whatever the order of the topics in the bag."""
+    from rclpy.serialization import serialize_message
+
+    from adcs_msgs_py import conversions as cv
+    from adcs_sim.app.analysis import RunData
+    from adcs_sim.bag.writer import BagWriter
+    bag = BagWriter(tmp_path / 'bag')
+    for name in ('/estimate/state', '/state'):
+        bag.add_topic(name, 'nav_msgs/msg/Odometry', [])
+    for k in range(5):
+        bag.write('/estimate/state', serialize_message(cv.state_to_msg(k * 10 ** 9, np.array([0.0, 0.0, 0.6, 0.8]),
+                                                                       np.ones(3))))
+        bag.write('/state', serialize_message(cv.state_to_msg(k * 10 ** 9, np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3))))
+    bag.close()
+    run = RunData.from_bag(tmp_path / 'bag')
+    assert_array_equal(run.q, np.tile([0.0, 0.0, 0.0, 1.0], (5, 1)))
+    assert_array_equal(run.w, np.zeros((5, 3)))

@@ -184,7 +184,7 @@ class BatchSimulation:
         """The estimator section's family object (what its node builds) and the sensors feeding it."""
         names = [s for s in sections if s in NODES and NODES[s].role == 'estimator']
         self.estimator, self.sensors = None, sensors
-        self.feedback = sections[self.controller]['feedback'] if self.controller else 'state'
+        self.feedback = sections[self.controller].get('feedback', 'state') if self.controller else 'state'
         if len(names) > 1:
             raise ParameterError(names[1], f'more than one estimator section ({names})')
         if names:
