@@ -34,6 +34,8 @@ NODES = {
     'pointing_a_controller': 'adcs_controllers.nodes.pointing_a_controller:main',
     'pointing_b_controller': 'adcs_controllers.nodes.pointing_b_controller:main',
     'backstepping_controller': 'adcs_controllers.nodes.backstepping_controller:main',
+    'mekf_estimator': 'adcs_controllers.nodes.mekf_estimator:main',
+    'quest_estimator': 'adcs_controllers.nodes.quest_estimator:main',
 }
 TOOLS = {
     'adcs-run': 'adcs_sim.app.runner:main',

@@ -37,6 +37,7 @@ from adcs_msgs_py.blocks import (
     thruster_params,
     wheel_params,
 )
+from adcs_msgs_py.names import ESTIMATE_STATE, STATE
 from adcs_msgs_py.params import Param, ParameterError, Schema, all_positive, non_negative, positive
 
 
@@ -48,9 +49,22 @@ def _actuator_check(v: dict) -> None:
                                  'torque limits (the controller\'s model of the wheels)')
 
 
+def feedback_param() -> Param:
+    """What every controller flies on: the dynamics node's state or an estimator's estimate."""
+    return Param('feedback', 'string', default='state', choices=('state', 'estimate'),
+                 doc="the state the law flies on: 'state' (the dynamics node's, true or noisy) or "
+                     "'estimate' (an estimator's estimate/state, as a remap state:=estimate/state)")
+
+
+def state_topic(p: dict) -> str:
+    """The topic a controller section's law reads its (q, w) from (``feedback``)."""
+    return ESTIMATE_STATE if p['feedback'] == 'estimate' else STATE
+
+
 def controller_params() -> list[Param]:
-    """Parameters every controller node has: its actuators and the startup handshake."""
+    """Parameters every controller node has: its actuators, its feedback and the startup handshake."""
     return [
+        feedback_param(),
         Param('actuator', 'string', default='wheels', choices=('wheels', 'torquers'),
               doc='command reaction wheels (wheels/cmd) or ideal torquers (torque_cmd)'),
         *wheel_params(with_physics=False),
@@ -448,6 +462,7 @@ BACKSTEPPING_SCHEMA = Schema('backstepping_controller', [
     Param('firing.off_level', 'double', check=non_negative, batch=True,
           doc='Schmitt trigger (N): a firing thruster stays on while its demand exceeds it; '
               'equal to on_level: no hysteresis'),
+    feedback_param(),
     *startup_params(),
     expect_faults_param(),
 ], cross_check=_backstepping_check,

@@ -50,13 +50,10 @@ from adcs_msgs_py.conversions import (
     checked_stamp,
     stamp_from_ns,
 )
-from adcs_msgs_py.measurements import Estimate, Reading
+from adcs_msgs_py.measurements import UNIT_AS_IS, Estimate, Reading
 
 NO_MEASUREMENT = -1.0        # element 0 of a covariance: no measurement this step (REP 145)
 UNIT_VECTOR_TOLERANCE = 1e-6  # a sun vector whose norm is further than this from 1 (and not 0) is refused
-# A sun vector within this of unit norm is taken as it is (not renormalised): the sensor model's unit
-# vectors then read back bit for bit, so an estimator on the graph sees the batch engine's numbers.
-UNIT_AS_IS = 8 * float(np.finfo(float).eps)
 SYMMETRY_TOLERANCE = 1e-9     # on the correlation matrix: asymmetry and negative eigenvalues allowed
 
 _IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])

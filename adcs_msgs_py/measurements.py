@@ -22,6 +22,10 @@ from dataclasses import dataclass
 import numpy as np
 
 SENSORS = ('gyro', 'star_tracker', 'sun', 'magnetometer')  # the fields of Measurements, in this order
+# A received sun vector within this of unit norm is taken as it is (not renormalised): the sensor model's
+# unit vectors then read back bit for bit, so an estimator on the graph sees the batch engine's numbers
+# (the message side, adcs_msgs_py.conversions_determination, and the batch engine's as_received both apply it).
+UNIT_AS_IS = 8 * float(np.finfo(float).eps)
 
 
 @dataclass(frozen=True)

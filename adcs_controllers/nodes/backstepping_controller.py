@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from adcs_controllers.families import BACKSTEPPING
+from adcs_controllers.families import BACKSTEPPING, state_topic
 from adcs_controllers.laws.base import LawOutputRejected, checked_control
 from adcs_controllers.nodes.base import StampPairs, WheelStatePairing
 from adcs_core.faults import FaultTracker
@@ -42,6 +42,7 @@ class BacksteppingController(WheelStatePairing, AdcsNode):
         self.pub_wheels = self.publisher(topics.WHEELS_CMD)
         self.pub_status = self.publisher(topics.CONTROLLER_STATUS)
         self.sub_state = self.sub_wheel_state = None
+        self.state_topic = state_topic(p)   # state, or estimate/state (feedback: estimate)
         self.pairs = StampPairs()  # (q, w) and the wheel speed of one stamp
         self.firings = 0        # thruster-periods fired so far
         self.steps = 0          # steps answered (the acknowledgement pacing counts them)
@@ -62,7 +63,7 @@ class BacksteppingController(WheelStatePairing, AdcsNode):
         self.wait_for_publishers({self.pub_thrusters: 1 + recorder, self.pub_wheels: 1 + recorder,
                                   self.pub_status: recorder}, self.params['startup.timeout'])
         self.sub_wheel_state = self.subscription(topics.WHEELS_STATE, self._on_wheel_state)
-        self.sub_state = self.subscription(topics.STATE, self._on_state)
+        self.sub_state = self.subscription(self.state_topic, self._on_state)
 
     def run(self, executor) -> None:
         if self.params['startup.expect_faults']:
@@ -74,7 +75,7 @@ class BacksteppingController(WheelStatePairing, AdcsNode):
     # --- pairing ------------------------------------------------------------------------------
 
     def _on_state(self, msg) -> None:
-        parsed = self.rejects.accept(topics.STATE, lambda: cv.state_from_msg(msg))
+        parsed = self.rejects.accept(self.state_topic, lambda: cv.state_from_msg(msg))
         if parsed is not None:
             self._pair_state(*parsed)
 

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from adcs_controllers.families import ControllerFamily
+from adcs_controllers.families import ControllerFamily, state_topic
 from adcs_controllers.laws.base import LawOutputRejected, checked_control
 from adcs_core.faults import FaultTracker
 from adcs_msgs_py import conversions as cv
@@ -105,6 +105,7 @@ class ControllerNode(WheelStatePairing, AdcsNode):
             self.wheel_names = self.actuation.wheel_names
         self.pub_cmd = self.publisher(topics.WHEELS_CMD if self.actuator == 'wheels' else topics.TORQUE_CMD)
         self.pub_status = self.publisher(topics.CONTROLLER_STATUS)
+        self.state_topic = state_topic(p)   # state, or estimate/state (feedback: estimate)
         self.sub_state = None
         self.states = 0  # steps computed (the acknowledgement pacing counts them)
         self.sub_wheels = None
@@ -138,7 +139,7 @@ class ControllerNode(WheelStatePairing, AdcsNode):
                                  self.params['startup.timeout'])
         if self.needs_wheel_momentum:
             self.sub_wheels = self.subscription(topics.WHEELS_STATE, self._on_wheel_state)
-        self.sub_state = self.subscription(topics.STATE, self._on_state)
+        self.sub_state = self.subscription(self.state_topic, self._on_state)
 
     def run(self, executor) -> None:
         if self.params['startup.expect_faults']:
@@ -177,7 +178,7 @@ class ControllerNode(WheelStatePairing, AdcsNode):
 
 
     def _on_state(self, msg) -> None:
-        parsed = self.rejects.accept(topics.STATE, lambda: cv.state_from_msg(msg))
+        parsed = self.rejects.accept(self.state_topic, lambda: cv.state_from_msg(msg))
         if parsed is None:
             return
         t_ns, q, w = parsed

@@ -17,7 +17,11 @@ thousands of runs. This engine runs the *same* code as the graph with a leading 
   thrusters + pitch wheel, :class:`adcs_controllers.laws.backstepping.ThrusterActuation`, with
   the plant stepped by :func:`adcs_sim.truth.thrusters.step_pulsed` as the dynamics node does).
 
-Each step mirrors the lockstep graph: the state at ``t_k`` is measured, the law computes a torque,
+Each step mirrors the lockstep graph: the state at ``t_k`` is measured (with an estimator section:
+the sensors' readings of ``t_k``, from the ``sensors`` callable the engine is given, go through the
+estimator family's step, :mod:`adcs_controllers.estimators.families`, the node's very object, and a
+controller with ``feedback: estimate`` flies on the estimate; the estimates are in
+``BatchResult.estimate``), the law computes a torque,
 the actuation turns it into commands, the applied body torque is recorded (``actuators/torque``)
 and the plant integrates ``[t_k, t_k+1]`` holding the commands. A ``fault_injector`` section's
 schedule is applied as the graph applies it (the latest snapshot stamped ``<= t_k``, at step
@@ -35,14 +39,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
-from adcs_core.attitude import quat_normalize
+from adcs_core.attitude import quat_norm, quat_normalize
 from adcs_core.faults import FAULT_ERROR_MODES, split_snapshot
-from adcs_msgs_py.measurements import Measurements
+from adcs_msgs_py.measurements import UNIT_AS_IS, Estimate, Measurements, Reading
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app.analysis import RunData, run_metrics
+from adcs_sim.app.estimation import estimation_metrics, series_from_batch
 from adcs_sim.app.registry import NODES
 from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.fault_schedule import fault_schedule
@@ -78,6 +84,9 @@ class BatchResult:
     # (N, K + 1)}}, each step's reading (NaN / False where a run has no state); the gyro's also 'bias'
     # (N, K + 1, 3), the true bias in each reading (Gyro.true_bias)
     sensors: dict = field(default_factory=dict)
+    # with an estimator section: {'q' (N, K, 4), 'w', 'bias' (N, K, 3), 'cov' (N, K, 6, 6), 'rate_cov'
+    # (N, K, 3, 3), 'bias_true' (N, K, 3) when the sensors give it, 'status': {key: (N, K)}} at t[:K]
+    estimate: dict | None = None
 
     @property
     def n_runs(self) -> int:
@@ -97,8 +106,12 @@ class BatchResult:
         return run
 
     def metrics(self, i: int, tol_deg: float = 0.5) -> dict:
-        """:func:`adcs_sim.app.analysis.run_metrics` of run ``i``."""
-        return run_metrics(self.run_data(i), tol_deg)
+        """:func:`adcs_sim.app.analysis.run_metrics` of run ``i`` and, with an estimator section,
+        :func:`adcs_sim.app.estimation.estimation_metrics` (a Monte Carlo row gets both)."""
+        out = run_metrics(self.run_data(i), tol_deg)
+        if self.estimate is not None:
+            out.update(estimation_metrics(series_from_batch(self, i)))
+        return out
 
 
 class BatchSimulation:
@@ -110,15 +123,17 @@ class BatchSimulation:
     """
 
     @classmethod
-    def from_runs(cls, runs: list[dict[str, dict]]) -> 'BatchSimulation':
+    def from_runs(cls, runs: list[dict[str, dict]], sensors: 'SensorSource | None' = None,
+                  references=None) -> 'BatchSimulation':
         """A batch of N runs, each given as its validated sections (``{section: params}``, as
         :func:`adcs_sim.app.runner.validate_scenario` returns them); the ``recorder`` section is left
         out. Raises ParameterError for a parameter that differs but cannot (:meth:`Schema.stack`)."""
         sections = {name: NODES[name].schema.stack([r[name] for r in runs]) for name in runs[0]
                     if NODES[name].role != 'recorder'}
-        return cls(sections, len(runs))
+        return cls(sections, len(runs), sensors, references)
 
-    def __init__(self, sections: dict[str, dict], n_runs: int) -> None:
+    def __init__(self, sections: dict[str, dict], n_runs: int, sensors: 'SensorSource | None' = None,
+                 references=None) -> None:
         if n_runs < 1:
             raise ValueError(f'a batch needs at least one run, got {n_runs}')
         if 'dynamics' not in sections:
@@ -127,11 +142,11 @@ class BatchSimulation:
         self.dynamics = d = sections['dynamics']
         controllers = [s for s in sections if s in NODES and NODES[s].role == 'controller']
         unsupported = [s for s in sections if s in NODES and NODES[s].role not in
-                       ('dynamics', 'controller', 'recorder', 'faults')]
+                       ('dynamics', 'controller', 'recorder', 'faults', 'estimator')]
         if unsupported:
             raise ParameterError(unsupported[0], f'section {unsupported[0]!r} is not supported by '
-                                 'the batch engine (it simulates the dynamics, controller and '
-                                 'fault_injector sections)')
+                                 'the batch engine (it simulates the dynamics, controller, estimator '
+                                 'and fault_injector sections)')
         faults = [s for s in sections if s in NODES and NODES[s].role == 'faults']
         self.fault_schedule = fault_schedule(sections[faults[0]]) if faults else []
         if len(controllers) > 1:
@@ -158,6 +173,7 @@ class BatchSimulation:
             if self.actuation.kind not in self.plant.slices:
                 raise ParameterError('actuator', f'the controller commands {self.actuation.kind} '
                                      'but the dynamics section has none', self.controller)
+        self._build_estimator(sections, sensors, references)
         # The regulation target the metrics measure errors from (as analysis.target_attitude):
         # the law's own (normalised) target, identity in free flight.
         self.q_ref = self.law.q_ref if self.law is not None else np.array([0.0, 0.0, 0.0, 1.0])
@@ -177,6 +193,43 @@ class BatchSimulation:
                 raise ParameterError('wheels.names', f'wheel(s) {missing} of the controller are not '
                                      f'in the dynamics section ({names})', self.controller)
             self.momentum_index = np.array([names.index(n) for n in self.actuation.wheel_names])
+
+    def _build_estimator(self, sections: dict, sensors, references) -> None:
+        """The estimator section's family object (what its node builds) and the sensors feeding it."""
+        names = [s for s in sections if s in NODES and NODES[s].role == 'estimator']
+        self.estimator, self.sensor_source = None, sensors
+        self.feedback = sections[self.controller].get('feedback', 'state') if self.controller else 'state'
+        if len(names) > 1:
+            raise ParameterError(names[1], f'more than one estimator section ({names})')
+        if names:
+            if sensors is None and self.sensors is None:
+                raise ParameterError(names[0], 'an estimator needs sensors: fit them in the dynamics section '
+                                     '(sensors.*.enabled)')
+            self.estimator = NODES[names[0]].family.build(sections[names[0]], references)
+        elif self.feedback == 'estimate':
+            raise ParameterError('feedback', "'estimate' needs an estimator section", self.controller)
+
+    def _estimate(self, k: int, x: np.ndarray, hist: dict) -> Estimate:
+        """Step ``k``'s estimate from the sensors' readings of ``t_k``, as the node receives them; recorded."""
+        if self.sensor_source is not None:   # readings given by the caller
+            raw = self.sensor_source(k, k * self.period_ns, x[:, :4], x[:, 4:7])
+            bias_true = getattr(self.sensor_source, 'true_bias', None)
+        else:                                # the dynamics section's sensor suite, as the node publishes it
+            raw = self._measure(k, (k * self.period_ns) / NS_PER_S, x)
+            bias_true = self.sensors.gyro.true_bias if self.sensors.gyro is not None else None
+        est, status = self.estimator.step(as_received(raw))
+        rec = hist.setdefault('estimate', {'status': {}})
+        values = {'q': est.q, 'w': est.w, 'bias': est.bias, 'cov': est.cov, 'rate_cov': est.rate_cov}
+        if bias_true is not None:
+            values['bias_true'] = np.broadcast_to(bias_true, est.bias.shape)
+        for key, v in [*values.items(), *((('status', key), v) for key, v in status.items())]:
+            store = rec['status'] if isinstance(key, tuple) else rec
+            name = key[1] if isinstance(key, tuple) else key
+            v = np.broadcast_to(np.asarray(v, dtype=float), (self.n_runs,) + np.shape(v)[1:])
+            if name not in store:
+                store[name] = np.full((self.n_runs, self.K) + v.shape[1:], math.nan)
+            store[name][self.active, k] = v[self.active]
+        return est
 
     def _apply_faults(self, t_ns: int, applied: int) -> int:
         """Apply the latest fault snapshot stamped ``<= t_ns`` if newer than snapshot ``applied``
@@ -254,13 +307,16 @@ class BatchSimulation:
             rec = hist['sensors']['gyro'].setdefault('bias', np.full((self.n_runs, K, 3), math.nan))
             rec[has_state, k] = self.sensors.gyro.true_bias[has_state]
 
-    def _control(self, k: int, t: float, x: np.ndarray, observe) -> tuple:
+    def _control(self, k: int, t: float, x: np.ndarray, observe, est: Estimate | None = None) -> tuple:
         """Step ``k``'s commands as the controller node computes them: (values, momentum mode)."""
         if self.law is None:
             return None, False
         N = self.n_runs
         wheel_sl = self.plant.slices.get('wheels')
-        q_m, w_m = self.measurement.measure(x[:, :4], x[:, 4:7])
+        if self.feedback == 'estimate':   # the controller's state:=estimate/state
+            q_m, w_m = est.q, est.w
+        else:
+            q_m, w_m = self.measurement.measure(x[:, :4], x[:, 4:7])
         q_m = quat_normalize(q_m)  # what a controller does to the attitude it receives
         momentum = self.law.output == 'wheel_momentum'
         if self.needs_wheel_momentum:
@@ -304,6 +360,7 @@ class BatchSimulation:
         fault_applied = -1
         active = self.n_steps > 0
         done_steps = np.zeros(N, dtype=np.int64)
+        self.K = K
         with np.errstate(all='ignore'):  # a diverging run's overflow is recorded, not warned
             for k in range(K):
                 if not active.any():
@@ -312,7 +369,9 @@ class BatchSimulation:
                 if self.fault_schedule:
                     fault_applied = self._apply_faults(k * self.period_ns, fault_applied)
                 self._sense(hist, k, x, done_steps == k)
-                values, momentum = self._control(k, t, x, observe)
+                self.active = active
+                est = self._estimate(k, x, hist) if self.estimator is not None else None
+                values, momentum = self._control(k, t, x, observe, est)
                 commands = self._commands(values, momentum, t, period)
                 u = plant.control_torque(t, x, commands)
                 if self.thrusters is not None:
@@ -346,4 +405,29 @@ class BatchSimulation:
                                    for name, (mode, _, _) in snap.items()],
                            thruster_names=list(self.thrusters.names) if self.thrusters else [],
                            thruster_on_time=hist['on'], thruster_impulse=hist['impulse'],
-                           pointing=self.pointing, sensors=hist.get('sensors', {}))
+                           pointing=self.pointing, sensors=hist.get('sensors', {}),
+                           estimate=hist.get('estimate'))
+
+
+SensorSource = Callable[[int, int, np.ndarray, np.ndarray], Measurements]
+"""``sensors(k, t_ns, q, w) -> Measurements`` of step ``k`` (true state (N, 4), (N, 3)), batch axis N;
+an optional attribute ``true_bias`` (N, 3) is the gyro's true bias at that step (6-dof NEES)."""
+
+
+def as_received(m: Measurements) -> Measurements:
+    """The readings as an estimator node receives them from the messages
+    (:mod:`adcs_msgs_py.conversions_determination`): the star tracker's quaternion divided by its
+    norm, the sun vector by its ``math.hypot``; the rest as sent. So a batch run's estimator sees
+    the very bits of the graph's."""
+    out = {}
+    for name in m.fitted():
+        r = getattr(m, name)
+        value, valid = np.asarray(r.value, dtype=float), np.asarray(r.valid, dtype=bool)[..., None]
+        if name == 'star_tracker':   # no measurement: the message carries the identity
+            value = np.where(valid, value / quat_norm(value)[..., None], [0.0, 0.0, 0.0, 1.0])
+        elif name == 'sun':          # no measurement: the zero vector
+            n = np.array([math.hypot(*v) for v in value.reshape(-1, 3)]).reshape(value.shape[:-1] + (1,))
+            unit = np.abs(n - 1.0) <= UNIT_AS_IS   # sun_from_msg keeps a unit vector as it is
+            value = np.where(valid & (n > 0), np.where(unit, value, value / np.where(n > 0, n, 1.0)), 0.0)
+        out[name] = Reading(value, r.cov, r.valid)
+    return Measurements(m.t_ns, **out)

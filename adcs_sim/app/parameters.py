@@ -33,8 +33,8 @@ CONFIG = ROOT / 'config'
 REFERENCE = ROOT / 'docs' / 'parameters.md'
 
 # Units as the schemas write them (SI); matched as a whole piece of the doc text (see unit_of).
-UNITS = ('N m s/rad', 'rad/(N m s)', 'N m s', 'N s', 'N m', 'N', 'kg m^2', 'rad/s^2', 'rad/s^1.5', 'rad/s',
-         'rad/sqrt(s)', 'rad', 'deg', '1/s^2', '1/s', 's', 'm', 'T', 'bytes')
+UNITS = ('N m s/rad', 'rad/(N m s)', 'N m s', 'N s', 'N m', 'N', 'kg m^2', 'rad/s^2', 'rad/s^0.5', 'rad/s^1.5',
+         'rad/s', 'rad/sqrt(s)', 'rad', 'deg', '1/s^2', '1/s', 's', 'm', 'T', 'bytes')
 # Phrases that give a unit in words.
 UNIT_WORDS = {'wall seconds': 's (wall clock)', 'sim seconds': 's', 'fraction': '1 (fraction)'}
 
@@ -48,6 +48,7 @@ CHECKS = {
     'check_unit_quaternion': 'unit norm (within 1e-3)',
     '_check_inertia_values': 'symmetric, positive definite, triangle inequality of the principal moments',
     '_fraction': 'in [0, 1]',
+    '_known_sensors': 'distinct names among `gyro`, `star_tracker`, `sun`, `magnetometer`',
     '_distinct_positive': 'three distinct values > 0',
     '_nonzero_vector': 'not the zero vector',
     '_scale_factor': 'each in (-1, 1]',

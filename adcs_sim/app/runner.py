@@ -93,6 +93,23 @@ def run_target(validated: dict) -> list[float]:
     return [float(v) for v in target_attitude(sections)]
 
 
+# The dynamics node's parameter: matched subscribers of each fitted sensor topic to wait for before
+# t = 0 (the estimators and the recorder); declared by the dynamics schema with the sensor models.
+SENSOR_SUBSCRIBERS = 'startup.sensor_subscribers'
+
+
+def startup_counts(sections) -> dict[str, int]:
+    """The start-up handshake of a run of ``sections``: the matched subscribers the dynamics node
+    waits for on ``state`` (the controllers flying on it, and the recorder) and on each sensor topic
+    (the estimators and the recorder; 0: no estimator, nothing to wait for), and those each
+    estimator waits for on ``estimate/state`` besides the recorder (the controllers flying on it)."""
+    controllers = [s for s in sections if NODES[s].role == 'controller']
+    on_estimate = sum(sections[s]['feedback'] == 'estimate' for s in controllers)
+    estimators = sum(NODES[s].role == 'estimator' for s in sections)
+    return {'state': len(controllers) - on_estimate + 1, 'estimate': on_estimate,
+            'sensors': estimators + 1 if estimators else 0}
+
+
 @dataclass
 class _Run:
     """One run under way: its validated sections, files, graph and what has happened so far."""
@@ -118,16 +135,20 @@ def _start_graph(run: _Run, show_progress: bool):
                 [*common, '-p', f'output:={run.bag_dir}', '-p', f'scenario_file:={run.scenario}'])
     graph.wait_for_line('recorder', READY_LINE, READY_TIMEOUT_S)
     run.others = [s for s in validated if s not in ('recorder', 'dynamics')]
-    n_state_subscribers = sum(NODES[s].role == 'controller' for s in run.others) + 1
+    handshake = startup_counts(validated)
     # With a fault injector, the nodes that act on faults first collect its whole schedule.
     expect_faults = ['-p', 'startup.expect_faults:=true'] if 'fault_injector' in validated else []
     for name in run.others:
         graph.check()
         extra = expect_faults if NODES[name].role == 'controller' else []
+        if NODES[name].role == 'estimator':
+            extra = ['-p', f'startup.estimate_subscribers:={handshake["estimate"]}']
         graph.start(name, NODES[name].module, [*common, '-p', 'startup.expect_recorder:=true', *extra])
     dyn_args = [*common, '-p', 'startup.expect_recorder:=true', *expect_faults,
-                '-p', f'startup.state_subscribers:={n_state_subscribers}',
+                '-p', f'startup.state_subscribers:={handshake["state"]}',
                 '-p', f'visualization.target_attitude:={json.dumps(run_target(validated))}']
+    if handshake['sensors']:   # the dynamics node waits for the estimator's sensor subscriptions
+        dyn_args += ['-p', f'{SENSOR_SUBSCRIBERS}:={handshake["sensors"]}']
     if run.duration is not None:
         dyn_args += ['-p', f'duration:={float(run.duration)!r}']
     graph.check()

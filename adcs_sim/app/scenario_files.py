@@ -67,11 +67,19 @@ def validate_sections(sections: dict, path, duration: float | None = None) -> di
     if len(controllers) > 1:
         raise ParameterError(controllers[1], f'more than one controller section ({controllers}): '
                              'the dynamics node would receive competing commands')
+    estimators = [s for s in sections if NODES[s].role == 'estimator']
+    if len(estimators) > 1:
+        raise ParameterError(estimators[1], f'more than one estimator section ({estimators}): both would '
+                             'publish estimate/state')
     validated = {}
     for name, given in sections.items():
         if name == 'dynamics' and duration is not None:
             given = {**given, 'duration': float(duration)}
         validated[name] = NODES[name].schema.validate(given)
+    for name in controllers:
+        if validated[name]['feedback'] == 'estimate' and not estimators:
+            raise ParameterError('feedback', "'estimate' needs an estimator section (mekf_estimator, "
+                                 f'quest_estimator) in {path}', name)
     check_agreement(validated)
     check_resources(validated['dynamics'])
     return validated

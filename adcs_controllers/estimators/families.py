@@ -1,0 +1,450 @@
+"""The estimator families: for each estimator node, its parameter schema and its estimator, declared
+once (flight software: pure numpy, leading batch axis, no rclpy, never the truth model).
+
+A family (:class:`EstimatorFamily`) is what an estimator node executable is, as
+:mod:`adcs_controllers.families` is for the controllers: the node (:mod:`adcs_controllers.nodes`)
+builds ``family.build(section)`` from its validated section and the batch engine
+(:mod:`adcs_sim.app.batch`) builds the very same object, so a graph run and its batch run execute
+the same code. An estimator has one method, ``step(measurements) -> (Estimate, status)``
+(:mod:`adcs_msgs_py.measurements`), called once per lockstep step with every fitted sensor's
+reading of that step; it propagates from the previous step with the previous gyro sample, then
+updates with the valid measurements of this one. A sensor without a valid measurement (an outage,
+not due, eclipse) is simply not used: the estimate is propagated only.
+
+* ``mekf_estimator`` (:class:`MekfEstimator`): the multiplicative EKF with gyro-bias states
+  (:mod:`adcs_controllers.estimators.mekf`) on the gyro and any of star tracker, sun sensor and
+  magnetometer; updates sequentially in that order, each with an optional NIS gate.
+* ``quest_estimator`` (:class:`SingleFrameEstimator`): QUEST / Davenport's q-method / TRIAD
+  (:mod:`adcs_controllers.estimators.single_frame`) on the sun and magnetometer vectors with the
+  QUEST measurement model's covariance, the rate from the gyro; when fewer than two vectors are valid
+  the last attitude is propagated with the gyro (its covariance grows with the angle random walk).
+
+Vector sensors need the inertial reference directions (the Sun, the field) at the step: a
+``references(t_ns) -> {'sun': (..., 3), 'magnetometer': (..., 3)}`` callable given to
+``build``, or the section's own: ``references.model: environment`` samples the onboard environment
+models of its ``environment.*`` block (:func:`environment_references`), ``constant`` (the default) uses
+its ``references.*`` vectors.
+
+Measurement noise always comes from the section (the σ the filter assumes), never from a message's
+covariance: the message covariances are exact to rounding only (see
+:mod:`adcs_msgs_py.conversions_determination`), and a graph run must equal its batch run bit for bit.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from adcs_controllers.estimators import mekf, single_frame
+from adcs_core.attitude import cross, dot, quat_conjugate, quat_multiply, quat_norm, rotate_to_body
+from adcs_core.environment.environment import build_environment
+from adcs_msgs_py.blocks import check_environment, check_unit_quaternion, environment_params, startup_params
+from adcs_msgs_py.measurements import SENSORS, Estimate, Measurements
+from adcs_msgs_py.params import Param, ParameterError, Schema, all_positive, positive
+
+NS_PER_S = 1_000_000_000
+VECTOR_SENSORS = ('sun', 'magnetometer')
+MIN_DQ4 = 1e-6   # a star tracker quaternion this close to 180 degrees from the estimate is rejected
+MAX_RATE = 100.0  # rad/s per axis: a gyro sample beyond is not a rate (rejected, counted), whatever its type allows
+References = Callable[[int], dict]
+
+
+def _known_sensors(values) -> str | None:
+    bad = [v for v in values if v not in SENSORS]
+    if bad or len(set(values)) != len(values):
+        return f'sensors must be distinct names among {list(SENSORS)}, got {values}'
+    return None
+
+
+def _sigma3(name: str, doc: str, default) -> Param:
+    return Param(name, 'double_array', default=default, length=3, check=all_positive, batch=True, doc=doc)
+
+
+def estimator_params(sensors_default: list[str], sensor_choice: str) -> list[Param]:
+    """The parameters both families have: sensors, gyro model, vector sensors, references, start-up."""
+    return [
+        Param('sensors', 'string_array', default=sensors_default, check=_known_sensors,
+              doc=f'the fitted sensors this estimator uses ({sensor_choice}); their topics are sensors/*'),
+        Param('gyro.sigma_v', 'double', default=1e-5, check=positive, batch=True,
+              doc='angle random walk the filter assumes (rad/s^0.5)'),
+        Param('gyro.propagation', 'string', default='hold', choices=('hold', 'average'),
+              doc="the rate over [t_k-1, t_k]: 'hold' the sample of t_k-1 (a sample that is the mean rate "
+                  "over the step after it, the Farrenkopf model); 'average' the mean of the samples of t_k-1 "
+                  "and t_k (instantaneous samples: the trapezoidal rule)"),
+        Param('sun.sigma', 'double', default=1e-3, check=positive, batch=True,
+              doc='sun sensor direction noise, 1 sigma perpendicular to the vector (rad)'),
+        Param('magnetometer.sigma', 'double', default=1e-7, check=positive, batch=True,
+              doc='magnetometer noise per axis (T); direction noise sigma/|B_ref|'),
+        Param('references.model', 'string', default='constant', choices=('constant', 'environment'),
+              doc="the inertial reference vectors of the vector sensors: 'constant' references.sun and "
+                  "references.magnetometer; 'environment' the onboard models of environment.* (Almanac Sun, "
+                  "IGRF or dipole field along the orbit: adcs_core.environment), sampled at each step"),
+        *environment_params(),
+        Param('references.sun', 'double_array', default=[1.0, 0.0, 0.0], length=3, batch=True,
+              doc='inertial Sun direction, used when no environment model is connected'),
+        Param('references.magnetometer', 'double_array', default=[0.0, 0.0, 3e-5], length=3, batch=True,
+              doc='inertial magnetic field (T), used when no environment model is connected'),
+        Param('initial.attitude', 'double_array', default=[0.0, 0.0, 0.0, 1.0], length=4,
+              check=check_unit_quaternion, batch=True, doc='initial attitude estimate [x, y, z, w]'),
+        _sigma3('initial.attitude_sigma', 'initial attitude uncertainty per body axis, 1 sigma (rad)',
+                [0.1, 0.1, 0.1]),
+        Param('startup.estimate_subscribers', 'int', default=1,
+              doc='matched subscribers of estimate/state (besides the recorder) to wait for before '
+                  'subscribing to the sensors: the controllers flying on the estimate'),
+        *startup_params(),
+    ]
+
+
+def _mekf_check(v: dict) -> None:
+    sensors = v['sensors']
+    if 'gyro' not in sensors:
+        raise ParameterError('sensors', 'the MEKF propagates with the gyro: list gyro')
+    if not any(s in sensors for s in ('star_tracker', *VECTOR_SENSORS)):
+        raise ParameterError('sensors', 'the MEKF needs an attitude sensor besides the gyro '
+                             '(star_tracker, sun, magnetometer)')
+    _references_check(v)
+
+
+def _references_check(v: dict) -> None:
+    if v['references.model'] == 'environment':
+        check_environment(v)
+        return
+    for name in VECTOR_SENSORS:
+        if name in v['sensors'] and not np.all(np.linalg.norm(np.asarray(v[f'references.{name}']), axis=-1) > 0):
+            raise ParameterError(f'references.{name}', 'a zero reference vector: the direction is undefined')
+
+
+MEKF_SCHEMA = Schema('mekf_estimator', [
+    *estimator_params(['gyro', 'star_tracker'], 'gyro and star_tracker, sun, magnetometer'),
+    Param('gyro.sigma_u', 'double', default=1e-8, check=positive, batch=True,
+          doc='rate random walk of the bias the filter assumes (rad/s^1.5)'),
+    _sigma3('star_tracker.sigma', 'star tracker noise per body axis, 1 sigma (rad)', [1e-4, 1e-4, 1e-4]),
+    Param('initial.bias', 'double_array', default=[0.0, 0.0, 0.0], length=3, batch=True,
+          doc='initial gyro bias estimate (rad/s)'),
+    _sigma3('initial.bias_sigma', 'initial bias uncertainty per axis, 1 sigma (rad/s)', [1e-3, 1e-3, 1e-3]),
+    Param('gate.nis', 'double', default=float('inf'), check=positive, finite=False,
+          doc='an update whose normalised innovation squared exceeds this is rejected and counted '
+              '(.inf: no gate; chi-square quantiles: 16.3 for 3 dof at 0.999)'),
+], cross_check=_mekf_check, doc='multiplicative extended Kalman filter with gyro-bias states '
+                                '(Markley & Crassidis 2014 ch. 6; Lefferts, Markley & Shuster 1982)')
+
+
+def _single_frame_check(v: dict) -> None:
+    sensors = v['sensors']
+    if sorted(s for s in sensors if s != 'gyro') != sorted(VECTOR_SENSORS) or 'gyro' not in sensors:
+        raise ParameterError('sensors', f'the single-frame estimator uses gyro, sun and magnetometer, got {sensors}')
+    _references_check(v)
+
+
+QUEST_SCHEMA = Schema('quest_estimator', [
+    *estimator_params(['gyro', 'sun', 'magnetometer'], 'gyro, sun and magnetometer'),
+    Param('method', 'string', default='quest', choices=('quest', 'q_method', 'triad'),
+          doc='single-frame solution of the two vectors (TRIAD trusts the sun vector)'),
+    Param('gyro.bias', 'double_array', default=[0.0, 0.0, 0.0], length=3, batch=True,
+          doc='known gyro bias subtracted from the measured rate (rad/s)'),
+], cross_check=_single_frame_check, doc='single-frame attitude (QUEST / q-method / TRIAD on the sun and '
+                                        'magnetometer vectors, Markley & Crassidis 2014 ch. 5) with the gyro rate')
+
+
+# --- shared machinery ------------------------------------------------------------------------------
+
+def environment_references(p: dict) -> References:
+    """The onboard reference models of the section's ``environment.*``: the Sun direction and the field
+    (T) in inertial axes at ``t_ns`` (:class:`adcs_core.environment.environment.Environment`; flight
+    software's own copy of the models, which may differ from the truth model's by its parameters)."""
+    env = build_environment(p)
+
+    def references(t_ns: int) -> dict:
+        sample = env.sample(t_ns / NS_PER_S)
+        return {'sun': sample.sun_eci, 'magnetometer': sample.b_eci}
+    return references
+
+
+def default_references(p: dict) -> References:
+    """The references a section asks for (``references.model``)."""
+    return environment_references(p) if p['references.model'] == 'environment' else constant_references(p)
+
+
+def constant_references(p: dict) -> References:
+    """The section's constant ``references.*`` vectors as a references callable."""
+    refs = {name: np.asarray(p[f'references.{name}'], dtype=float) for name in VECTOR_SENSORS}
+    return lambda t_ns: refs  # noqa: ARG005
+
+
+def _valid(reading, shape) -> np.ndarray:
+    return np.broadcast_to(np.asarray(reading.valid, dtype=bool), shape).copy()
+
+
+def _finite_rows(value, valid: np.ndarray) -> np.ndarray:
+    """``valid`` and the reading's value finite and non-zero (a bad reading is a rejection, not a crash)."""
+    v = np.asarray(value, dtype=float)
+    with np.errstate(invalid='ignore', over='ignore'):
+        n2 = (v * v).sum(axis=-1)
+        return valid & np.isfinite(v).all(axis=-1) & (n2 > 0) & np.isfinite(n2)
+
+
+def _placeholder(value, ok: np.ndarray, fill: np.ndarray) -> np.ndarray:
+    """The reading's value where ``ok``, ``fill`` elsewhere (so the array maths never sees NaN)."""
+    v = np.asarray(value, dtype=float)
+    v = np.where(np.isfinite(v), v, 0.0)
+    return np.where(ok[..., None], v, fill)
+
+
+class _Base:
+    """Time keeping, the gyro sample of the previous step and the per-sensor counters."""
+
+    def __init__(self, p: dict, references: References | None) -> None:
+        self.sensors = tuple(p['sensors'])
+        self.references = references or default_references(p)
+        self.sigma_v = np.asarray(p['gyro.sigma_v'], dtype=float)
+        self.average = p['gyro.propagation'] == 'average'
+        self.sigma_dir = {'sun': np.asarray(p['sun.sigma'], dtype=float),
+                          'magnetometer': np.asarray(p['magnetometer.sigma'], dtype=float)}
+        self.t_ns: int | None = None
+        self.rate = None          # the last valid gyro sample (what propagates the next interval)
+        self.dt = 0.0             # the interval just propagated (s)
+        self.counts: dict[str, Any] = {}
+
+    def _count(self, key: str, where) -> None:
+        self.counts[key] = self.counts.get(key, 0) + np.asarray(where, dtype=np.int64)
+
+    def _interval(self, m: Measurements) -> float | None:
+        """Seconds since the previous step (None at the first); refuses a stamp that does not advance."""
+        if self.t_ns is not None and not m.t_ns > self.t_ns:
+            raise ValueError(f'estimator: step stamped {m.t_ns} ns does not follow {self.t_ns} ns')
+        dt = None if self.t_ns is None else (m.t_ns - self.t_ns) / NS_PER_S
+        self.t_ns = m.t_ns
+        return dt
+
+    def _gyro(self, m: Measurements, shape) -> tuple[np.ndarray, np.ndarray]:
+        """(this step's gyro rate, the rate over the interval that ends here: the last valid sample,
+        or with ``gyro.propagation: average`` its mean with this one where this one is valid)."""
+        if m.gyro is None:
+            raise ValueError('estimator: no gyro reading (the gyro is not fitted)')
+        valid = _valid(m.gyro, shape)
+        value = np.asarray(m.gyro.value, dtype=float)
+        with np.errstate(invalid='ignore', over='ignore'):
+            ok = valid & np.isfinite(value).all(axis=-1) & (np.abs(value) <= MAX_RATE).all(axis=-1)
+        self._count('missing_gyro', ~valid)
+        self._count('rejected_gyro', valid & ~ok)
+        last = np.zeros(shape + (3,)) if self.rate is None else self.rate
+        rate = _placeholder(m.gyro.value, ok, last)
+        interval = np.where(ok[..., None], 0.5 * (last + rate), last) if self.average else last
+        self.rate = rate
+        return rate, interval
+
+    def _vector(self, m: Measurements, name: str, shape, t_ns: int):
+        """(measured unit vectors, reference unit vectors, direction σ, where usable) of one vector sensor."""
+        reading = getattr(m, name)
+        if name not in self.sensors or reading is None:
+            return None
+        ref = np.broadcast_to(np.asarray(self.references(t_ns)[name], dtype=float), shape + (3,))
+        ref_norm = np.sqrt(dot(ref, ref))
+        valid = _valid(reading, shape)
+        ok = _finite_rows(reading.value, valid) & (ref_norm > 0)
+        r = np.where(ok[..., None], ref, [1.0, 0.0, 0.0]) / np.where(ok, ref_norm, 1.0)[..., None]
+        b = _placeholder(reading.value, ok, r)
+        b = b / np.sqrt(dot(b, b))[..., None]
+        sigma = np.broadcast_to(self.sigma_dir[name], shape)
+        if name == 'magnetometer':   # noise in T -> direction noise in rad
+            sigma = sigma / np.where(ok, ref_norm, 1.0)
+        self._count(f'missing_{name}', ~valid)
+        self._count(f'rejected_{name}', valid & ~ok)
+        return b, r, sigma, ok
+
+    def _status(self, bias, nis: dict, innovation: dict, used: dict) -> dict:
+        status = {'bias_x': bias[..., 0], 'bias_y': bias[..., 1], 'bias_z': bias[..., 2]}
+        for name in self.sensors:
+            if name == 'gyro':
+                continue
+            status[f'nis_{name}'] = nis.get(name, np.nan)
+            status[f'innovation_{name}'] = innovation.get(name, np.nan)
+            status[f'used_{name}'] = used.get(name, False)
+        status.update({k: v for k, v in sorted(self.counts.items())})
+        return status
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle (rad) between unit vectors, robust at 0 and π."""
+    return np.arctan2(np.sqrt(dot(cross(a, b), cross(a, b))), dot(a, b))
+
+
+# --- the MEKF ----------------------------------------------------------------------------------------
+
+class MekfEstimator(_Base):
+    """The MEKF as an estimator family (see the module doc). State ``q`` (..., 4), ``beta`` (..., 3),
+    ``P`` (..., 6, 6); batch shape from the first step's readings."""
+
+    def __init__(self, p: dict, references: References | None = None) -> None:
+        super().__init__(p, references)
+        self.sigma_u = np.asarray(p['gyro.sigma_u'], dtype=float)
+        s_st = np.asarray(p['star_tracker.sigma'], dtype=float)
+        self.R_st = s_st[..., :, None] ** 2 * np.eye(3)
+        self.gate = float(p['gate.nis'])
+        q0 = np.asarray(p['initial.attitude'], dtype=float)
+        self.q = q0 / quat_norm(q0)[..., None]
+        self.beta = np.asarray(p['initial.bias'], dtype=float)
+        var = np.concatenate(np.broadcast_arrays(np.asarray(p['initial.attitude_sigma'], dtype=float),
+                                                 np.asarray(p['initial.bias_sigma'], dtype=float)), axis=-1) ** 2
+        self.P = var[..., :, None] * np.eye(6)
+
+    def _start(self, shape) -> None:
+        self.q = np.broadcast_to(self.q, shape + (4,)).copy()
+        self.beta = np.broadcast_to(self.beta, shape + (3,)).copy()
+        self.P = np.broadcast_to(self.P, shape + (6, 6)).copy()
+
+    def _gated(self, new, nis, ok, name: str):
+        """Apply an update where ``ok`` and its NIS passes the gate; count the gated ones."""
+        passed = ok & ~(nis > self.gate)
+        self._count(f'rejected_{name}', ok & ~passed)
+        q, beta, P = new
+        self.q = np.where(passed[..., None], q, self.q)
+        self.beta = np.where(passed[..., None], beta, self.beta)
+        self.P = np.where(passed[..., None, None], P, self.P)
+        return np.where(ok, nis, np.nan), passed
+
+    def _star_tracker(self, m: Measurements, shape, nis, innovation, used) -> None:
+        reading = m.star_tracker
+        if 'star_tracker' not in self.sensors or reading is None:
+            return
+        valid = _valid(reading, shape)
+        ok = _finite_rows(reading.value, valid)
+        q_meas = _placeholder(reading.value, ok, self.q)
+        q_meas = q_meas / quat_norm(q_meas)[..., None]
+        dq = quat_multiply(quat_conjugate(self.q), q_meas)
+        ok &= np.abs(dq[..., 3]) > MIN_DQ4          # 180 degrees away: no small-rotation innovation
+        self._count('missing_star_tracker', ~valid)
+        self._count('rejected_star_tracker', valid & ~ok)
+        q_meas = np.where(ok[..., None], q_meas, self.q)
+        y = 2.0 * dq[..., :3] / np.where(ok, dq[..., 3], 1.0)[..., None]   # the filter's innovation
+        innovation['star_tracker'] = np.where(ok, np.sqrt(dot(y, y)), np.nan)
+        q, beta, P, s = mekf.update_quaternion(self.q, self.beta, self.P, q_meas, self.R_st, ok)
+        nis['star_tracker'], used['star_tracker'] = self._gated((q, beta, P), s, ok, 'star_tracker')
+
+    def _vectors(self, m: Measurements, shape, nis, innovation, used) -> None:
+        for name in VECTOR_SENSORS:
+            got = self._vector(m, name, shape, m.t_ns)
+            if got is None:
+                continue
+            b, r, sigma, ok = got
+            innovation[name] = np.where(ok, _angle(b, rotate_to_body(self.q, r)), np.nan)
+            q, beta, P, s = mekf.update_vectors(self.q, self.beta, self.P, b[..., None, :], r[..., None, :],
+                                                sigma[..., None], ok)
+            nis[name], used[name] = self._gated((q, beta, P), s, ok, name)
+
+    def step(self, m: Measurements) -> tuple[Estimate, dict]:
+        """Propagate from the previous step with its gyro sample, update with this step's valid
+        measurements; return the estimate at ``m.t_ns`` and the status values."""
+        shape = np.shape(m.gyro.valid) if m.gyro is not None else ()
+        dt = self._interval(m)
+        rate, interval = self._gyro(m, shape)
+        if dt is None:
+            self._start(shape)
+        else:
+            self.q, self.beta, self.P = mekf.propagate(self.q, self.beta, self.P, interval, dt,
+                                                       self.sigma_v, self.sigma_u)
+            self.dt = dt
+        nis, innovation, used = {}, {}, {}
+        self._star_tracker(m, shape, nis, innovation, used)
+        self._vectors(m, shape, nis, innovation, used)
+        return self._estimate(m.t_ns, rate), self._status(self.beta, nis, innovation, used)
+
+    def _estimate(self, t_ns: int, rate: np.ndarray) -> Estimate:
+        """``ω̂ = ω_meas − β̂``; its covariance ``P_ββ + σ_v²/Δt I`` (the bias error and the gyro's white
+        noise over the interval just propagated; the bias block only at the first step)."""
+        white = self.sigma_v ** 2 / self.dt if self.dt > 0 else 0.0 * self.sigma_v
+        rate_cov = self.P[..., 3:, 3:] + np.asarray(white)[..., None, None] * np.eye(3)
+        return Estimate(t_ns, self.q.copy(), rate - self.beta, self.beta.copy(), self.P.copy(), rate_cov)
+
+
+# --- single frame ------------------------------------------------------------------------------------
+
+class SingleFrameEstimator(_Base):
+    """QUEST / q-method / TRIAD on the sun and magnetometer vectors each step, the rate from the gyro
+    minus its known bias (see the module doc). ``cov``: the QUEST covariance in its attitude block,
+    zeros elsewhere (no bias state)."""
+
+    def __init__(self, p: dict, references: References | None = None) -> None:
+        super().__init__(p, references)
+        self.method = p['method']
+        self.bias = np.asarray(p['gyro.bias'], dtype=float)
+        q0 = np.asarray(p['initial.attitude'], dtype=float)
+        self.q = q0 / quat_norm(q0)[..., None]
+        self.P = np.asarray(p['initial.attitude_sigma'], dtype=float)[..., :, None] ** 2 * np.eye(3)
+
+    def _solve(self, b: np.ndarray, r: np.ndarray, w: np.ndarray) -> np.ndarray:
+        if self.method == 'triad':
+            return single_frame.triad(b[..., 0, :], r[..., 0, :], b[..., 1, :], r[..., 1, :])
+        solver = single_frame.quest if self.method == 'quest' else single_frame.q_method
+        return solver(b, r, w)
+
+    def step(self, m: Measurements) -> tuple[Estimate, dict]:
+        shape = np.shape(m.gyro.valid) if m.gyro is not None else ()
+        dt = self._interval(m)
+        rate, interval = self._gyro(m, shape)
+        if dt is None:
+            self.q = np.broadcast_to(self.q, shape + (4,)).copy()
+            self.P = np.broadcast_to(self.P, shape + (3, 3)).copy()
+        else:   # propagate (what an outage keeps): exact rotation, P grows by σ_v² Δt
+            P6 = np.zeros(shape + (6, 6))
+            P6[..., :3, :3] = self.P
+            self.q, _, P6 = mekf.propagate(self.q, np.zeros(shape + (3,)), P6, interval - self.bias, dt,
+                                           self.sigma_v, 0.0)
+            self.P, self.dt = P6[..., :3, :3], dt
+        sun = self._vector(m, 'sun', shape, m.t_ns)
+        mag = self._vector(m, 'magnetometer', shape, m.t_ns)
+        if sun is None or mag is None:
+            raise ValueError('single-frame estimator: the sun sensor and the magnetometer must be fitted')
+        b, r = np.stack([sun[0], mag[0]], axis=-2), np.stack([sun[1], mag[1]], axis=-2)
+        sigma = np.stack([sun[2], mag[2]], axis=-1)
+        spread = np.sqrt(dot(cross(b[..., 0, :], b[..., 1, :]), cross(b[..., 0, :], b[..., 1, :])))
+        spread_r = np.sqrt(dot(cross(r[..., 0, :], r[..., 1, :]), cross(r[..., 0, :], r[..., 1, :])))
+        floor = np.sqrt(single_frame.OBSERVABILITY_MIN) * 10.0
+        ok = sun[3] & mag[3] & (spread > floor) & (spread_r > floor)
+        self._count('unobservable', sun[3] & mag[3] & ~ok)
+        # runs without a fix solve a well-posed dummy problem (discarded): the arrays stay finite
+        dummy_b = np.broadcast_to(np.eye(3)[:2], shape + (2, 3))
+        b, r = np.where(ok[..., None, None], b, dummy_b), np.where(ok[..., None, None], r, dummy_b)
+        q_fix = self._solve(b, r, sigma ** -2.0)
+        P_fix = single_frame.quest_covariance(b, np.where(ok[..., None], sigma, 1.0))
+        innovation = {name: np.where(ok, _angle(b[..., i, :], rotate_to_body(self.q, r[..., i, :])), np.nan)
+                      for i, name in enumerate(VECTOR_SENSORS)}
+        self.q = np.where(ok[..., None], q_fix, self.q)
+        self.P = np.where(ok[..., None, None], P_fix, self.P)
+        cov = np.zeros(shape + (6, 6))
+        cov[..., :3, :3] = self.P
+        white = self.sigma_v ** 2 / self.dt if self.dt > 0 else 0.0 * self.sigma_v
+        rate_cov = np.asarray(white)[..., None, None] * np.broadcast_to(np.eye(3), shape + (3, 3))
+        bias = np.broadcast_to(self.bias, shape + (3,))
+        est = Estimate(m.t_ns, self.q.copy(), rate - bias, np.zeros(shape + (3,)), cov, rate_cov)
+        used = {name: ok for name in VECTOR_SENSORS}
+        return est, self._status(np.zeros(shape + (3,)), {}, innovation, used)
+
+
+# --- the families ------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class EstimatorFamily:
+    """One estimator node: its section's ``schema`` and its estimator class (called with the validated
+    section and an optional references callable)."""
+
+    schema: Schema
+    estimator: Callable[..., Any]
+
+    @property
+    def node(self) -> str:
+        return self.schema.node
+
+    @property
+    def module(self) -> str:
+        return f'adcs_controllers.nodes.{self.schema.node}'
+
+    def build(self, p: dict, references: References | None = None):
+        """The estimator of a validated section: what the node and the batch engine run."""
+        return self.estimator(p, references)
+
+
+MEKF = EstimatorFamily(MEKF_SCHEMA, MekfEstimator)
+QUEST = EstimatorFamily(QUEST_SCHEMA, SingleFrameEstimator)
+ESTIMATOR_FAMILIES: dict[str, EstimatorFamily] = {f.node: f for f in (MEKF, QUEST)}
