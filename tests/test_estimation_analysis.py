@@ -95,7 +95,8 @@ def test_batch_consistency_of_a_still_spacecraft(tmp_path):
     bounds of the mean of 40 on >= 90 % of the 120 steps (ours: 97.5 %; correlated steps: a
     consistent filter scatters around 95 %), its grand mean within 15 % of 6 (ours: 5.95), and the
     star tracker NIS likewise (ours: 95.8 %); the analysis' per-run errors are the mekf module's."""
-    scenario = make_scenario(tmp_path, {'dynamics': {'duration': 120.0, 'initial.attitude': [0.0, 0.0, 0.0, 1.0]},
+    scenario = make_scenario(tmp_path, {'dynamics': {'duration': 120.0, 'initial.attitude': [0.0, 0.0, 0.0, 1.0],
+                                                     'sensors.gyro.enabled': True, 'sensors.star_tracker.enabled': True},
                                         'mekf_estimator': {**SECTION, 'sensors': ['gyro', 'star_tracker']}},
                              drop=('pd_controller',))
     v = validate_scenario(scenario)

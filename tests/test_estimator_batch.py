@@ -27,7 +27,10 @@ MEKF_SECTION = {'sensors': ['gyro', 'star_tracker'], 'gyro.propagation': 'averag
 
 
 def batch(tmp_path, n_runs=1, duration=300.0, feedback='estimate', seeds=None, **over):
-    scenario = make_scenario(tmp_path, {'dynamics': {'duration': duration},
+    # the dynamics section fits the sensors the estimator uses (the scenario check); the test source
+    # StateSensors stands in for their readings
+    scenario = make_scenario(tmp_path, {'dynamics': {'duration': duration, 'sensors.gyro.enabled': True,
+                                                     'sensors.star_tracker.enabled': True},
                                         'mekf_estimator': {**MEKF_SECTION, **over},
                                         'pd_controller': {'feedback': feedback}})
     v = validate_scenario(scenario)
@@ -94,9 +97,16 @@ def test_as_received_is_the_message_round_trip_bit_for_bit():
 
 def test_an_estimator_section_needs_sensors_and_feedback_needs_an_estimator(tmp_path):
     scenario = make_scenario(tmp_path, {'mekf_estimator': MEKF_SECTION, 'pd_controller': {'feedback': 'estimate'}})
-    v = validate_scenario(scenario)
-    with pytest.raises(ParameterError, match='needs the sensors'):
-        BatchSimulation(v, 1)
+    with pytest.raises(ParameterError, match='does not fit'):    # the scenario check, before any engine
+        validate_scenario(scenario)
+    v = validate_scenario(make_scenario(tmp_path, {'pd_controller': {'feedback': 'estimate'},
+                                                   'mekf_estimator': MEKF_SECTION,
+                                                   'dynamics': {'sensors.gyro.enabled': True,
+                                                                'sensors.star_tracker.enabled': True}}))
     del v['mekf_estimator']
     with pytest.raises(ParameterError, match='feedback'):
+        BatchSimulation(v, 1)
+    v['dynamics']['sensors.gyro.enabled'] = v['dynamics']['sensors.star_tracker.enabled'] = False
+    v['mekf_estimator'] = NODES['mekf_estimator'].schema.validate(MEKF_SECTION)
+    with pytest.raises(ParameterError, match='needs sensors'):   # the engine's own guard
         BatchSimulation(v, 1)

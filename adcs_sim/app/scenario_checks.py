@@ -66,6 +66,13 @@ def check_agreement(validated: dict) -> None:
             _same_names('wheels', dyn['wheels.names'], params['wheels.names'], name)
         if topics.THRUSTERS_CMD in sends:
             _same_names('thrusters', dyn['thrusters.names'], params['thrusters.names'], name)
+    for name, params in validated.items():
+        if NODES[name].role == 'estimator':
+            missing = [s for s in params['sensors'] if s not in fitted_sensors(dyn)]
+            if missing:
+                raise ParameterError('sensors', f'the estimator uses {missing}, which the dynamics section does not '
+                                     f'fit (sensors fitted: {list(fitted_sensors(dyn)) or "none"}; dynamics: '
+                                     'sensors.<name>.enabled): it would wait for them every step', name)
     faults = validated.get('fault_injector')
     if faults is not None:
         unknown = sorted(set(faults['schedule.actuator']) - set(dyn['wheels.names']) - fault_targets(dyn))
