@@ -42,6 +42,7 @@ several (e.g. 0.5° and 1° for a comparison table). :func:`k0_metric` is seed 0
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
@@ -171,11 +172,16 @@ def pointing_metrics(t: np.ndarray, error_deg: np.ndarray, bands=POINTING_BANDS_
     return out
 
 
-def attitude_errors(run: RunData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def attitude_errors(run: RunData, q_ref: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(error quaternion (N, 4), eigenaxis error (N,) deg, signed 2-1-3 Euler errors (N, 3) deg in
-    sequence order y, x, z)."""
-    qe = error_quaternion(run.q, run.q_ref)
-    return qe, np.degrees(eigenaxis_angle(qe)), np.degrees(euler_213(qe))
+    sequence order y, x, z) to ``q_ref`` ((4,) or (N, 4) at the state samples; default the run's
+    target ``run.q_ref``). At gimbal lock (θ1 = ±90°) the 2-1-3 angles are not unique: scipy sets
+    the third to zero (its warning is not repeated here: the angles are what the docstring says)."""
+    qe = error_quaternion(run.q, run.q_ref if q_ref is None else q_ref)
+    with warnings.catch_warnings():
+        warnings.filterwarnings('ignore', message='Gimbal lock detected', category=UserWarning)
+        euler = euler_213(qe)
+    return qe, np.degrees(eigenaxis_angle(qe)), np.degrees(euler)
 
 
 def attitude_errors_deg(run: RunData) -> tuple[np.ndarray, np.ndarray]:

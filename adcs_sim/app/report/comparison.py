@@ -178,7 +178,7 @@ def _comparison_figures(runs: list[Run], names: list[str], eigen_tol_deg: float)
     ax.axhline(eigen_tol_deg, color='0.3', linestyle=':', label=f'tolerance {eigen_tol_deg:g}°')
     ax.set_ylabel('eigenaxis error (deg, log scale)')
     ax.set_title('Eigenaxis attitude error')
-    add_legend(ax, loc='upper right')
+    add_legend(ax)
     yield 'compare_attitude_error', 'Eigenaxis attitude error', \
         ('Eigenaxis attitude error (deg, log scale), one line per run (an exactly zero error is not drawn on '
          'the log scale); dotted verticals: fault events, in the colour of their run.'), fig
@@ -192,7 +192,7 @@ def _comparison_figures(runs: list[Run], names: list[str], eigen_tol_deg: float)
         faults(ax, i, name, r)
     ax.set_ylabel('‖u‖ (mN·m)')
     ax.set_title('Applied control torque norm')
-    add_legend(ax, loc='upper right')
+    add_legend(ax)
     yield 'compare_torque_norm', 'Torque norm', 'Norm of the applied body torque ‖u‖ (mN·m), one line per run.', fig
 
     fig, (ax,) = new_figure(height=3.6)
@@ -204,6 +204,6 @@ def _comparison_figures(runs: list[Run], names: list[str], eigen_tol_deg: float)
         faults(ax, i, name, r)
     ax.set_ylabel('‖Ω‖ (rad/s)')
     ax.set_title('Wheel speed norm (all wheels, relative to the body)')
-    add_legend(ax, loc='upper right')
+    add_legend(ax)
     yield 'compare_wheel_speed_norm', 'Wheel speed norm', \
         'Euclidean norm of the wheel speeds ‖Ω‖ (rad/s), one line per run.', fig
