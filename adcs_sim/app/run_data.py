@@ -161,10 +161,21 @@ class RunData:
         run.namespace = ns
         scenario_text = reader.metadata.get('scenario', {}).get('text')
         if scenario_text:
-            run.scenario = yaml.safe_load(scenario_text)
-            run.q_ref = target_attitude(run.scenario)
-            run.pointing = pointing_request(run.scenario)
+            run.scenario = _scenario(scenario_text)
+            if run.scenario is not None:
+                run.q_ref = target_attitude(run.scenario)
+                run.pointing = pointing_request(run.scenario)
         return run
+
+
+def _scenario(text: str) -> dict | None:
+    """The embedded scenario as a mapping; None when it is not YAML or not a mapping of sections
+    (a bag from elsewhere: the report then says the bag carries no usable scenario)."""
+    try:
+        tree = yaml.safe_load(text)
+    except yaml.YAMLError:
+        return None
+    return tree if isinstance(tree, dict) else None
 
 
 def _no_state(path, reader: ColumnReader, state_topic: str) -> ValueError:
@@ -253,23 +264,43 @@ def _merged_statuses(parts: list) -> list[tuple[float, list]]:
     return merged
 
 
+def _sections(scenario) -> list[tuple[str, dict]]:
+    """(section name, its ``ros__parameters`` mapping) of a scenario; malformed sections skipped."""
+    out = []
+    for name, section in (scenario.items() if isinstance(scenario, dict) else ()):
+        params = section.get('ros__parameters') if isinstance(section, dict) else None
+        if isinstance(params, dict):
+            out.append((str(name), params))
+    return out
+
+
+def _finite(value, n: int) -> np.ndarray | None:
+    try:
+        v = np.asarray(value, dtype=float).reshape(n)
+    except (TypeError, ValueError):
+        return None
+    return v if np.all(np.isfinite(v)) and np.any(v) else None
+
+
 def target_attitude(scenario: dict) -> np.ndarray:
-    """The regulation target of a scenario: a controller section's ``target.attitude``, or identity."""
-    for name, section in (scenario or {}).items():
-        params = (section or {}).get('ros__parameters') or {}
-        target = (params.get('target') or {}).get('attitude') if isinstance(params, dict) else None
-        if target is not None and str(name).lstrip('/') != 'dynamics':
-            q = np.asarray(target, dtype=float)
-            return q / np.linalg.norm(q)
+    """The regulation target of a scenario: a controller section's ``target.attitude``, or identity
+    (also when the one given is not a non-zero 4-vector: a scenario not validated by the graph)."""
+    for name, params in _sections(scenario):
+        target = params.get('target').get('attitude') if isinstance(params.get('target'), dict) else None
+        if target is not None and name.lstrip('/') != 'dynamics':
+            q = _finite(target, 4)
+            if q is not None:
+                return q / np.linalg.norm(q)
     return np.array([0.0, 0.0, 0.0, 1.0])
 
 
 def pointing_request(scenario: dict) -> tuple | None:
     """(σ̂, τ̂) of a scenario whose controller section points a body axis (``sigma``, ``tau``)."""
-    for name, section in (scenario or {}).items():
-        params = (section or {}).get('ros__parameters') or {}
-        if isinstance(params, dict) and 'sigma' in params and 'tau' in params:
-            return np.asarray(params['sigma'], dtype=float), np.asarray(params['tau'], dtype=float)
+    for _, params in _sections(scenario):
+        if 'sigma' in params and 'tau' in params:
+            sigma, tau = _finite(params['sigma'], 3), _finite(params['tau'], 3)
+            if sigma is not None and tau is not None:
+                return sigma, tau
     return None
 
 

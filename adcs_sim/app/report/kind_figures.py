@@ -12,7 +12,7 @@ import numpy as np
 from adcs_core.attitude import eigenaxis_angle, error_quaternion
 from adcs_sim.app.analysis import POINTING_BANDS_DEG, first_entry_time, pointing_error_deg, settling_time
 from adcs_sim.app.report.figures import LINE, Context, add_legend, log_positive, mark_faults, new_figure, step_plot
-from adcs_sim.app.report.kinds import param_value
+from adcs_sim.app.report.kinds import param_value, section_params, vector
 from adcs_sim.app.report.lead import SPIN_RATE_BAND_RAD_S, SPIN_THETA_BAND_RAD, TRACKING_BAND_DEG, status_array
 
 PHASE_COLOURS = ['#dbe9f6', '#fde7cf', '#dff2dc', '#efe0f3', '#f6f3d2']
@@ -104,14 +104,15 @@ def fig_spin(c: Context):
     ax_w.axhline(SPIN_RATE_BAND_RAD_S, color='0.3', linestyle=':', label=f'{SPIN_RATE_BAND_RAD_S:g} rad/s')
     for ax in (ax_t, ax_w):
         ax.set_yscale('log')
-    w_d = float(np.linalg.norm(np.asarray(param_value(c.kind.params, 'target.rate', [0.0] * 3), dtype=float)))
+    w_d = vector(param_value(c.kind.params, 'target.rate'), 3)
+    w_d = float(np.linalg.norm(w_d)) if w_d is not None else math.nan
     ax_r.plot(c.run.t, np.linalg.norm(c.run.w, axis=1), color='C0', label='‖ω‖')
     ax_r.axhline(w_d, color='k', linestyle='--', linewidth=1, label=f'‖ω_d‖ = {w_d:.4g} rad/s')
     if c.run.u.size:
         for i, a in enumerate('xyz'):
             step_plot(ax_u, c.run.t_u, c.run.u[:, i], c.run.t_end, **LINE[a], label=f'$u_{a}$')
-        limit = param_value(c.run.scenario.get('dynamics', {}).get('ros__parameters') or {}, 'torquers.max_torque')
-        limit = float(np.max(limit)) if limit is not None else float(np.abs(c.run.u).max())
+        limits = vector(param_value(section_params((c.run.scenario or {}).get('dynamics')), 'torquers.max_torque'), 3)
+        limit = float(np.max(limits)) if limits is not None else float(np.abs(c.run.u).max())
         for s in (1, -1):
             ax_u.axhline(s * limit, color='0.3', linestyle=':', linewidth=1, label='torque limit' if s > 0 else None)
         for i, a in enumerate('xyz'):

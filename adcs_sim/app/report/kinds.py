@@ -50,7 +50,7 @@ class RunKind:
         return RUN_KINDS.get(self.kind, 'unknown: the report cannot tell what the run is meant to do')
 
 
-def _params(section) -> dict:
+def section_params(section) -> dict:
     params = (section or {}).get('ros__parameters') if isinstance(section, dict) else None
     return params if isinstance(params, dict) else {}
 
@@ -75,22 +75,30 @@ def run_kind(scenario: dict | None) -> RunKind:
         family = FAMILIES.get(str(name).lstrip('/'))
         if family is None:
             continue
-        params = _params(section)
+        params = section_params(section)
         kind = family.kind
         why = f'controller `{family.node}` (family kind `{kind}`)'
         if kind == 'spin':
-            rate = np.asarray(param_value(params, 'target.rate', [0.0, 0.0, 0.0]), dtype=float)
-            if not np.any(rate):
+            rate = vector(param_value(params, 'target.rate'), 3)
+            if rate is not None and not np.any(rate):
                 kind, why = 'regulation', f'controller `{family.node}` with a zero target.rate (motion to rest)'
         return RunKind(kind, why, family.node, params)
     names = ', '.join(f'`{n}`' for n in scenario) or 'none'
     return RunKind(UNKNOWN, f'no section of a known controller family in the scenario (sections: {names})')
 
 
-def _unit(q) -> np.ndarray | None:
+def vector(value, n: int) -> np.ndarray | None:
+    """``value`` as a finite float vector of length ``n``, or None (absent, malformed)."""
     try:
-        q = np.asarray(q, dtype=float).reshape(4)
+        v = np.asarray(value, dtype=float).reshape(n)
     except (TypeError, ValueError):
+        return None
+    return v if np.all(np.isfinite(v)) else None
+
+
+def _unit(q) -> np.ndarray | None:
+    q = vector(q, 4)
+    if q is None:
         return None
     n = np.linalg.norm(q)
     return q / n if np.isfinite(n) and n > 0 else None
@@ -136,8 +144,10 @@ def _orbit_reference(run: RunData, rk: RunKind) -> tuple[np.ndarray | None, str]
                               arg_latitude0=math.radians(float(param_value(p, 'orbit.arg_latitude_deg', 0.0))))
         q_rel = _unit(param_value(p, 'target.attitude', [0.0, 0.0, 0.0, 1.0]))
         hold = float(param_value(p, 'reference.hold_time', 0.0))
+        if q_rel is None or not orbit.altitude > 0:
+            raise ValueError('target.attitude or orbit.altitude malformed')
     except (TypeError, ValueError) as exc:
-        return None, f'none: the orbit of the controller section cannot be read ({exc})'
+        return None, f'none: the orbit reference of the controller section cannot be read ({exc})'
     ref = OrbitReference(orbit, q_rel, None if math.isinf(hold) else hold)
     q_ref = np.array([ref(float(t))[0] for t in run.t]).reshape(-1, 4)
     held = 'tracked for ever' if math.isinf(hold) else (
@@ -162,7 +172,8 @@ def phases(run: RunData, rk: RunKind) -> list[tuple[float, float, str]]:
         out = [(float(run.t[a]), float(run.t[b]), PHASE_NAMES.get(values[a], str(values[a])))
                for a, b in zip(starts, ends)]
     if rk.kind == 'tracking':
-        hold = float(param_value(rk.params, 'reference.hold_time', 0.0) or 0.0)
-        if 0 < hold < run.t_end:
+        hold = vector(param_value(rk.params, 'reference.hold_time', 0.0), 1)
+        if hold is not None and 0 < hold[0] < run.t_end:
+            hold = float(hold[0])
             out = [(0.0, hold, 'target fixed in the orbit frame'), (hold, run.t_end, 'target held inertially')]
     return out if len(out) > 1 else []  # one phase for the whole run: nothing to mark

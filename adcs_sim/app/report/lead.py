@@ -27,7 +27,7 @@ from adcs_sim.app.analysis import (
     thruster_metrics,
 )
 from adcs_sim.app.report.comparison import comparison_rows
-from adcs_sim.app.report.kinds import RunKind, param_value
+from adcs_sim.app.report.kinds import RunKind, param_value, vector
 from adcs_sim.app.run_data import RunData
 
 DOCS = Path(__file__).resolve().parents[3] / 'docs'
@@ -157,7 +157,8 @@ def status_array(run: RunData, keys) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def _spin(run: RunData, rk: RunKind, q_ref) -> list[Metric]:
-    w_d = np.asarray(param_value(rk.params, 'target.rate', [0.0, 0.0, 0.0]), dtype=float)
+    w_d = vector(param_value(rk.params, 'target.rate'), 3)
+    w_d = np.full(3, math.nan) if w_d is None else w_d
     out = []
     theta = status_array(run, ['theta'])
     w_err = status_array(run, ['w_err_x', 'w_err_y', 'w_err_z'])
