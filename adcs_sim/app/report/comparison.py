@@ -11,35 +11,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from adcs_sim.app.analysis import RunData, attitude_errors, run_metrics, settling_times
-from adcs_sim.app.report.figures import AXES, add_legend, log_positive, new_figure, save_figure, step_plot
+from adcs_sim.app.analysis import attitude_errors
+from adcs_sim.app.report.figures import add_legend, log_positive, new_figure, save_figure, step_plot
+from adcs_sim.app.report.lead import comparison_rows  # defined in .lead (no matplotlib there)
 from adcs_sim.app.report.loading import Run, fault_events, missing_topics
 from adcs_sim.app.report.markdown import METRIC_NOTES, fmt, md_escape, metric_note
-
-# Euler angle index (euler_213 order: about y, x, z) of θ1 (x), θ2 (y), θ3 (z).
-_EULER_INDEX = {'theta1_x': 1, 'theta2_y': 0, 'theta3_z': 2}
-
-
-def comparison_rows(run: RunData, bands=(1.0, 0.5), eigen_tol_deg: float = 0.5) -> dict:
-    """The comparison metrics of one run: ``{row key: value}`` (see :data:`COMPARISON_ROWS`)."""
-    rows = {}
-    for band, settled in settling_times(run, bands).items():
-        for label, i in _EULER_INDEX.items():
-            rows[f'settling_euler213_{label}_{band:g}deg_s'] = settled['euler213_per_axis'][i]
-        rows[f'settling_euler213_all_{band:g}deg_s'] = settled['euler213']
-    m = run_metrics(run, bands[-1], eigen_tol_deg)
-    rows[f'settling_eigenaxis_{eigen_tol_deg:g}deg_s'] = m[f'settling_eigenaxis_{eigen_tol_deg:g}deg_s']
-    rows['final_eigenaxis_error_deg'] = m['final_eigenaxis_error_deg']
-    rows['integrated_torque_Nms'] = m['integrated_torque_Nms']
-    rows['control_energy_N2m2s'] = m['control_energy_N2m2s']
-    for a, v in zip(AXES, m['peak_torque_Nm']):
-        rows[f'peak_torque_{a}_Nm'] = v
-    rows['peak_wheel_speed_rad_s'] = m['peak_wheel_speed_rad_s']
-    rows['thruster_impulse_Ns'] = m.get('thruster_impulse_Ns')  # n/a without thrusters/state
-    rows['missed_steps'] = m['missed_steps']
-    rows['duration_s'] = m['duration_s']
-    return rows
-
 
 COMPARISON_NOTES = {
     'settling_euler213_theta1_x': 'settling of θ1 (about x) of the 2-1-3 Euler error (s)',

@@ -189,11 +189,11 @@ def fig_euler_settling(c: Context):
 
 # (file name, title, builder) per kind, in the order the report shows them
 LEAD_FIGURES = {
-    'regulation': [('reference_error', 'Attitude error to the reference', fig_reference_error),
+    'regulation': [('attitude_error', 'Attitude error to the reference', fig_reference_error),
                    ('euler_settling', '2-1-3 Euler angles and their settling', fig_euler_settling)],
-    'regulation_after_fault': [('reference_error', 'Attitude error to the reference', fig_reference_error),
+    'regulation_after_fault': [('attitude_error', 'Attitude error to the reference', fig_reference_error),
                                ('q4_bands', '1 − |q4| with the paper\'s bands', fig_q4_bands)],
-    'tracking': [('reference_error', 'Tracking error to the orbit-defined target', fig_reference_error)],
+    'tracking': [('attitude_error', 'Tracking error to the orbit-defined target', fig_reference_error)],
     'spin': [('spin', 'Spin errors, rate and torque', fig_spin)],
     'pointing': [('pointing_error', 'Pointing error', fig_pointing)],
 }

@@ -23,10 +23,11 @@ from adcs_sim.app.analysis import (
     integrated_norm,
     pointing_error_deg,
     pointing_metrics,
+    run_metrics,
     settling_time,
+    settling_times,
     thruster_metrics,
 )
-from adcs_sim.app.report.comparison import comparison_rows
 from adcs_sim.app.report.kinds import RunKind, param_value, vector
 from adcs_sim.app.run_data import RunData
 
@@ -34,6 +35,31 @@ DOCS = Path(__file__).resolve().parents[3] / 'docs'
 SPIN_THETA_BAND_RAD = 0.01      # settling band of the spin's attitude error θ (0.57°)
 SPIN_RATE_BAND_RAD_S = 1e-3     # settling band of the spin's rate error ‖ω̃‖
 TRACKING_BAND_DEG = 1.0         # seed 002's settling band ("settles within approximately 38 s")
+
+
+# Euler angle index (euler_213 order: about y, x, z) of θ1 (x), θ2 (y), θ3 (z).
+_EULER_INDEX = {'theta1_x': 1, 'theta2_y': 0, 'theta3_z': 2}
+
+
+def comparison_rows(run: RunData, bands=(1.0, 0.5), eigen_tol_deg: float = 0.5) -> dict:
+    """The comparison metrics of one run: ``{row key: value}`` (the rows of ``comparison.csv``, :mod:`.comparison`)."""
+    rows = {}
+    for band, settled in settling_times(run, bands).items():
+        for label, i in _EULER_INDEX.items():
+            rows[f'settling_euler213_{label}_{band:g}deg_s'] = settled['euler213_per_axis'][i]
+        rows[f'settling_euler213_all_{band:g}deg_s'] = settled['euler213']
+    m = run_metrics(run, bands[-1], eigen_tol_deg)
+    rows[f'settling_eigenaxis_{eigen_tol_deg:g}deg_s'] = m[f'settling_eigenaxis_{eigen_tol_deg:g}deg_s']
+    rows['final_eigenaxis_error_deg'] = m['final_eigenaxis_error_deg']
+    rows['integrated_torque_Nms'] = m['integrated_torque_Nms']
+    rows['control_energy_N2m2s'] = m['control_energy_N2m2s']
+    for a, v in zip('xyz', m['peak_torque_Nm']):
+        rows[f'peak_torque_{a}_Nm'] = v
+    rows['peak_wheel_speed_rad_s'] = m['peak_wheel_speed_rad_s']
+    rows['thruster_impulse_Ns'] = m.get('thruster_impulse_Ns')  # n/a without thrusters/state
+    rows['missed_steps'] = m['missed_steps']
+    rows['duration_s'] = m['duration_s']
+    return rows
 
 
 @dataclass

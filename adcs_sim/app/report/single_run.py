@@ -22,6 +22,7 @@ from adcs_sim.app.report.lead import lead_metrics, paper_values, with_paper
 from adcs_sim.app.report.loading import Run, fault_events, has_wheels, missing_topics
 from adcs_sim.app.report.markdown import fmt, md_escape, metric_note
 from adcs_sim.app.report.status_figure import fig_controller_status
+from adcs_sim.app.run_data import RunData
 from adcs_sim.bag.reader import read_metadata
 
 # Rest-to-rest metrics: not shown for a spin or a pointing run (the attitude is not regulated to a
@@ -33,9 +34,9 @@ NOT_FOR_KIND = {
              'a spin run is not brought to a fixed attitude: its attitude error is in the spin figure above'),
     'pointing': ({'attitude_error', 'euler_213', 'phase_portrait'},
                  'a pointing run leaves the rotation about σ̂ free: its error is the pointing error above'),
-    'regulation': ({'attitude_error'}, 'replaced by the attitude error to the reference above'),
-    'tracking': ({'attitude_error'}, 'replaced by the tracking error to q_d(t) above'),
 }
+# The generic figures shown above, in the lead section, for a kind.
+IN_LEAD = {'regulation': {'attitude_error'}, 'tracking': {'attitude_error'}}
 
 
 @dataclass
@@ -59,11 +60,12 @@ def register_section(name: str, builder: Callable[[Report], list]) -> None:
     EXTRA_SECTIONS[:] = [s for s in EXTRA_SECTIONS if s[0] != name] + [(name, builder)]
 
 
-def _context(run: Run, tol_deg: float, eigen_tol_deg: float) -> tuple[Context, str]:
-    data = run.data
+def build_context(data: RunData, name: str, tol_deg: float, eigen_tol_deg: float) -> tuple[Context, str]:
+    """What the figures and sections of run ``name`` need (its kind, reference, phases, lead metrics
+    with the paper's values) and where the paper's values come from ('' without any)."""
     kind = run_kind(data.scenario)
     q_ref, ref_text = reference_attitude(data, kind)
-    source, published = paper_values(run.name)
+    source, published = paper_values(name)
     lead = with_paper(lead_metrics(data, kind, q_ref), published)
     ctx = Context(data, fault_events(data), tol_deg, eigen_tol_deg, run_metrics(data, tol_deg, eigen_tol_deg),
                   attitude_errors(data, q_ref), kind, q_ref, ref_text, phases(data, kind), lead)
@@ -75,7 +77,7 @@ def write_report(run: Run, out, tol_deg: float = 0.5, eigen_tol_deg: float | Non
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     eigen_tol_deg = tol_deg if eigen_tol_deg is None else eigen_tol_deg
-    ctx, source = _context(run, tol_deg, eigen_tol_deg)
+    ctx, source = build_context(run.data, run.name, tol_deg, eigen_tol_deg)
     report = Report(run, out, ctx, source)
     lines = []
     for _, builder in SECTIONS[:2] + EXTRA_SECTIONS + SECTIONS[2:]:
@@ -186,9 +188,30 @@ def _lead_lines(report: Report) -> list[str]:
         diff = m.difference
         lines.append(f'| `{m.key}` | {fmt(m.value)} | {fmt(m.paper) if m.paper is not None else "–"} | '
                      + ('–' if math.isnan(diff) else f'{100 * diff:+.1f} %') + f' | {m.unit} | {md_escape(m.meaning)} |')
-    figures = LEAD_FIGURES.get('regulation_after_fault' if kind.kind == 'regulation' and
-                               math.isfinite(first_fault_time(ctx.run)) else kind.kind, [])
-    return lines + [''] + ['### Its figures', ''] + _draw(report, figures, level='####')
+    return lines + [''] + ['### Its figures', ''] + _draw(report, lead_figures(ctx), level='####')
+
+
+def lead_figures(ctx: Context) -> list:
+    """(file name, title, builder) of the figures the kind of run leads with."""
+    kind = ctx.kind.kind
+    after_fault = kind == 'regulation' and math.isfinite(first_fault_time(ctx.run))
+    return LEAD_FIGURES.get('regulation_after_fault' if after_fault else kind, [])
+
+
+def other_figures(ctx: Context) -> list:
+    """(file name, title, builder) of the generic figures that mean something for the kind of run
+    and are not in its lead section."""
+    skip = NOT_FOR_KIND.get(ctx.kind.kind, (set(), ''))[0] | IN_LEAD.get(ctx.kind.kind, set())
+    return [f for f in FIGURES + [('controller_status', 'Controller status', fig_controller_status)]
+            if f[0] not in skip]
+
+
+def run_figures(data: RunData, name: str = '', tol_deg: float = 0.5, eigen_tol_deg: float | None = None) -> dict:
+    """``{file name: Figure}`` of every figure a report of the run draws (those it has data for)."""
+    eigen_tol_deg = tol_deg if eigen_tol_deg is None else eigen_tol_deg
+    ctx, _ = build_context(data, name, tol_deg, eigen_tol_deg)
+    drawn = {fname: builder(ctx) for fname, _, builder in lead_figures(ctx) + other_figures(ctx)}
+    return {fname: d[0] for fname, d in drawn.items() if not isinstance(d, str)}
 
 
 def _metric_lines(report: Report) -> list[str]:
@@ -215,10 +238,7 @@ def _metric_lines(report: Report) -> list[str]:
 def _draw(report: Report, figures, level: str = '###') -> list[str]:
     """Draw and save each figure (file name, title, builder); its Markdown, or why it is skipped."""
     lines = []
-    skip, why = NOT_FOR_KIND.get(report.ctx.kind.kind, (set(), ''))
     for name, title, builder in figures:
-        if name in skip:
-            continue
         result = builder(report.ctx)
         lines += [f'{level} {title}', '']
         if isinstance(result, str):
@@ -236,7 +256,7 @@ def _figure_lines(report: Report) -> list[str]:
     lines = ['## Other figures', '']
     if skip:
         lines += [f'Not drawn: {", ".join(f"`{n}`" for n in sorted(skip))} ({why}).', '']
-    return lines + _draw(report, FIGURES + [('controller_status', 'Controller status', fig_controller_status)])
+    return lines + _draw(report, other_figures(report.ctx))
 
 
 # The layout of a report, in order; EXTRA_SECTIONS go after the first two (recording, lead).

@@ -28,7 +28,7 @@ STATUS_UNITS = {
     'wd': 'rad/s', 'w_gs': 'rad/s', 'w_des': 'rad/s', 'w_d': 'rad/s', 'w_err': 'rad/s', 'omega_bar': 'rad/s',
     'wd_dot': 'rad/s²', 'h': 'N·m·s', 'J_hat': 'kg·m²',
     'psi': 'rad', 'theta': 'rad', 'phi': 'rad', 'e': 'rad', 'pointing_error': 'rad', 'angle_deg': 'deg',
-    'eta_err': '–', 'q_vag': '–', 'S': '–', 'stage': 'index',
+    'eta_err': 'dimensionless', 'q_vag': 'dimensionless', 'S': 'dimensionless', 'stage': 'index',
     'firing_now': 'count', 'firing_count': 'count', 'rejected_messages': 'count', 'late_faults': 'count',
     'V': 'Lyapunov fn., law units', 'V1': 'Lyapunov fn., law units', 'V2': 'Lyapunov fn., law units',
     'W': 'Lyapunov fn., law units', 'Vdot': 'dV/dt, law units', 'LgV_u': 'dV/dt, law units',
@@ -41,9 +41,16 @@ def _unit(key: str) -> str:
     return STATUS_UNITS.get(name) or STATUS_UNITS.get(name.rsplit('_', 1)[0], 'unit not declared')
 
 
-def group_numeric(keys: list[str]) -> list[tuple[str, list[str]]]:
-    """(panel label, keys) panels: one per vector prefix (``wd_x/y/z``), then same-unit runs of
-    at most :data:`MAX_PER_PANEL` scalars, in the order the controller publishes them."""
+def _comparable(a: float, b: float) -> bool:
+    """Two scalars' largest magnitudes within a factor 10 (one would be flat next to the other)."""
+    return max(a, b) <= 10.0 * min(a, b) if min(a, b) > 0 else a == b
+
+
+def group_numeric(keys: list[str], scale: dict | None = None) -> list[tuple[str, list[str]]]:
+    """(panel label, keys) panels: one per vector prefix (``wd_x/y/z``), then runs of at most
+    :data:`MAX_PER_PANEL` scalars with the same unit and comparable magnitudes (``scale``: key ->
+    max |value|), in the order the controller publishes them."""
+    scale = scale or {}
     prefixes: dict[str, list[str]] = {}
     for k in keys:
         m = _AXIS.match(k)
@@ -60,7 +67,7 @@ def group_numeric(keys: list[str]) -> list[tuple[str, list[str]]]:
             continue
         last = panels[-1] if panels else None
         if last and last[0].startswith('\x00') and _unit(last[1][0]) == _unit(k) and len(last[1]) < MAX_PER_PANEL \
-                and _unit(k) != 'unit not declared':
+                and _unit(k) != 'unit not declared' and _comparable(scale.get(last[1][0], 1.0), scale.get(k, 1.0)):
             last[1].append(k)
         else:
             panels.append(('\x00', [k]))
@@ -95,13 +102,17 @@ def fig_controller_status(c: Context):
     text = [k for k, (_, v) in series.items() if v.dtype == object]
     chatty = {k: n for k in text if (n := len(set(series[k][1].tolist()))) > MAX_TIMELINE_LEVELS}
     text = [k for k in text if k not in chatty]
+    constant_text = {k: series[k][1][0] for k in text if len(set(series[k][1].tolist())) == 1}
+    text = [k for k in text if k not in constant_text]
     numeric = [k for k, (_, v) in series.items() if v.dtype != object]
     constant = {k: series[k][1][0] for k in numeric
                 if series[k][1].size and np.all(series[k][1] == series[k][1][0])}
-    panels = group_numeric([k for k in numeric if k not in constant])
+    scale = {k: float(np.nanmax(np.abs(series[k][1]))) if np.isfinite(series[k][1]).any() else 0.0 for k in numeric}
+    panels = group_numeric([k for k in numeric if k not in constant], scale)
     if not text and not panels:
         return ('the controller status has no value to plot: '
                 + ', '.join([f'{k} constant ({v:g})' for k, v in constant.items()]
+                            + [f'{k} constant ({v})' for k, v in constant_text.items()]
                             + [f'{k} ({n} distinct text values)' for k, n in chatty.items()]))
     ratios = ([0.35 + 0.3 * len(text)] if text else []) + [1.0] * len(panels)
     fig, axes = new_figure(rows=len(ratios), height=1.7, width=10.0, ratios=ratios)
@@ -122,8 +133,9 @@ def fig_controller_status(c: Context):
         add_legend(ax)
     fig.suptitle(f'Controller status ({topics.CONTROLLER_STATUS}; u_x, u_y, u_z: torque figure)', fontsize='medium')
     notes = []
-    if constant:
-        notes.append('constant over the run (not drawn): ' + ', '.join(f'`{k}` = {v:g}' for k, v in constant.items()))
+    if constant or constant_text:
+        notes.append('constant over the run (not drawn): ' + ', '.join(
+            [f'`{k}` = {v:g}' for k, v in constant.items()] + [f'`{k}` = {v}' for k, v in constant_text.items()]))
     if chatty:
         notes.append(f'not drawn (more than {MAX_TIMELINE_LEVELS} distinct text values): '
                      + ', '.join(f'`{k}` ({n})' for k, n in chatty.items()))
