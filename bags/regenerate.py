@@ -92,7 +92,9 @@ def write_report(folder: Path, name: str) -> Path:
     out = folder / 'report'
     shutil.rmtree(out, ignore_errors=True)
     try:
-        return write(load_run(folder / 'bag', name), out)
+        run = load_run(folder / 'bag', name)
+        run.path = run.path.relative_to(ROOT) if run.path.is_relative_to(ROOT) else run.path  # as the docs cite it
+        return write(run, out)
     except BagError as exc:
         raise SystemExit(f'regenerate: {folder / "bag"}: {exc}') from None
 

@@ -159,18 +159,18 @@ class RunData:
         run.message_count = reader.message_count
         run.missing_topics = [rel for rel in REPORTED_TOPICS if not counts.get(ns + rel)]
         run.namespace = ns
-        scenario_text = reader.metadata.get('scenario', {}).get('text')
-        if scenario_text:
-            run.scenario = _scenario(scenario_text)
-            if run.scenario is not None:
-                run.q_ref = target_attitude(run.scenario)
-                run.pointing = pointing_request(run.scenario)
+        run.scenario = _scenario(reader.metadata.get('scenario', {}).get('text'))
+        if run.scenario is not None:
+            run.q_ref = target_attitude(run.scenario)
+            run.pointing = pointing_request(run.scenario)
         return run
 
 
-def _scenario(text: str) -> dict | None:
-    """The embedded scenario as a mapping; None when it is not YAML or not a mapping of sections
-    (a bag from elsewhere: the report then says the bag carries no usable scenario)."""
+def _scenario(text: str | None) -> dict | None:
+    """The embedded scenario as a mapping; None without one, or when it is not YAML or not a
+    mapping of sections (a bag from elsewhere: the report then says it has no usable scenario)."""
+    if not text:
+        return None
     try:
         tree = yaml.safe_load(text)
     except yaml.YAMLError:

@@ -82,7 +82,7 @@ def fig_q4_bands(c: Context):
         if paper is not None:
             ax.plot(t0 + paper, band, 'x', color=colour, markersize=9, mew=2, label=f'paper: {paper:g} s after t0')
     ax.set_ylabel('1 − |q4| (–, log)')
-    ax.set_title('Error quaternion scalar part, 1 − |q4| (seed 000 VI.A)')
+    ax.set_title('Scalar part of the error quaternion after the first fault: 1 − |q4| (seed 000\'s bands)')
     mark_faults([ax], c.events)
     add_legend(ax)
     return fig, ('1 − |q4| of the error quaternion to the final target (log scale), with the paper\'s bands '
