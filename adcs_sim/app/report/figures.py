@@ -52,6 +52,20 @@ def mark_faults(axes, events, legend: bool = True) -> None:
             ax.axvline(t, **FAULT_STYLE, label=label)
 
 
+PHASE_COLOURS = ['#dbe9f6', '#fde7cf', '#dff2dc', '#efe0f3', '#f6f3d2']
+
+
+def shade_phases(axes, phases, legend: bool = True) -> None:
+    """Shade each phase (t0, t1, label) of the run on every axis; one legend entry per label."""
+    colours: dict[str, str] = {}
+    for t0, t1, label in phases:
+        new = label not in colours
+        colour = colours.setdefault(label, PHASE_COLOURS[len(colours) % len(PHASE_COLOURS)])
+        for i, ax in enumerate(axes):
+            ax.axvspan(t0, t1, color=colour, alpha=0.9, zorder=0, linewidth=0,
+                       label=f'phase: {label}' if legend and new and i == 0 else None)
+
+
 def add_legend(ax, outside: bool = True, **kw) -> None:
     """The axis' legend, by default outside the plot on the right (never over the data)."""
     if ax.get_legend_handles_labels()[0]:
@@ -121,14 +135,21 @@ def fig_attitude_error(c: Context):
 
 def fig_quaternion(c: Context):
     fig, (ax,) = new_figure(height=3.2)
+    shade_phases([ax], c.phases)
     for i, (label, a) in enumerate([('$q_1$ (x)', 'x'), ('$q_2$ (y)', 'y'), ('$q_3$ (z)', 'z'),
                                     ('$q_4$ (scalar)', 'w')]):
         ax.plot(c.run.t, c.run.q[:, i], **LINE[a], label=label)
+    if c.q_ref is not None:
+        for i, a in enumerate('xyzw'):
+            ax.plot(c.run.t, c.q_ref[:, i], color=COLORS[a], linestyle=(0, (1, 1.5)), linewidth=1.2,
+                    label='reference $q_{ref}$ (dotted)' if i == 0 else None)
     ax.set_ylabel('quaternion component (–)')
     ax.set_title('Attitude quaternion, body in inertial ($q_1 q_2 q_3$ vector, $q_4$ scalar)')
     mark_faults([ax], c.events)
     add_legend(ax)
-    return fig, 'Attitude quaternion components (dimensionless; vector part first, scalar last).'
+    return fig, ('Attitude quaternion components (dimensionless; vector part first, scalar last)'
+                 + ('; dotted, same colours: the reference the controller follows' if c.q_ref is not None else '')
+                 + ('; shaded: the run\'s phases.' if c.phases else '.'))
 
 
 EULER_LABELS = [r'$\theta_2$ about y (1st)', r'$\theta_1$ about x (2nd)', r'$\theta_3$ about z (3rd)']
@@ -251,14 +272,25 @@ def _zoh_period(run) -> float:
     return float(np.median(np.diff(t))) if t.size > 1 else 0.0
 
 
+def reference_jumps(q_ref, threshold_deg: float = 1.0) -> np.ndarray:
+    """Indices k where the reference steps by more than ``threshold_deg`` from sample k-1 to k."""
+    if q_ref is None or len(q_ref) < 2:
+        return np.zeros(0, dtype=int)
+    step = np.abs(np.sum(q_ref[1:] * q_ref[:-1], axis=1)).clip(0.0, 1.0)
+    return np.flatnonzero(np.degrees(2 * np.arccos(step)) > threshold_deg) + 1
+
+
 def fig_phase(c: Context):
     qe, _, _ = c.errors
     qe = qe * np.where(qe[:, 3:4] < 0, -1.0, 1.0)  # the shortest-path sign (q4 >= 0)
-    fig = Figure(figsize=(8.0, 4.6), layout='constrained')
+    jumps = reference_jumps(c.q_ref)
+    fig = Figure(figsize=(10.0, 4.6), layout='constrained')
     ax = fig.subplots()
     ax.grid(True, alpha=0.35)
     for i, a in enumerate(AXES):
-        ax.plot(qe[:, i], c.run.w[:, i], **LINE[a], label=fr'$q_{i + 1}$ vs $\omega_{a}$')
+        # the curve is broken where the reference steps (seed 000's slew target -> identity)
+        ax.plot(np.insert(qe[:, i], jumps, np.nan), np.insert(c.run.w[:, i], jumps, np.nan), **LINE[a],
+                label=fr'$q_{i + 1}$ vs $\omega_{a}$')
         ax.plot(qe[0, i], c.run.w[0, i], 'o', color=COLORS[a], markersize=6)
         ax.plot(qe[-1, i], c.run.w[-1, i], 'x', color=COLORS[a], markersize=8)
     for t, name, _ in c.events:
@@ -273,7 +305,8 @@ def fig_phase(c: Context):
     ax.set_ylabel(r'body rate $\omega_i$ (rad/s)')
     ax.set_title(r'Phase portrait: $q_i$ vs $\omega_i$, i = 1, 2, 3')
     add_legend(ax)
-    return fig, 'Phase portraits: error quaternion component q_i vs body rate ω_i (rad/s), i = 1..3.'
+    return fig, ('Phase portraits: error quaternion component q_i (to the reference) vs body rate ω_i (rad/s), '
+                 'i = 1..3' + (f'; the curves break where the reference steps ({len(jumps)}×).' if jumps.size else '.'))
 
 
 # (file name, title, builder) of the generic figures (the controller status: .status_figure)

@@ -11,22 +11,18 @@ import numpy as np
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion
 from adcs_sim.app.analysis import POINTING_BANDS_DEG, first_entry_time, pointing_error_deg, settling_time
-from adcs_sim.app.report.figures import LINE, Context, add_legend, log_positive, mark_faults, new_figure, step_plot
+from adcs_sim.app.report.figures import (
+    LINE,
+    Context,
+    add_legend,
+    log_positive,
+    mark_faults,
+    new_figure,
+    shade_phases,
+    step_plot,
+)
 from adcs_sim.app.report.kinds import param_value, section_params, vector
 from adcs_sim.app.report.lead import SPIN_RATE_BAND_RAD_S, SPIN_THETA_BAND_RAD, TRACKING_BAND_DEG, status_array
-
-PHASE_COLOURS = ['#dbe9f6', '#fde7cf', '#dff2dc', '#efe0f3', '#f6f3d2']
-
-
-def shade_phases(axes, phases, legend: bool = True) -> None:
-    """Shade each phase (t0, t1, label) of the run on every axis; one legend entry per label."""
-    colours: dict[str, str] = {}
-    for t0, t1, label in phases:
-        new = label not in colours
-        colour = colours.setdefault(label, PHASE_COLOURS[len(colours) % len(PHASE_COLOURS)])
-        for i, ax in enumerate(axes):
-            ax.axvspan(t0, t1, color=colour, alpha=0.9, zorder=0, linewidth=0,
-                       label=f'phase: {label}' if legend and new and i == 0 else None)
 
 
 def _published(c: Context, key: str) -> float | None:
