@@ -158,11 +158,13 @@ EULER_NAMES = (('theta2_y', 0, r'$\theta_2$ (about y)'), ('theta1_x', 1, r'$\the
 
 
 def fig_euler_settling(c: Context):
-    """Seed 004 Table I: each 2-1-3 Euler angle of the error with the ±1° / ±0.5° bands, our
-    settling times (circles) and the paper's (crosses)."""
+    """Seed 004: each 2-1-3 Euler angle of the error with the ±1° / ±0.5° bands, our settling times
+    (circles) and the paper's (crosses, Table I), and all three within ±0.5° (III.F: verticals)."""
     _, _, euler = c.errors
     fig, axes = new_figure(rows=3, height=1.7)
-    for ax, (name, i, label) in zip(axes, EULER_NAMES):
+    all_ours = settling_time(c.run.t, np.abs(euler).max(axis=1), 0.5)
+    all_paper = _published(c, 'settling_euler213_all_0.5deg_s')
+    for k, (ax, (name, i, label)) in enumerate(zip(axes, EULER_NAMES)):
         ax.plot(c.run.t, log_positive(np.abs(euler[:, i])), color='C0', label=f'|{label}|')
         ax.set_yscale('log')
         for band, colour in ((1.0, 'C1'), (0.5, 'C3')):
@@ -173,14 +175,21 @@ def fig_euler_settling(c: Context):
             paper = _published(c, f'settling_euler213_{name}_{band:g}deg_s')
             if paper is not None:
                 ax.plot(paper, band, 'x', color=colour, markersize=9, mew=2, label=f'paper ±{band:g}°: {paper:g} s')
-        ax.set_ylim(bottom=max(ax.get_ylim()[0], 1e-4))  # below 1e-4 deg: numerical detail, not Table I
+        if math.isfinite(all_ours):
+            ax.axvline(all_ours, color='C2', linestyle='-.', linewidth=1,
+                       label=f'all three ±0.5°, ours: {all_ours:.1f} s' if k == 0 else None)
+        if all_paper is not None:
+            ax.axvline(all_paper, color='k', linestyle=(0, (1, 2)), linewidth=1.2,
+                       label=f'all three ±0.5°, paper: {all_paper:g} s' if k == 0 else None)
+        ax.set_ylim(bottom=max(ax.get_ylim()[0], 1e-4))  # below 1e-4 deg: numerical detail, not the paper's
         ax.set_ylabel('deg (log)')
         add_legend(ax)
-    axes[0].set_title('2-1-3 Euler angles of the attitude error, with the settling bands (seed 004 Table I)')
+    axes[0].set_title('2-1-3 Euler angles of the attitude error and their settling (seed 004 Table I, III.F)')
     mark_faults(axes, c.events, legend=False)
     return fig, ('Absolute 2-1-3 Euler angles of the attitude error (deg, log scale), one panel per angle, with '
                  'the ±1° and ±0.5° bands (dotted); circles: the time after which ours stays in the band, '
-                 'crosses: the paper\'s where it gives one.')
+                 'crosses: the paper\'s (Table I) where it gives one; verticals: all three angles within ±0.5° '
+                 '(dash-dot ours, fine dotted the paper\'s, III.F).')
 
 
 # (file name, title, builder) per kind, in the order the report shows them
