@@ -178,6 +178,19 @@ def test_run_kind_and_reference_never_raise(scenario):
     lead_metrics(run, rk, q_ref)
 
 
+def test_a_registered_section_goes_after_the_lead(tmp_path, monkeypatch):
+    """The hook for further sections (estimation errors): shown after the kind's section."""
+    from adcs_sim.app.report import single_run
+    from adcs_sim.app.report.loading import load_run
+    monkeypatch.setattr(single_run, 'EXTRA_SECTIONS', [])
+    single_run.register_section('extra', lambda report: ['## Extra section', '', f'{report.ctx.kind.kind}', ''])
+    single_run.register_section('extra', lambda report: ['## Extra section', '', 'replaced', ''])
+    bag = write_bag(tmp_path / 'run' / 'bag')
+    text = single_run.write_report(load_run(bag), tmp_path / 'out').read_text()
+    assert text.count('## Extra section') == 1 and 'replaced' in text
+    assert text.index('## What this run is') < text.index('## Extra section') < text.index('## Topics')
+
+
 def test_committed_reports_lead_with_their_kind():
     """bags/README.md's list: one committed report per kind leads with the paper's quantities."""
     for name, kind, key in [('table1_gsmn', 'regulation', 'integrated_torque_Nms'),

@@ -49,9 +49,12 @@ class Report:
     source: str          # where the paper's values come from ('' without any)
 
 
-# A section: (name, builder(Report) -> Markdown lines).
+# A section: (name, builder(Report) -> Markdown lines). A builder draws its figures with
+# draw_figures(report, [(file name, title, builder(Context) -> (Figure, caption) or why-skipped str)]).
 Section = tuple[str, Callable[[Report], list]]
-# Sections added by other modules (shown after the kind's lead section), in registration order.
+# Sections added by other modules (shown after the kind's lead section), in registration order:
+# e.g. the estimation errors (adcs_sim/app/report/estimation.py, a builder of its own added here
+# or with register_section at its import).
 EXTRA_SECTIONS: list[Section] = []
 
 
@@ -188,7 +191,7 @@ def _lead_lines(report: Report) -> list[str]:
         diff = m.difference
         lines.append(f'| `{m.key}` | {fmt(m.value)} | {fmt(m.paper) if m.paper is not None else "–"} | '
                      + ('–' if math.isnan(diff) else f'{100 * diff:+.1f} %') + f' | {m.unit} | {md_escape(m.meaning)} |')
-    return lines + [''] + ['### Its figures', ''] + _draw(report, lead_figures(ctx), level='####')
+    return lines + [''] + ['### Its figures', ''] + draw_figures(report, lead_figures(ctx), level='####')
 
 
 def lead_figures(ctx: Context) -> list:
@@ -235,7 +238,7 @@ def _metric_lines(report: Report) -> list[str]:
     return lines
 
 
-def _draw(report: Report, figures, level: str = '###') -> list[str]:
+def draw_figures(report: Report, figures, level: str = '###') -> list[str]:
     """Draw and save each figure (file name, title, builder); its Markdown, or why it is skipped."""
     lines = []
     for name, title, builder in figures:
@@ -256,7 +259,7 @@ def _figure_lines(report: Report) -> list[str]:
     lines = ['## Other figures', '']
     if skip:
         lines += [f'Not drawn: {", ".join(f"`{n}`" for n in sorted(skip))} ({why}).', '']
-    return lines + _draw(report, other_figures(report.ctx))
+    return lines + draw_figures(report, other_figures(report.ctx))
 
 
 # The layout of a report, in order; EXTRA_SECTIONS go after the first two (recording, lead).
