@@ -117,8 +117,14 @@ def held_text(run: RunData, key: str) -> np.ndarray | None:
 
 def reference_attitude(run: RunData, rk: RunKind) -> tuple[np.ndarray | None, str]:
     """(q_ref (N, 4) at the state samples, one-line description); (None, why) without one."""
-    if rk.kind in ('spin', 'pointing'):
-        return None, f'none: a {rk.kind} run has no fixed attitude target'
+    if rk.kind == 'pointing':
+        where = (f'body axis σ̂ = {_fmt_q(run.pointing[0])} toward the inertial τ̂ = {_fmt_q(run.pointing[1])}; '
+                 if run.pointing is not None else '')
+        return None, where + 'no fixed attitude target (the rotation about σ̂ is free)'
+    if rk.kind == 'spin':
+        rate = vector(param_value(rk.params, 'target.rate'), 3)
+        spin = f'spin at ω_d = {_fmt_q(rate)} rad/s (target.rate), ' if rate is not None else ''
+        return None, spin + 'R_d(t) = R_d(0) exp(ω_d t) from target.attitude: no fixed attitude target'
     if rk.kind == 'tracking':
         return _orbit_reference(run, rk)
     target = _unit(param_value(rk.params, 'target.attitude', [0.0, 0.0, 0.0, 1.0]))
@@ -150,10 +156,12 @@ def _orbit_reference(run: RunData, rk: RunKind) -> tuple[np.ndarray | None, str]
         return None, f'none: the orbit reference of the controller section cannot be read ({exc})'
     ref = OrbitReference(orbit, q_rel, None if math.isinf(hold) else hold)
     q_ref = np.array([ref(float(t))[0] for t in run.t]).reshape(-1, 4)
-    held = 'tracked for ever' if math.isinf(hold) else (
-        'held inertially from t = 0 (the orbit frame at t = 0)' if hold == 0 else
-        f'tracked in the orbit frame until t = {hold:g} s, then held inertially')
-    return q_ref, f'q_d = q_io(t) ⊗ {_fmt_q(q_rel)} (target.attitude relative to the orbit frame), {held}'
+    rel = f'{_fmt_q(q_rel)} (target.attitude, relative to the orbit frame q_io)'
+    if math.isinf(hold):
+        return q_ref, f'q_d(t) = q_io(t) ⊗ {rel}, tracked for ever'
+    if hold == 0:
+        return q_ref, f'q_d = q_io(0) ⊗ {rel}: the orbit frame at t = 0, held inertially (reference.hold_time 0)'
+    return q_ref, f'q_d(t) = q_io(t) ⊗ {rel} until t = {hold:g} s (reference.hold_time), then held inertially'
 
 
 def _fmt_q(q) -> str:
