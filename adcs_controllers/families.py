@@ -471,16 +471,27 @@ BACKSTEPPING_SCHEMA = Schema('backstepping_controller', [
 
 # --- the families: schema, law and actuation of each controller node ---------------------------
 
+# What a run of a law is (the quantities its paper plots): to a fixed attitude at rest, along an
+# orbit-defined target, to a spin about an axis, or one body axis pointed at a direction.
+RUN_KINDS = {
+    'regulation': 'rest to rest: the body brought to a fixed target attitude at rest',
+    'tracking': 'tracking: the body follows a target attitude defined relative to the orbit frame',
+    'spin': 'motion to spin: the body brought to a spin at a commanded rate about a commanded axis',
+    'pointing': 'single-axis pointing: one body axis pointed at an inertial direction (rotation about it free)',
+}
+
 @dataclass(frozen=True)
 class ControllerFamily:
     """One controller node: its section's ``schema``, its ``law`` (a class or builder called with the
     validated section) and, for a law with actuators of its own (seed 002's thrusters), its
     ``actuation`` builder (default: :class:`~adcs_controllers.laws.allocation.Actuation`, wheel
-    allocation and saturation, or the ideal torquers)."""
+    allocation and saturation, or the ideal torquers). ``kind``: what a run of the law is, which
+    the reports lead with (:data:`RUN_KINDS`)."""
 
     schema: Schema
     law: Callable[[dict], Any]
     actuation: Callable[[dict], Any] | None = None
+    kind: str = 'regulation'
 
     @property
     def node(self) -> str:
@@ -517,12 +528,12 @@ SNLC_MINNORM = ControllerFamily(SNLC_MINNORM_SCHEMA, TwoWheelReconfiguration.fac
 SNLC_GSMN = ControllerFamily(SNLC_GSMN_SCHEMA, TwoWheelReconfiguration.factory(SnlcGsmnLaw))
 # seed 001: inertia-free laws on ideal external torquers
 M2R = ControllerFamily(M2R_SCHEMA, M2rLaw)
-M2S = ControllerFamily(M2S_SCHEMA, M2sLaw)
+M2S = ControllerFamily(M2S_SCHEMA, M2sLaw, kind='spin')  # regulation when target.rate is zero
 # seed 003: single-axis pointing, two wheels, non-zero momentum (laws need the wheel momentum)
-POINTING_A = ControllerFamily(POINTING_A_SCHEMA, _pointing(PointingALaw))
-POINTING_B = ControllerFamily(POINTING_B_SCHEMA, _pointing(PointingBLaw))
+POINTING_A = ControllerFamily(POINTING_A_SCHEMA, _pointing(PointingALaw), kind='pointing')
+POINTING_B = ControllerFamily(POINTING_B_SCHEMA, _pointing(PointingBLaw), kind='pointing')
 # seed 002: thrusters + pitch wheel, backstepping tracking
-BACKSTEPPING = ControllerFamily(BACKSTEPPING_SCHEMA, BacksteppingLaw, ThrusterActuation)
+BACKSTEPPING = ControllerFamily(BACKSTEPPING_SCHEMA, BacksteppingLaw, ThrusterActuation, kind='tracking')
 
 FAMILIES: dict[str, ControllerFamily] = {f.node: f for f in (
     PD, MINNORM, GSMN, KT, ZERO_MOMENTUM, SNLC, SNLC_MINNORM, SNLC_GSMN, M2R, M2S, POINTING_A, POINTING_B,

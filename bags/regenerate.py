@@ -9,10 +9,13 @@ first (ignored by git) and replaces the old recording only when it succeeded.
     .venv/bin/python bags/regenerate.py                 # every config/*.yaml (but NOT_RECORDED)
     .venv/bin/python bags/regenerate.py microsat_pd_slew
     .venv/bin/python bags/regenerate.py --check         # no run: do the kept metrics still match?
+    .venv/bin/python bags/regenerate.py --reports       # no run: rewrite every report/ from its bag
 
 ``adcs-run`` leases its own ROS_DOMAIN_ID and keeps discovery on localhost. ``--check`` recomputes
 every recording's metrics from its bag with the current :mod:`adcs_sim.app.analysis` and compares
-them with its ``metrics.json`` (what tests/test_any_bag.py also checks).
+them with its ``metrics.json`` (what tests/test_any_bag.py also checks). ``--reports`` rewrites
+each kept ``report/`` (``adcs-analyze``'s report, named after the scenario) from the bag beside it,
+without running anything: after a change to the reports, or after a merge.
 """
 from __future__ import annotations
 
@@ -32,7 +35,9 @@ CONFIG = ROOT / 'config'
 MAX_TOTAL_BYTES = 100_000_000
 # Recordings kept without their report/ (1-2 MB each): their docs show paper-style figures made
 # from the bags instead (docs/seed001/figures.py); `adcs-analyze bags/<name>/bag` makes the report.
+# But one of each seed 001 kind keeps its report (a spin run, a motion-to-rest run: bags/README.md).
 NO_REPORT_PREFIXES = ('m2r_', 'm2s_')
+WITH_REPORT = ('m2s_nonprincipal_vagc_0p02', 'm2r_umax0p1')
 # Scenarios in config/ without a kept recording (their figures come from the batch engine).
 NOT_RECORDED = {
     'uosat12_gsmn_100mnm': 'the 100 mN m variant of uosat12_gsmn (docs/seed000.md, from the batch engine)',
@@ -66,12 +71,11 @@ def regenerate(name: str) -> Path:
         raise SystemExit(f'regenerate: adcs-run failed for {name} (status {result.returncode}); '
                          f'output kept in {tmp}')
     shutil.rmtree(tmp / 'logs', ignore_errors=True)
-    # The run's report (report/: report.md + PNG/SVG figures), so the docs can show it.
-    from adcs_sim.app.analyze import main as analyze
-    if not name.startswith(NO_REPORT_PREFIXES) and analyze([str(tmp / 'bag'), '--out', str(tmp / 'report')]) != 0:
-        raise SystemExit(f'regenerate: adcs-analyze failed for {name}; output kept in {tmp}')
+    if has_report(name):
+        write_report(tmp, name)
     # Its viewer layouts (adcs-analyze --foxglove-layout / --plotjuggler-layout; a recording made
     # now carries the viewer topics: /tf, markers, error/*).
+    from adcs_sim.app.analyze import main as analyze
     layouts = tmp / 'layouts'
     layouts.mkdir()
     if analyze([str(tmp / 'bag'), '--foxglove-layout', str(layouts / 'foxglove.json'),
@@ -81,6 +85,27 @@ def regenerate(name: str) -> Path:
     shutil.rmtree(dest, ignore_errors=True)
     tmp.rename(dest)
     return dest
+
+
+def has_report(name: str) -> bool:
+    return not name.startswith(NO_REPORT_PREFIXES) or name in WITH_REPORT
+
+
+def write_report(folder: Path, name: str) -> Path:
+    """The run's report (``report/``: report.md + PNG/SVG figures, replaced whole), so the docs can
+    show it; named after the scenario (its published values are looked up by that name)."""
+    sys.path.insert(0, str(ROOT))
+    # matplotlib behind the report: imported only when a report is written
+    from adcs_sim.app.report.loading import BagError, load_run
+    from adcs_sim.app.report.single_run import write_report as write
+    out = folder / 'report'
+    shutil.rmtree(out, ignore_errors=True)
+    try:
+        run = load_run(folder / 'bag', name)
+        run.path = run.path.relative_to(ROOT) if run.path.is_relative_to(ROOT) else run.path  # as the docs cite it
+        return write(run, out)
+    except BagError as exc:
+        raise SystemExit(f'regenerate: {folder / "bag"}: {exc}') from None
 
 
 def check(folder: Path) -> list[str]:
@@ -102,8 +127,14 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('scenarios', nargs='*', help='scenario names (default: every config/*.yaml)')
     parser.add_argument('--check', action='store_true', help='only compare kept metrics with the bags')
+    parser.add_argument('--reports', action='store_true',
+                        help='only rewrite the kept reports from the bags (no run)')
     args = parser.parse_args(argv)
     names = args.scenarios or sorted(p.stem for p in CONFIG.glob('*.yaml') if p.stem not in NOT_RECORDED)
+    if args.reports:
+        for name in (n for n in names if has_report(n)):
+            print(f'{write_report(HERE / name, name).relative_to(ROOT)}', flush=True)
+        return 0
     if args.check:
         problems = [p for name in names for p in check(HERE / name)]
         print('\n'.join(problems) or f'ok: {len(names)} recording(s) match their metrics.json')

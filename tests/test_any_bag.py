@@ -253,7 +253,7 @@ RECORDINGS = sorted(p.parent for p in BAGS.glob('*/metrics.json') if not p.paren
 
 def test_reference_recordings_exist_for_every_scenario_and_are_small():
     sys.path.insert(0, str(BAGS))
-    from regenerate import MAX_TOTAL_BYTES, NO_REPORT_PREFIXES, NOT_RECORDED
+    from regenerate import MAX_TOTAL_BYTES, NOT_RECORDED, has_report
     scenarios = sorted(p.stem for p in (ROOT / 'config').glob('*.yaml') if p.stem not in NOT_RECORDED)
     assert [p.name for p in RECORDINGS] == scenarios
     for folder in RECORDINGS:
@@ -261,9 +261,8 @@ def test_reference_recordings_exist_for_every_scenario_and_are_small():
         layouts = ['layouts'] if (folder / 'layouts').exists() else []
         if layouts:
             assert sorted(p.name for p in (folder / 'layouts').iterdir()) == ['foxglove.json', 'plotjuggler.xml']
-        if folder.name.startswith(NO_REPORT_PREFIXES):
-            expected = sorted(['bag', 'metrics.json', 'scenario.yaml', *layouts])
-            assert sorted(p.name for p in folder.iterdir()) == expected
+        if not has_report(folder.name):
+            assert sorted(p.name for p in folder.iterdir()) == sorted(['bag', 'metrics.json', 'scenario.yaml', *layouts])
             continue
         assert sorted(p.name for p in folder.iterdir()) == sorted(['bag', 'metrics.json', 'report', 'scenario.yaml',
                                                                    *layouts])

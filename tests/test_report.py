@@ -181,10 +181,13 @@ def test_report_of_one_run_beside_the_bag(bags, capsys):
     assert text.count('fault at t =') == 1
     for name in ('attitude_error', 'euler_213', 'torque', 'wheels', 'controller_status'):
         assert 'fault: rw_x (t = 50 s)' in _svg_text(out / f'{name}.svg'), name
-    # Controller status: the string 'mode' as a timeline, numeric keys as panels, u_* elsewhere.
+    # Controller status: the string 'mode' as a timeline, numeric keys as panels, u_* elsewhere, a
+    # value that never changes named in the caption (not drawn).
     status_svg = _svg_text(out / 'controller_status.svg')
-    assert all(s in status_svg for s in ('slew', 'coast', 'lyapunov', 'rejected_messages'))
-    assert '`mode` (timeline), `lyapunov`, `rejected_messages`' in text
+    assert all(s in status_svg for s in ('mode = slew', 'mode = coast', 'lyapunov'))
+    assert 'rejected_messages' not in status_svg
+    assert 'timelines of `mode` (top); `lyapunov` (unit not declared).' in text
+    assert 'Constant over the run (not drawn): `rejected_messages` = 0.' in text
     # Commanded (status u_x, u_y, u_z: 1.5 x applied here) and applied torque in one figure.
     torque_svg = _svg_text(out / 'torque.svg')
     assert 'commanded' in torque_svg and 'applied' in torque_svg

@@ -34,26 +34,34 @@ Definitions (every metric printed by ``adcs-run`` and ``adcs-analyze``):
   speed** ``max |Ω|`` over all wheels and samples (rad/s, relative to the body); **missed
   steps** from the last ``dynamics/status`` that reports them.
 
+The time series come from :class:`~adcs_sim.app.run_data.RunData` (a bag read in one pass).
 :func:`run_metrics` gives these at one tolerance; :func:`settling_times` the settling times at
 several (e.g. 0.5° and 1° for a comparison table). :func:`k0_metric` is seed 001's settling index
 (eq. 29) of a sampled error series.
 """
 from __future__ import annotations
 
-import gc
 import math
-from collections import defaultdict
-from dataclasses import dataclass, field
+import warnings
 
 import numpy as np
-import yaml
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213, pointing_error
-from adcs_msgs_py import names as topics
-from adcs_sim.bag.batches import ColumnReader
-from adcs_sim.bag.columns import decode_batch, decode_diagnostics
-from adcs_sim.bag.reader import read_raw
-from adcs_sim.bag.storage import typestore
+
+# The run's time series and what its scenario asks for (re-exported: this module's historical API).
+from adcs_sim.app.run_data import (  # noqa: F401
+    DIAGNOSTIC_ARRAY,
+    JOINT_STATE,
+    ODOMETRY,
+    READ_TYPES,
+    REPORTED_TOPICS,
+    VECTOR3_STAMPED,
+    RunData,
+    bag_intrusions,
+    intrusion_lines,
+    pointing_request,
+    target_attitude,
+)
 
 NS = 1e-9
 
@@ -133,233 +141,6 @@ def k0_metric(e: np.ndarray, window: int = 200, threshold: float = 0.03, reduce:
     return k if n > window else np.full(e.shape[:-1], -1)
 
 
-# --- a run's time series -------------------------------------------------------------------
-
-ODOMETRY = 'nav_msgs/msg/Odometry'
-VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
-JOINT_STATE = 'sensor_msgs/msg/JointState'
-DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
-# Topics RunData reads (names relative to the run's namespace) and the type each must have.
-READ_TYPES = {
-    topics.STATE: ODOMETRY, topics.TRUTH_STATE: ODOMETRY, topics.APPLIED_TORQUE: VECTOR3_STAMPED,
-    topics.WHEELS_STATE: JOINT_STATE, topics.DYNAMICS_STATUS: DIAGNOSTIC_ARRAY,
-    topics.CONTROLLER_STATUS: DIAGNOSTIC_ARRAY, topics.FAULTS: DIAGNOSTIC_ARRAY,
-    topics.THRUSTERS_STATE: JOINT_STATE,
-}
-# Topics whose absence RunData reports in ``missing_topics`` (only ``state`` is required).
-REPORTED_TOPICS = (topics.STATE, topics.APPLIED_TORQUE, topics.WHEELS_STATE, topics.DYNAMICS_STATUS,
-                   topics.CONTROLLER_STATUS)
-
-
-@dataclass
-class RunData:
-    """Time series of one run, as recorded (seconds, SI units).
-
-    Rows of each series are in stamp order (file order among equal stamps). ``q``/``w`` come from
-    ``truth/state`` when the bag has it (measurement noise configured), else from ``state``.
-    """
-
-    t: np.ndarray                      # state stamps
-    q: np.ndarray                      # (N, 4) true attitude
-    w: np.ndarray                      # (N, 3) true body rate
-    t_u: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    u: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
-    t_wheels: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    wheel_names: list = field(default_factory=list)
-    wheel_speed: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
-    wheel_torque: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
-    t_thrusters: np.ndarray = field(default_factory=lambda: np.zeros(0))  # step starts
-    thruster_names: list = field(default_factory=list)
-    thruster_impulse: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # at step ends, N s
-    thruster_on_time: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # per step, s
-    thruster_force: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))    # at step starts, N
-    missed_steps: int | None = None
-    missed_at: np.ndarray = field(default_factory=lambda: np.empty(0))   # stamps (s) of missed steps
-    q_ref: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))
-    scenario: dict | None = None
-    controller_status: list = field(default_factory=list)  # (t, name, {key: value text}) per status
-    faults: list = field(default_factory=list)  # (t, level, name, message) per status on faults
-    intrusions: list = field(default_factory=list)  # the recorder's intruder lines (intrusion_lines)
-    topic_counts: dict = field(default_factory=dict)  # messages per topic (relative to the namespace)
-    # How the bag was read:
-    truncated: bool = False            # no MCAP summary/footer (writer killed): data up to the last whole chunk
-    problem: str | None = None         # one line: damage (byte offset, reason), truncation or damaged summary
-    damaged: bool = False              # a fault was found: the data is every record before it
-    message_count: int = 0             # messages read from the bag, all topics
-    missing_topics: list = field(default_factory=list)  # of REPORTED_TOPICS, those with no message
-    pointing: tuple | None = None      # (σ̂ body axis, τ̂ inertial direction) of a pointing run (seed 003)
-    namespace: str = '/'               # the run's topic prefix ('/' or e.g. '/sat1/')
-
-    @property
-    def t_end(self) -> float:
-        return float(self.t[-1]) if self.t.size else 0.0
-
-    @classmethod
-    def from_bag(cls, path, namespace: str | None = None) -> 'RunData':
-        """Read a bag of the graph into arrays: ours or any rosbag2 bag with the graph's topics.
-
-        MCAP (complete or truncated: everything up to the last whole chunk) or sqlite3 storage.
-        Topics may be namespaced (``/sat1/state``): ``namespace`` picks one; by default it is the
-        prefix of a ``state`` topic with the most of the graph's topics beside it. Only ``state``
-        (``nav_msgs/Odometry``) is required; other topics are read when present and their absence
-        listed in ``missing_topics``. One streaming pass; fixed-layout messages are decoded with
-        numpy from their CDR bytes (:func:`adcs_sim.bag.columns.decode_batch`).
-
-        Raises ValueError (not a bag, no ``state`` messages) or OSError (no such path), each with
-        a one-line message.
-        """
-        # The status records are millions of small acyclic objects on a long run: the cyclic
-        # garbage collector, triggered again and again by their allocation, doubled the time.
-        gc_enabled = gc.isenabled()
-        gc.disable()
-        try:
-            return cls._from_bag(path, namespace)
-        finally:
-            if gc_enabled:
-                gc.enable()
-
-    @classmethod
-    def _from_bag(cls, path, namespace: str | None = None) -> 'RunData':
-        fixed = None if namespace is None else ('/' + namespace.strip('/') + '/').replace('//', '/')
-
-        def select(topic: str, type_name: str) -> bool:
-            if type_name == DIAGNOSTIC_ARRAY and _is_intrusions(topic):
-                return True
-            if fixed is not None:
-                return topic.startswith(fixed) and READ_TYPES.get(topic[len(fixed):]) == type_name
-            return any(READ_TYPES[rel] == type_name and (topic == '/' + rel or topic.endswith('/' + rel))
-                       for rel in READ_TYPES)
-
-        reader = ColumnReader(path, select)
-        columns: dict[str, list] = defaultdict(list)     # topic -> [(first row number, Columns)]
-        diagnostics: dict[str, list] = defaultdict(list)  # topic -> [(stamps, statuses)]
-        seen: dict[str, int] = defaultdict(int)
-        for batch in reader:
-            if batch.type_name == DIAGNOSTIC_ARRAY:
-                diagnostics[batch.topic].append(decode_diagnostics(batch))
-            else:
-                columns[batch.topic].extend((seen[batch.topic], c) for c in decode_batch(batch))
-            seen[batch.topic] += len(batch)
-        counts = {name: n for name, n in reader.topic_counts.items() if n}
-        ns = fixed if fixed is not None else _namespace(counts, reader.topics)
-        state_topic = ns + topics.STATE
-        if not any(c.rows.size for _, c in columns.get(state_topic, [])):
-            raise _no_state(path, reader, state_topic)
-        truth = _merged(columns.get(ns + topics.TRUTH_STATE, []))
-        t, cols = truth if truth[0].size else _merged(columns[state_topic])
-        run = cls(t=t, q=cols['orientation'], w=cols['angular'])
-        t_u, cols = _merged(columns.get(ns + topics.APPLIED_TORQUE, []))
-        if t_u.size:
-            run.t_u, run.u = t_u, cols['vector']
-        _set_wheels(run, columns.get(ns + topics.WHEELS_STATE, []))
-        _set_thrusters(run, columns.get(ns + topics.THRUSTERS_STATE, []))
-        for stamp, statuses in _merged_statuses(diagnostics.get(ns + topics.DYNAMICS_STATUS, [])):
-            for status in statuses:
-                if 'missed_steps' in status[4]:
-                    try:
-                        run.missed_steps = int(float(status[4]['missed_steps']))
-                    except ValueError:
-                        pass
-        run.controller_status = [(stamp, s[1], s[4]) for stamp, statuses in
-                                 _merged_statuses(diagnostics.get(ns + topics.CONTROLLER_STATUS, []))
-                                 for s in statuses]
-        run.missed_at = _missed_at(diagnostics.get(ns + topics.DYNAMICS_STATUS, []))
-        run.faults = [(stamp, int(s[0]), s[1], s[2]) for stamp, statuses in
-                      _merged_statuses(diagnostics.get(ns + topics.FAULTS, [])) for s in statuses]
-        run.intrusions = _recorded_intrusions(diagnostics)
-        run.topic_counts = {_relative(name, ns): n for name, n in counts.items()}
-        run.truncated = reader.truncated
-        run.problem, run.damaged = reader.problem, reader.damaged
-        run.message_count = reader.message_count
-        run.missing_topics = [rel for rel in REPORTED_TOPICS if not counts.get(ns + rel)]
-        run.namespace = ns
-        scenario_text = reader.metadata.get('scenario', {}).get('text')
-        if scenario_text:
-            run.scenario = yaml.safe_load(scenario_text)
-            run.q_ref = target_attitude(run.scenario)
-            run.pointing = pointing_request(run.scenario)
-        return run
-
-
-def _no_state(path, reader: ColumnReader, state_topic: str) -> ValueError:
-    """The one-line error for a bag without a state message (saying so when it is damaged)."""
-    what = f'{state_topic} ({ODOMETRY})'
-    if state_topic in reader.topics and reader.topics[state_topic] != ODOMETRY:
-        what = f'{state_topic} of type {ODOMETRY} (it is {reader.topics[state_topic]})'
-    if reader.problem is not None:
-        return ValueError(f'{path}: {reader.problem}: no {what} message before it '
-                          f'({reader.message_count} messages salvaged): nothing to analyse')
-    return ValueError(f'{path}: no {what} messages: not a run of the graph')
-
-
-def _relative(topic: str, ns: str) -> str:
-    return topic[len(ns):] if topic.startswith(ns) else topic.lstrip('/')
-
-
-def _namespace(counts: dict[str, int], types: dict[str, str]) -> str:
-    """The prefix of the ``state`` topic with the most of the graph's topics beside it ('/' first)."""
-    best = None
-    for name, n in counts.items():
-        if not name.endswith('/' + topics.STATE) or types.get(name) != ODOMETRY:
-            continue
-        prefix = name[:-len(topics.STATE)]
-        score = sum(1 for rel in set(READ_TYPES) | set(REPORTED_TOPICS) if counts.get(prefix + rel))
-        key = (-score, len(prefix), prefix)
-        best = key if best is None or key < best else best
-    return best[2] if best else '/'
-
-
-def _merged(parts: list, names=None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """Concatenate decoded columns ([(first row, Columns)]) in stamp order (file order on ties).
-
-    ``names``: the fields to merge (default all)."""
-    parts = [(row0, c) for row0, c in parts if c.rows.size]
-    if not parts:
-        return np.zeros(0), {}
-    seq = np.concatenate([row0 + c.rows for row0, c in parts])
-    stamp_ns = np.concatenate([c.stamp_ns for _, c in parts])
-    order = np.lexsort((seq, stamp_ns))
-    t = np.concatenate([c.stamp for _, c in parts])[order]
-    fields = {name: np.concatenate([c.fields[name] for _, c in parts])[order]
-              for name in (names or parts[0][1].fields)}
-    return t, fields
-
-
-def _set_wheels(run: RunData, parts: list) -> None:
-    """Wheel series from JointState columns: the joints named in the last message (others dropped)."""
-    parts = [(row0, c) for row0, c in parts if c.rows.size]
-    if not parts:
-        return
-    names = max(parts, key=lambda p: p[0] + p[1].rows[-1])[1].extra
-    n = len(names)
-    keep = []
-    for row0, c in parts:
-        if c.extra != names or c.fields['velocity'].shape[1] != n:
-            continue
-        if c.fields['effort'].shape[1] != n:
-            c.fields['effort'] = np.full((c.rows.size, n), math.nan)
-        keep.append((row0, c))
-    t, fields = _merged(keep, ('velocity', 'effort'))
-    run.t_wheels, run.wheel_names = t, list(names)
-    run.wheel_speed, run.wheel_torque = fields['velocity'], fields['effort']
-
-
-def _set_thrusters(run: RunData, parts: list) -> None:
-    """Thruster series from ``thrusters/state`` (JointState: impulse in ``position``, on-time in
-    ``velocity``, thrust in ``effort``), the thrusters named in the last message."""
-    parts = [(row0, c) for row0, c in parts if c.rows.size]
-    if not parts:
-        return
-    names = max(parts, key=lambda p: p[0] + p[1].rows[-1])[1].extra
-    n = len(names)
-    keep = [(row0, c) for row0, c in parts if c.extra == names
-            and all(c.fields[k].shape[1] == n for k in ('position', 'velocity', 'effort'))]
-    t, fields = _merged(keep, ('position', 'velocity', 'effort'))
-    run.t_thrusters, run.thruster_names = t, list(names)
-    run.thruster_impulse, run.thruster_on_time = fields['position'], fields['velocity']
-    run.thruster_force = fields['effort']
-
-
 def thruster_metrics(run: RunData) -> dict:
     """Total thruster impulse at the end (N s), firings (thruster-periods with a non-zero
     on-time) and total on-time (s); empty without ``thrusters/state``."""
@@ -368,33 +149,6 @@ def thruster_metrics(run: RunData) -> dict:
     return {'thruster_impulse_Ns': float(run.thruster_impulse[-1].sum()),
             'thruster_firings': int(np.count_nonzero(run.thruster_on_time > 0.0)),
             'thruster_on_time_s': float(run.thruster_on_time.sum())}
-
-
-def _merged_statuses(parts: list) -> list[tuple[float, list]]:
-    """(stamp, statuses) of DiagnosticArray messages in stamp order (file order on ties)."""
-    merged = [(stamp, statuses) for stamps, batch in parts for stamp, statuses in zip(stamps.tolist(), batch)]
-    merged.sort(key=lambda r: r[0])
-    return merged
-
-
-def target_attitude(scenario: dict) -> np.ndarray:
-    """The regulation target of a scenario: a controller section's ``target.attitude``, or identity."""
-    for name, section in (scenario or {}).items():
-        params = (section or {}).get('ros__parameters') or {}
-        target = (params.get('target') or {}).get('attitude') if isinstance(params, dict) else None
-        if target is not None and str(name).lstrip('/') != 'dynamics':
-            q = np.asarray(target, dtype=float)
-            return q / np.linalg.norm(q)
-    return np.array([0.0, 0.0, 0.0, 1.0])
-
-
-def pointing_request(scenario: dict) -> tuple | None:
-    """(σ̂, τ̂) of a scenario whose controller section points a body axis (``sigma``, ``tau``)."""
-    for name, section in (scenario or {}).items():
-        params = (section or {}).get('ros__parameters') or {}
-        if isinstance(params, dict) and 'sigma' in params and 'tau' in params:
-            return np.asarray(params['sigma'], dtype=float), np.asarray(params['tau'], dtype=float)
-    return None
 
 
 POINTING_BANDS_DEG = (1.0, 0.1, 0.01)   # seed 003 Table 1
@@ -418,11 +172,16 @@ def pointing_metrics(t: np.ndarray, error_deg: np.ndarray, bands=POINTING_BANDS_
     return out
 
 
-def attitude_errors(run: RunData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def attitude_errors(run: RunData, q_ref: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(error quaternion (N, 4), eigenaxis error (N,) deg, signed 2-1-3 Euler errors (N, 3) deg in
-    sequence order y, x, z)."""
-    qe = error_quaternion(run.q, run.q_ref)
-    return qe, np.degrees(eigenaxis_angle(qe)), np.degrees(euler_213(qe))
+    sequence order y, x, z) to ``q_ref`` ((4,) or (N, 4) at the state samples; default the run's
+    target ``run.q_ref``). At gimbal lock (θ1 = ±90°) the 2-1-3 angles are not unique: scipy sets
+    the third to zero (its warning is not repeated here: the angles are what the docstring says)."""
+    qe = error_quaternion(run.q, run.q_ref if q_ref is None else q_ref)
+    with warnings.catch_warnings():
+        warnings.filterwarnings('ignore', message='Gimbal lock detected', category=UserWarning)
+        euler = euler_213(qe)
+    return qe, np.degrees(eigenaxis_angle(qe)), np.degrees(euler)
 
 
 def attitude_errors_deg(run: RunData) -> tuple[np.ndarray, np.ndarray]:
@@ -500,22 +259,6 @@ def run_metrics(run: RunData, tol_deg: float = 0.5, eigen_tol_deg: float | None 
     return out
 
 
-def _missed_at(parts: list) -> np.ndarray:
-    """Stamps (s) at which the dynamics node's ``missed_steps`` count went up: it publishes its
-    status at each missed step, stamped with that step."""
-    out, count = [], 0
-    for stamp, statuses in _merged_statuses(parts):
-        for status in statuses:
-            try:
-                n = int(float(status[4].get('missed_steps', count)))
-            except ValueError:
-                continue
-            if n > count:
-                out.append(stamp)
-            count = max(count, n)
-    return np.asarray(out, dtype=float)
-
-
 def missed_step_gaps(run: RunData) -> dict:
     """Where the lockstep loop ran without commands: ``missed_step_gaps`` (runs of consecutive
     missed steps) and ``longest_missed_gap_s`` ([first, last] stamp of the longest run), e.g. a
@@ -556,36 +299,3 @@ def format_metrics(metrics: dict) -> str:
         return str(v)
     width = max(len(k) for k in metrics)
     return '\n'.join(f'  {k:<{width}}  {fmt(v)}' for k, v in metrics.items())
-
-
-def intrusion_lines(values) -> list[str]:
-    """One line per intruder (node, topic, GID, who was allowed), each once, from the ``{key:
-    value}`` of the statuses the recorder wrote on ``intrusions`` (adcs_msgs_py.guard)."""
-    return list(dict.fromkeys(
-        f'intruder node {kv.get("node", "?")} published on {kv.get("topic", "?")} '
-        f'(GID {kv.get("gid", "?")}; allowed: {kv.get("allowed", "?")})' for kv in values))
-
-
-def _is_intrusions(topic: str) -> bool:
-    return topic.rsplit('/', 1)[-1] == topics.INTRUSIONS
-
-
-def _recorded_intrusions(diagnostics: dict) -> list[str]:
-    """:func:`intrusion_lines` of the decoded ``intrusions`` topics ({topic: [(stamps, statuses)]})."""
-    return intrusion_lines(s[4] for name, parts in diagnostics.items() if _is_intrusions(name)
-                           for _, statuses in _merged_statuses(parts) for s in statuses)
-
-
-def bag_intrusions(bag) -> list[str]:
-    """What the recorder wrote on ``intrusions`` (publishers the run did not allow: the run is
-    compromised): :func:`intrusion_lines` of a bag read for that alone (e.g. one a run left
-    behind when it failed). A bag read into :class:`RunData` has them in ``intrusions``."""
-    values = []
-    try:
-        for topic, type_name, _, data in read_raw(bag):
-            if _is_intrusions(topic):
-                values += [{v.key: v.value for v in status.values}
-                           for status in typestore().deserialize_cdr(data, type_name).status]
-    except (OSError, ValueError):
-        pass
-    return intrusion_lines(values)

@@ -32,6 +32,7 @@ from pathlib import Path
 
 from adcs_sim.app.analysis import format_metrics, jsonable_metrics, run_metrics
 from adcs_sim.app.layouts import LayoutError, write_layouts
+from adcs_sim.app.report.kinds import run_kind
 from adcs_sim.app.report.loading import BagError, default_report_dir, load_run
 
 
@@ -119,7 +120,11 @@ def main(argv=None) -> int:
         print(json.dumps({p: jsonable_metrics(m) for p, m in results.items()}, indent=2))
     else:
         for path, metrics in results.items():
-            print(f'{path}:')
+            kind = run_kind(runs[path].data.scenario)
+            print(f'{path}: a {kind.kind} run ({kind.why})')
+            if kind.kind in ('spin', 'pointing'):
+                print(f'  (the rest-to-rest metrics below measure the attitude against a fixed target: not '
+                      f'meaningful for a {kind.kind} run; the report leads with its own)')
             print(format_metrics(metrics))
     if args.no_report or not runs:
         return status

@@ -38,9 +38,8 @@ from adcs_sim.app.analysis import RunData, attitude_errors, run_metrics
 from adcs_sim.app.batch import BatchResult, BatchSimulation
 from adcs_sim.app.montecarlo import read_results
 from adcs_sim.app.parameters import explain_sections
-from adcs_sim.app.report.figures import FIGURES, Context
-from adcs_sim.app.report.loading import Run, fault_events, run_name
-from adcs_sim.app.report.single_run import write_report
+from adcs_sim.app.report.loading import Run, run_name
+from adcs_sim.app.report.single_run import run_figures, write_report
 from adcs_sim.app.runner import run_scenario
 from adcs_sim.app.scenario_files import resolve_scenario, validate_sections
 
@@ -336,19 +335,12 @@ class RunResult:
         Returns
         -------
         dict
-            ``{name: matplotlib.figure.Figure}`` in :data:`adcs_sim.app.report.figures.FIGURES` order
+            ``{name: matplotlib.figure.Figure}`` in the report's order: the figures of the run's kind
+            first (:mod:`adcs_sim.app.report.kind_figures`), then the others
             (``attitude_error``, ``euler_213``, ``body_rates``, ``torque``, ``wheels``, ...). Save
             one with ``fig.savefig('x.png')``; in a notebook, display it as the cell's value.
         """
-        eigen_tol_deg = tol_deg if eigen_tol_deg is None else eigen_tol_deg
-        ctx = Context(self.data, fault_events(self.data), tol_deg, eigen_tol_deg,
-                             run_metrics(self.data, tol_deg, eigen_tol_deg), attitude_errors(self.data))
-        out = {}
-        for name, _, builder in FIGURES:
-            drawn = builder(ctx)
-            if not isinstance(drawn, str):   # a string says why the figure is skipped
-                out[name] = drawn[0]
-        return out
+        return run_figures(self.data, run_name(self.bag) if self.bag is not None else '', tol_deg, eigen_tol_deg)
 
     def write_report(self, out: str | Path, tol_deg: float = 0.5) -> Path:
         """``adcs-analyze``'s report (``report.md`` and figures) of a graph run.

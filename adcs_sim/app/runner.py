@@ -298,7 +298,7 @@ def main(argv=None) -> int:
     print(format_metrics(metrics))
     if args.report:
         from adcs_sim.app.report import loading, single_run  # matplotlib only when a report is asked for
-        run = loading.load_run(out / 'bag')
+        run = loading.load_run(out / 'bag', scenario.stem)  # named after its scenario: the paper's values
         print(f'report: {single_run.write_report(run, out / "report", args.tolerance_deg)}')
     return 0
 

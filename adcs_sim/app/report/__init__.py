@@ -8,10 +8,18 @@ One module per job:
 * :mod:`.loading` — a bag -> a :class:`~.loading.Run` (one-line :class:`~.loading.BagError` for
   what is not a readable bag), where reports go, and the series derived from a run (controller
   status values, commanded torque, fault events, missing topics); no matplotlib;
-* :mod:`.figures` — the figures of one run (:data:`~.figures.FIGURES`) and the drawing helpers;
+* :mod:`.kinds` — what kind of run a bag holds (regulation, tracking, spin, pointing, from the
+  controller family), the reference its controller follows and the run's phases; no matplotlib;
+* :mod:`.lead` — each kind's own metrics (unit, meaning) and the paper's values beside ours
+  (``docs/seed00X/paper.yaml``); no matplotlib;
+* :mod:`.kind_figures` — the figures each kind leads with (:data:`~.kind_figures.LEAD_FIGURES`);
+* :mod:`.figures` — the generic figures of one run (:data:`~.figures.FIGURES`) and the drawing helpers;
+* :mod:`.status_figure` — the controller-status figure (grouped, with units);
 * :mod:`.markdown` — value formatting, escaping and the meaning of each metric in the tables;
 * :mod:`.single_run` — :func:`~.single_run.write_report`: ``report.md`` (how the bag was read —
-  complete, or recovered from a truncated file and how many messages —, the topics it holds and
+  complete, or recovered from a truncated file and how many messages —, what kind of run it is
+  with that kind's quantities and figures first, the sections other modules register
+  (:func:`~.single_run.register_section`), the topics it holds and
   the ones missing, fault events, the scenario as embedded in the bag, the metrics and the
   figures) and one ``<figure>.png`` and ``<figure>.svg`` per figure the bag has data for;
 * :mod:`.comparison` — :func:`~.comparison.write_comparison`: ``comparison.csv`` and

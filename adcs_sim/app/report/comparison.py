@@ -11,35 +11,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from adcs_sim.app.analysis import RunData, attitude_errors, run_metrics, settling_times
-from adcs_sim.app.report.figures import AXES, add_legend, log_positive, new_figure, save_figure, step_plot
+from adcs_sim.app.analysis import attitude_errors
+from adcs_sim.app.report.figures import add_legend, log_positive, new_figure, save_figure, step_plot
+from adcs_sim.app.report.lead import comparison_rows  # defined in .lead (no matplotlib there)
 from adcs_sim.app.report.loading import Run, fault_events, missing_topics
 from adcs_sim.app.report.markdown import METRIC_NOTES, fmt, md_escape, metric_note
-
-# Euler angle index (euler_213 order: about y, x, z) of θ1 (x), θ2 (y), θ3 (z).
-_EULER_INDEX = {'theta1_x': 1, 'theta2_y': 0, 'theta3_z': 2}
-
-
-def comparison_rows(run: RunData, bands=(1.0, 0.5), eigen_tol_deg: float = 0.5) -> dict:
-    """The comparison metrics of one run: ``{row key: value}`` (see :data:`COMPARISON_ROWS`)."""
-    rows = {}
-    for band, settled in settling_times(run, bands).items():
-        for label, i in _EULER_INDEX.items():
-            rows[f'settling_euler213_{label}_{band:g}deg_s'] = settled['euler213_per_axis'][i]
-        rows[f'settling_euler213_all_{band:g}deg_s'] = settled['euler213']
-    m = run_metrics(run, bands[-1], eigen_tol_deg)
-    rows[f'settling_eigenaxis_{eigen_tol_deg:g}deg_s'] = m[f'settling_eigenaxis_{eigen_tol_deg:g}deg_s']
-    rows['final_eigenaxis_error_deg'] = m['final_eigenaxis_error_deg']
-    rows['integrated_torque_Nms'] = m['integrated_torque_Nms']
-    rows['control_energy_N2m2s'] = m['control_energy_N2m2s']
-    for a, v in zip(AXES, m['peak_torque_Nm']):
-        rows[f'peak_torque_{a}_Nm'] = v
-    rows['peak_wheel_speed_rad_s'] = m['peak_wheel_speed_rad_s']
-    rows['thruster_impulse_Ns'] = m.get('thruster_impulse_Ns')  # n/a without thrusters/state
-    rows['missed_steps'] = m['missed_steps']
-    rows['duration_s'] = m['duration_s']
-    return rows
-
 
 COMPARISON_NOTES = {
     'settling_euler213_theta1_x': 'settling of θ1 (about x) of the 2-1-3 Euler error (s)',
@@ -178,7 +154,7 @@ def _comparison_figures(runs: list[Run], names: list[str], eigen_tol_deg: float)
     ax.axhline(eigen_tol_deg, color='0.3', linestyle=':', label=f'tolerance {eigen_tol_deg:g}°')
     ax.set_ylabel('eigenaxis error (deg, log scale)')
     ax.set_title('Eigenaxis attitude error')
-    add_legend(ax, loc='upper right')
+    add_legend(ax)
     yield 'compare_attitude_error', 'Eigenaxis attitude error', \
         ('Eigenaxis attitude error (deg, log scale), one line per run (an exactly zero error is not drawn on '
          'the log scale); dotted verticals: fault events, in the colour of their run.'), fig
@@ -192,7 +168,7 @@ def _comparison_figures(runs: list[Run], names: list[str], eigen_tol_deg: float)
         faults(ax, i, name, r)
     ax.set_ylabel('‖u‖ (mN·m)')
     ax.set_title('Applied control torque norm')
-    add_legend(ax, loc='upper right')
+    add_legend(ax)
     yield 'compare_torque_norm', 'Torque norm', 'Norm of the applied body torque ‖u‖ (mN·m), one line per run.', fig
 
     fig, (ax,) = new_figure(height=3.6)
@@ -204,6 +180,6 @@ def _comparison_figures(runs: list[Run], names: list[str], eigen_tol_deg: float)
         faults(ax, i, name, r)
     ax.set_ylabel('‖Ω‖ (rad/s)')
     ax.set_title('Wheel speed norm (all wheels, relative to the body)')
-    add_legend(ax, loc='upper right')
+    add_legend(ax)
     yield 'compare_wheel_speed_norm', 'Wheel speed norm', \
         'Euclidean norm of the wheel speeds ‖Ω‖ (rad/s), one line per run.', fig

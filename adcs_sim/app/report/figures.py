@@ -4,7 +4,7 @@ each figure is saved as PNG and SVG (:func:`save_figure`)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import matplotlib
@@ -14,7 +14,8 @@ from matplotlib.ticker import MaxNLocator
 
 from adcs_msgs_py import names as topics
 from adcs_sim.app.analysis import RunData
-from adcs_sim.app.report.loading import TORQUE_KEYS, commanded_torque, status_series, thruster_topics
+from adcs_sim.app.report.kinds import UNKNOWN, RunKind
+from adcs_sim.app.report.loading import commanded_torque, thruster_topics
 
 DPI = 110
 AXES = 'xyz'
@@ -24,7 +25,6 @@ COLORS = {'x': 'C0', 'y': 'C1', 'z': 'C2', 'w': 'C3'}
 LINE = {'x': {'color': 'C0', 'linewidth': 1.6}, 'y': {'color': 'C1', 'linewidth': 3.2, 'alpha': 0.7},
         'z': {'color': 'C2', 'linewidth': 1.6, 'linestyle': '--'}, 'w': {'color': 'C3', 'linewidth': 1.6}}
 FAULT_STYLE = {'color': 'red', 'linestyle': '--', 'linewidth': 1.2}
-MAX_TIMELINE_LEVELS = 12  # distinct values of a text status key drawn as a timeline
 
 
 def _line(i: int) -> dict:
@@ -34,7 +34,7 @@ def _line(i: int) -> dict:
 
 # --- figure helpers ---------------------------------------------------------------------------
 
-def new_figure(rows: int = 1, height: float = 2.6, width: float = 8.0, sharex: bool = True, ratios=None):
+def new_figure(rows: int = 1, height: float = 2.6, width: float = 10.0, sharex: bool = True, ratios=None):
     total = height * (sum(ratios) if ratios else rows)
     fig = Figure(figsize=(width, 0.9 + total), layout='constrained')
     axes = fig.subplots(rows, 1, sharex=sharex, squeeze=False,
@@ -45,15 +45,32 @@ def new_figure(rows: int = 1, height: float = 2.6, width: float = 8.0, sharex: b
     return fig, list(axes)
 
 
-def _mark_faults(axes, events, legend: bool = True) -> None:
+def mark_faults(axes, events, legend: bool = True) -> None:
     for i, ax in enumerate(axes):
         for t, name, _ in events:
             label = f'fault: {name} (t = {t:g} s)' if legend and i == 0 else None
             ax.axvline(t, **FAULT_STYLE, label=label)
 
 
-def add_legend(ax, **kw) -> None:
+PHASE_COLOURS = ['#dbe9f6', '#fde7cf', '#dff2dc', '#efe0f3', '#f6f3d2']
+
+
+def shade_phases(axes, phases, legend: bool = True) -> None:
+    """Shade each phase (t0, t1, label) of the run on every axis; one legend entry per label."""
+    colours: dict[str, str] = {}
+    for t0, t1, label in phases:
+        new = label not in colours
+        colour = colours.setdefault(label, PHASE_COLOURS[len(colours) % len(PHASE_COLOURS)])
+        for i, ax in enumerate(axes):
+            ax.axvspan(t0, t1, color=colour, alpha=0.9, zorder=0, linewidth=0,
+                       label=f'phase: {label}' if legend and new and i == 0 else None)
+
+
+def add_legend(ax, outside: bool = True, **kw) -> None:
+    """The axis' legend, by default outside the plot on the right (never over the data)."""
     if ax.get_legend_handles_labels()[0]:
+        if outside and 'loc' not in kw:
+            kw.update(loc='upper left', bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
         ax.legend(fontsize='small', **kw)
 
 
@@ -92,7 +109,12 @@ class Context:
     tol_deg: float
     eigen_tol_deg: float
     metrics: dict          # run_metrics of the run at these tolerances
-    errors: tuple          # attitude_errors(run): computed once for all the figures
+    errors: tuple          # attitude_errors(run, q_ref): computed once for all the figures
+    kind: RunKind = field(default_factory=lambda: RunKind(UNKNOWN, 'not given'))
+    q_ref: np.ndarray | None = None   # the reference at each state sample (kinds.reference_attitude)
+    reference_text: str = ''
+    phases: list = field(default_factory=list)   # (t0, t1, label)
+    lead: list = field(default_factory=list)     # lead.Metric of the kind, with the paper's values
 
 
 def fig_attitude_error(c: Context):
@@ -106,21 +128,28 @@ def fig_attitude_error(c: Context):
         ax.axvline(ts, color='C2', linestyle='-.', linewidth=1, label=f'settled to {c.eigen_tol_deg:g}° at {ts:.1f} s')
     ax.set_ylabel('eigenaxis error (deg, log scale)')
     ax.set_title('Attitude error: eigenaxis rotation angle of $q_e = q_{ref}^* \\otimes q$')
-    _mark_faults([ax], c.events)
-    add_legend(ax, loc='upper right')
+    mark_faults([ax], c.events)
+    add_legend(ax)
     return fig, 'Eigenaxis attitude error (deg, log scale), with the settling tolerance.'
 
 
 def fig_quaternion(c: Context):
     fig, (ax,) = new_figure(height=3.2)
+    shade_phases([ax], c.phases)
     for i, (label, a) in enumerate([('$q_1$ (x)', 'x'), ('$q_2$ (y)', 'y'), ('$q_3$ (z)', 'z'),
                                     ('$q_4$ (scalar)', 'w')]):
         ax.plot(c.run.t, c.run.q[:, i], **LINE[a], label=label)
+    if c.q_ref is not None:
+        for i, a in enumerate('xyzw'):
+            ax.plot(c.run.t, c.q_ref[:, i], color=COLORS[a], linestyle=(0, (1, 1.5)), linewidth=1.2,
+                    label='reference $q_{ref}$ (dotted)' if i == 0 else None)
     ax.set_ylabel('quaternion component (–)')
     ax.set_title('Attitude quaternion, body in inertial ($q_1 q_2 q_3$ vector, $q_4$ scalar)')
-    _mark_faults([ax], c.events)
-    add_legend(ax, loc='best', ncol=2)
-    return fig, 'Attitude quaternion components (dimensionless; vector part first, scalar last).'
+    mark_faults([ax], c.events)
+    add_legend(ax)
+    return fig, ('Attitude quaternion components (dimensionless; vector part first, scalar last)'
+                 + ('; dotted, same colours: the reference the controller follows' if c.q_ref is not None else '')
+                 + ('; shaded: the run\'s phases.' if c.phases else '.'))
 
 
 EULER_LABELS = [r'$\theta_2$ about y (1st)', r'$\theta_1$ about x (2nd)', r'$\theta_3$ about z (3rd)']
@@ -139,9 +168,9 @@ def fig_euler(c: Context):
     for tol, style in ((1.0, '--'), (c.tol_deg, ':')):
         ax_log.axhline(tol, color='0.3', linestyle=style, linewidth=1, label=f'±{tol:g}°')
     ax_log.set_ylabel('|angle| (deg, log scale)')
-    _mark_faults([ax, ax_log], c.events)
-    add_legend(ax, loc='upper right')
-    add_legend(ax_log, loc='upper right')
+    mark_faults([ax, ax_log], c.events)
+    add_legend(ax)
+    add_legend(ax_log)
     return fig, ('2-1-3 Euler angles of the attitude error (deg): signed (top) and absolute on a log '
                  'scale with the ±1° and ±0.5° bands (bottom).')
 
@@ -152,8 +181,8 @@ def fig_body_rates(c: Context):
         ax.plot(c.run.t, c.run.w[:, i], **LINE[a], label=fr'$\omega_{a}$')
     ax.set_ylabel('body rate (rad/s)')
     ax.set_title('Body angular rate (body axes)')
-    _mark_faults([ax], c.events)
-    add_legend(ax, loc='best')
+    mark_faults([ax], c.events)
+    add_legend(ax)
     return fig, 'Body angular rate ω (rad/s, body axes).'
 
 
@@ -173,8 +202,8 @@ def fig_torque(c: Context):
                   label='commanded')
         ax.set_ylabel(f'$u_{a}$ (mN·m)')
     axes[0].set_title('Control torque per body axis: commanded (controller) vs applied (actuators)')
-    _mark_faults(axes, c.events)
-    add_legend(axes[0], loc='upper right', ncol=3)
+    mark_faults(axes, c.events)
+    add_legend(axes[0])
     missing = []
     if not run.u.size:
         missing.append(f'no applied torque recorded ({topics.APPLIED_TORQUE})')
@@ -199,9 +228,9 @@ def fig_wheels(c: Context):
     axes[0].set_title('Reaction wheels: speed relative to the body'
                       + (' (top), motor torque (bottom)' if torque else ''))
     axes[-1].set_ylabel('motor torque (mN·m)' if torque else 'wheel speed (rad/s)')
-    _mark_faults(axes, c.events)
+    mark_faults(axes, c.events)
     for ax in axes:
-        add_legend(ax, loc='best')
+        add_legend(ax)
     return fig, 'Wheel speeds relative to the body (rad/s)' + (' and wheel motor torques (mN·m).' if torque else '.')
 
 
@@ -225,12 +254,12 @@ def fig_thrusters(c: Context):
     ax_f.set_ylabel('firing')
     ax_f.set_title('Thrusters: firings (top), cumulated impulse (middle), firings so far (bottom)')
     ax_i.set_ylabel('impulse (N·s)')
-    add_legend(ax_i, loc='upper left')
+    add_legend(ax_i)
     count = np.cumsum(np.count_nonzero(run.thruster_on_time > 0.0, axis=1))
     step_plot(ax_n, run.t_thrusters, count, color='C4')
     ax_n.set_ylabel('firings (thruster-periods)')
     ax_n.yaxis.set_major_locator(MaxNLocator(integer=True))
-    _mark_faults((ax_f, ax_i, ax_n), c.events)
+    mark_faults((ax_f, ax_i, ax_n), c.events)
     m = c.metrics
     return fig, (f'Thruster firings (bars: on-time from each period\'s start), cumulated impulse per thruster (N·s) '
                  f'and the number of firings so far: {m.get("thruster_firings", 0)} firings, '
@@ -243,14 +272,25 @@ def _zoh_period(run) -> float:
     return float(np.median(np.diff(t))) if t.size > 1 else 0.0
 
 
+def reference_jumps(q_ref, threshold_deg: float = 1.0) -> np.ndarray:
+    """Indices k where the reference steps by more than ``threshold_deg`` from sample k-1 to k."""
+    if q_ref is None or len(q_ref) < 2:
+        return np.zeros(0, dtype=int)
+    step = np.abs(np.sum(q_ref[1:] * q_ref[:-1], axis=1)).clip(0.0, 1.0)
+    return np.flatnonzero(np.degrees(2 * np.arccos(step)) > threshold_deg) + 1
+
+
 def fig_phase(c: Context):
     qe, _, _ = c.errors
     qe = qe * np.where(qe[:, 3:4] < 0, -1.0, 1.0)  # the shortest-path sign (q4 >= 0)
-    fig = Figure(figsize=(8.0, 4.6), layout='constrained')
+    jumps = reference_jumps(c.q_ref)
+    fig = Figure(figsize=(10.0, 4.6), layout='constrained')
     ax = fig.subplots()
     ax.grid(True, alpha=0.35)
     for i, a in enumerate(AXES):
-        ax.plot(qe[:, i], c.run.w[:, i], **LINE[a], label=fr'$q_{i + 1}$ vs $\omega_{a}$')
+        # the curve is broken where the reference steps (seed 000's slew target -> identity)
+        ax.plot(np.insert(qe[:, i], jumps, np.nan), np.insert(c.run.w[:, i], jumps, np.nan), **LINE[a],
+                label=fr'$q_{i + 1}$ vs $\omega_{a}$')
         ax.plot(qe[0, i], c.run.w[0, i], 'o', color=COLORS[a], markersize=6)
         ax.plot(qe[-1, i], c.run.w[-1, i], 'x', color=COLORS[a], markersize=8)
     for t, name, _ in c.events:
@@ -264,59 +304,12 @@ def fig_phase(c: Context):
     ax.set_xlabel('error quaternion component $q_i$ (–)')
     ax.set_ylabel(r'body rate $\omega_i$ (rad/s)')
     ax.set_title(r'Phase portrait: $q_i$ vs $\omega_i$, i = 1, 2, 3')
-    add_legend(ax, loc='best')
-    return fig, 'Phase portraits: error quaternion component q_i vs body rate ω_i (rad/s), i = 1..3.'
+    add_legend(ax)
+    return fig, ('Phase portraits: error quaternion component q_i (to the reference) vs body rate ω_i (rad/s), '
+                 'i = 1..3' + (f'; the curves break where the reference steps ({len(jumps)}×).' if jumps.size else '.'))
 
 
-def fig_controller_status(c: Context):
-    series = {k: v for k, v in status_series(c.run).items() if k.rsplit('/', 1)[-1] not in TORQUE_KEYS}
-    if not series:
-        if c.run.controller_status:
-            return 'the controller publishes no status values besides the commanded torque'
-        return f'no controller status ({topics.CONTROLLER_STATUS})'
-    text = [k for k, (_, v) in series.items() if v.dtype == object]
-    # A text value that changes all the time (a message) is no timeline: left out, and said so.
-    chatty = {k: len(set(series[k][1].tolist())) for k in text}
-    chatty = {k: n for k, n in chatty.items() if n > MAX_TIMELINE_LEVELS}
-    text = [k for k in text if k not in chatty]
-    numeric = [k for k, (_, v) in series.items() if v.dtype != object]
-    keys = text + numeric
-    if not keys:
-        return ('the controller status has only text values with too many distinct values for a timeline: '
-                + ', '.join(f'{k} ({n})' for k, n in chatty.items()))
-    fig, axes = new_figure(rows=len(keys), height=1.6, ratios=[0.6] * len(text) + [1.0] * len(numeric))
-    for ax, key in zip(axes, keys):
-        t, v = series[key]
-        if v.dtype == object:
-            levels = list(dict.fromkeys(v.tolist()))
-            idx = np.array([levels.index(x) for x in v])
-            step_plot(ax, t, idx, color='C4', linewidth=2)
-            ax.set_yticks(range(len(levels)), levels)
-            ax.set_ylim(-0.5, len(levels) - 0.5)
-            ax.set_ylabel(f'{key} (timeline)')
-        else:
-            step_plot(ax, t, v, color='C0')
-            finite = v[np.isfinite(v)]
-            if finite.size and np.all(finite == np.round(finite)):  # counts: integer ticks
-                lo, hi = int(finite.min()), int(finite.max())
-                if hi - lo < 4:  # a few values: every integer, a count from 0 without negatives
-                    ticks = np.arange(max(lo - 1, 0) if lo >= 0 else lo - 1, hi + 2)
-                    ax.set_yticks(ticks)
-                    ax.set_ylim(ticks[0] - 0.25, ticks[-1] + 0.25)
-                else:
-                    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
-            ax.set_ylabel(f'{key}\n(as published)')
-    axes[0].set_title(f'Controller status values ({topics.CONTROLLER_STATUS}; u_x, u_y, u_z are in the torque figure)')
-    _mark_faults(axes, c.events)
-    add_legend(axes[0], loc='upper right')
-    return fig, (f'Controller status values on `{topics.CONTROLLER_STATUS}`: '
-                 + ', '.join(f'`{k}`' + (' (timeline)' if k in text else '') for k in keys)
-                 + '. The commanded torque u_x, u_y, u_z is in the torque figure.'
-                 + (' Not plotted (more than {} distinct text values): {}.'.format(
-                     MAX_TIMELINE_LEVELS, ', '.join(f'`{k}` ({n})' for k, n in chatty.items())) if chatty else ''))
-
-
-# (file name, title, builder)
+# (file name, title, builder) of the generic figures (the controller status: .status_figure)
 FIGURES = [
     ('attitude_error', 'Eigenaxis attitude error', fig_attitude_error),
     ('quaternion', 'Quaternion components', fig_quaternion),
@@ -326,5 +319,4 @@ FIGURES = [
     ('wheels', 'Wheel speeds and motor torques', fig_wheels),
     ('thrusters', 'Thruster firing', fig_thrusters),
     ('phase_portrait', 'Phase portraits', fig_phase),
-    ('controller_status', 'Controller status', fig_controller_status),
 ]
