@@ -51,7 +51,7 @@ def write_run_bag(path, steps=200):
 
 
 def test_series_from_a_bag_is_the_estimators_output(tmp_path):
-    """(Figure: estimation_figure of this bag, docs/determination_estimators.md.) What the analysis reads back from the bag is what the estimator computed: attitude, rate and
+    """(Figure: estimation_figure of this bag, docs/determination.md.) What the analysis reads back from the bag is what the estimator computed: attitude, rate and
     bias bit for bit, NIS bit for bit (repr), the attitude covariance to rounding (rotated to the
     inertial axes in the message and back); errors and the 3-dof NEES are the mekf module's."""
     out = write_run_bag(tmp_path / 'bag')

@@ -59,6 +59,7 @@ from adcs_msgs_py.params import ParameterError, unflatten
 from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.app.analysis import RunData, attitude_errors_deg, pointing_error_deg, run_metrics
 from adcs_sim.app.batch import BatchSimulation
+from adcs_sim.app.estimation import estimation_metric_names
 from adcs_sim.app.registry import NODES
 from adcs_sim.app.scenario_files import RunError, config_dirs, resolve_scenario, validate_scenario
 
@@ -244,7 +245,7 @@ class Campaign:
         c = _campaign_section(path)
         scenario_path, defaults, nominal = _campaign_scenario(c, path)
         runs, seed, chunk, tol, series_every = _campaign_numbers(c, runs)
-        known = metric_names(tol, pointing=_points_an_axis(defaults))
+        known = metric_names(tol, pointing=_points_an_axis(defaults)) + _estimation_columns(defaults)
         metrics = _campaign_metrics(c, known)
         requirements = _campaign_requirements(c, known)
         campaign = cls(path=path.resolve(), scenario_path=scenario_path, nominal=nominal,
@@ -423,6 +424,12 @@ def error_series(result, j: int, every: int) -> dict:
         error = pointing_error_deg(run) if run.pointing is not None else attitude_errors_deg(run)[0]
     return {'t': run.t[::every], 'error_deg': error[::every].astype(np.float32),
             'kind': 'pointing' if run.pointing is not None else 'eigenaxis'}
+
+
+def _estimation_columns(sections: dict) -> list[str]:
+    """The estimation metrics of a scenario with an estimator section (each run's row gets them)."""
+    return [name for section, params in sections.items() if section in NODES and NODES[section].role == 'estimator'
+            for name in estimation_metric_names(params['sensors'])]
 
 
 def _points_an_axis(sections: dict) -> bool:

@@ -203,6 +203,17 @@ def estimation_metrics(s: EstimationSeries, settle_s: float = 0.0) -> dict:
     return out
 
 
+def estimation_metric_names(sensors) -> list[str]:
+    """The keys :func:`estimation_metrics` gives for a batch run of an estimator using ``sensors``
+    (a Monte Carlo table's estimation columns), from the function itself on a two-step stand-in."""
+    one, eye = np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), np.broadcast_to(np.eye(3) * 1e-6, (2, 3, 3))
+    z = np.zeros((2, 3))
+    s = EstimationSeries(t=np.array([0.0, 1.0]), q=one, w=z, att_cov=eye, rate_cov=eye, q_true=one, w_true=z,
+                         bias=z, bias_true=z, cov=np.broadcast_to(np.eye(6) * 1e-6, (2, 6, 6)),
+                         nis={name: np.ones(2) for name in sensors if name != 'gyro'})
+    return list(estimation_metrics(s))
+
+
 def batch_consistency(result, confidence: float = CONFIDENCE) -> dict:
     """Monte Carlo consistency of a whole batch (runs of the same length): the run-averaged NEES per
     step against the ``confidence`` bounds of the mean of N runs, and the same for each sensor's NIS

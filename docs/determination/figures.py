@@ -1,4 +1,4 @@
-"""The figures of docs/determination_estimators.md, regenerated: ``.venv/bin/python docs/determination/figures.py``.
+"""The figures of docs/determination.md, regenerated: ``.venv/bin/python docs/determination/figures.py``.
 
 They use the estimators' own test truth models (tests/estimation_truth.py: the Farrenkopf gyro with
 exact discrete variances, white star tracker noise; StateSensors on the plant's true state) until the

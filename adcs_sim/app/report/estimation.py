@@ -9,12 +9,15 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from adcs_msgs_py import names
 from adcs_sim.app.estimation import (
     NIS_DOF,
     EstimationSeries,
     chi2_bounds,
     estimation_errors,
+    estimation_metrics,
     nees,
+    series_from_bag,
 )
 
 AXES = 'xyz'
@@ -111,3 +114,30 @@ def save(fig: Figure, path: Path) -> list[Path]:
     for p in out:
         fig.savefig(p, dpi=110)
     return out
+
+
+# --- the report's estimation section (registered with adcs_sim.app.report.single_run) -------------
+
+def estimation_lines(report) -> list[str]:
+    """The section of a run with an estimator (``estimate/state`` in the bag): the estimation error
+    against the truth with the filter's ±3σ, NEES and NIS with their χ² bounds, and their numbers.
+    Nothing for a run without an estimate."""
+    data = report.run.data
+    if not any(t.endswith(names.ESTIMATE_STATE) for t, n in data.topic_counts.items() if n):
+        return []
+    try:
+        s = series_from_bag(report.run.path)
+    except ValueError as exc:
+        return ['## Estimation', '', f'Skipped: {exc}.', '']
+    metrics = estimation_metrics(s)
+    lines = ['## Estimation', '',
+             'The estimate (`estimate/state`, what a controller with `feedback: estimate` flies on) against '
+             'the truth (`truth/state`): errors per body axis with the filter\'s own ±3σ, and its consistency '
+             '(NEES of the attitude, NIS of each sensor) inside their 95 % χ² bounds '
+             '(docs/determination.md).', '', '| quantity | value |', '| --- | --- |']
+    lines += [f'| `{k}` | {v:.6g} |' for k, v in metrics.items()]
+    fig = estimation_figure(s, title=f'{report.run.name}: estimation error and consistency')
+    save(fig, report.out / 'estimation')
+    return lines + ['', '![Estimation error and consistency](estimation.png)', '',
+                    'Estimation error with ±3σ of the filter\'s covariance, NEES and NIS with their 95 % bounds '
+                    '([SVG](estimation.svg))', '']

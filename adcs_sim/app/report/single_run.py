@@ -15,6 +15,7 @@ from typing import Callable
 
 from adcs_msgs_py import names as topics
 from adcs_sim.app.analysis import attitude_errors, first_fault_time, run_metrics
+from adcs_sim.app.report.estimation import estimation_lines
 from adcs_sim.app.report.figures import FIGURES, Context, save_figure
 from adcs_sim.app.report.kind_figures import LEAD_FIGURES
 from adcs_sim.app.report.kinds import UNKNOWN, phases, reference_attitude, run_kind
@@ -266,3 +267,6 @@ def _figure_lines(report: Report) -> list[str]:
 SECTIONS: list[Section] = [('recording', _recording_lines), ('lead', _lead_lines), ('topics', _topic_lines),
                            ('faults', _fault_lines), ('metrics', _metric_lines), ('figures', _figure_lines),
                            ('scenario', _scenario_lines)]
+
+# The estimation section (a run with an estimator): after the lead.
+register_section('estimation', estimation_lines)
