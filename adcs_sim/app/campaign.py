@@ -59,6 +59,7 @@ from adcs_msgs_py.params import ParameterError, unflatten
 from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.app.analysis import RunData, attitude_errors_deg, pointing_error_deg, run_metrics
 from adcs_sim.app.batch import BatchSimulation
+from adcs_sim.app.batch_metrics import batch_run_metrics
 from adcs_sim.app.registry import NODES
 from adcs_sim.app.scenario_files import RunError, config_dirs, resolve_scenario, validate_scenario
 
@@ -353,10 +354,15 @@ class Campaign:
         """Validated sections of run ``index``; CampaignError naming the run and the key if the
         draw is impossible (e.g. a negative inertia). ``inputs`` as for :meth:`run_given`."""
         inputs = self.draw(index) if inputs is None else inputs
+        changes: dict[str, dict[str, Any]] = {}
+        for d, value in zip(self.dispersions, inputs.values()):  # what run_given writes, in its order
+            changes.setdefault(d.section, {})[d.key] = value
+            for section, key in d.links:
+                changes.setdefault(section, {})[key] = list(value) if isinstance(value, list) else value
         out = {}
-        for section, given in self.run_given(index, inputs).items():
+        for section in self.nominal:  # the nominal sections are validated (defaults): check the changes
             try:
-                out[section] = NODES[section].schema.validate(given)
+                out[section] = NODES[section].schema.revalidate(self.defaults[section], changes.get(section, {}))
             except ParameterError as exc:
                 raise CampaignError(f'run {index}: drawn {exc} (inputs: {inputs})') from None
         return out
@@ -398,10 +404,11 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
     """
     inputs = [campaign.draw(i) for i in indices]
     result = BatchSimulation.from_runs([campaign.run_sections(i, d) for i, d in zip(indices, inputs)]).run()
+    with np.errstate(all='ignore'):  # a diverged run's metrics overflow to inf: that is the result
+        metrics = batch_run_metrics(result, campaign.tol_deg)  # each run's result.metrics(j, tol)
     rows = []
     for j, index in enumerate(indices):
-        with np.errstate(all='ignore'):  # a diverged run's metrics overflow to inf: that is the result
-            columns = metric_columns(result.metrics(j, campaign.tol_deg))
+        columns = metric_columns(metrics[j])
         status, reason = 'ok', ''
         if result.failure[j]:
             status, reason = 'failed', result.failure[j]
