@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import signal
 import sys
@@ -261,7 +262,9 @@ def main(argv=None) -> int:
     if args.report:
         from adcs_sim.app.report import loading, single_run  # matplotlib only when a report is asked for
         run = loading.load_run(out / 'bag')
-        print(f'report: {single_run.write_report(run, out / "report", args.tolerance_deg)}')
+        # the graph's ROS context is shut down by now: the figures may be drawn in forked processes
+        path = single_run.write_report(run, out / 'report', args.tolerance_deg, jobs=os.cpu_count() or 1)
+        print(f'report: {path}')
     return 0
 
 

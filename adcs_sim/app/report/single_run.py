@@ -1,6 +1,15 @@
-"""The report of one run: ``report.md`` and its figures (:func:`write_report`)."""
+"""The report of one run: ``report.md`` and its figures (:func:`write_report`).
+
+Drawing the figures is most of a report's time (matplotlib's layout and rasterising, about a
+second per figure and format). ``jobs > 1`` draws them in that many forked processes (each draws
+whole figures of :data:`FIGURES` and writes their files; the report is the same): what
+``adcs-run --report`` does, as a process with no ROS context left open by then. A library caller
+keeps the default, one process (forking a process whose other threads hold locks is not safe).
+"""
 from __future__ import annotations
 
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from adcs_msgs_py import names as topics
@@ -11,8 +20,9 @@ from adcs_sim.app.report.markdown import fmt, md_escape, metric_note
 from adcs_sim.bag.reader import read_metadata
 
 
-def write_report(run: Run, out, tol_deg: float = 0.5, eigen_tol_deg: float | None = None) -> Path:
-    """Write ``report.md`` and the figures of one run into ``out``; return the report's path."""
+def write_report(run: Run, out, tol_deg: float = 0.5, eigen_tol_deg: float | None = None, jobs: int = 1) -> Path:
+    """Write ``report.md`` and the figures of one run into ``out``; return the report's path.
+    ``jobs``: processes drawing the figures (module docstring)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     data = run.data
@@ -21,7 +31,7 @@ def write_report(run: Run, out, tol_deg: float = 0.5, eigen_tol_deg: float | Non
     metrics = run_metrics(data, tol_deg, eigen_tol_deg)
     ctx = Context(data, events, tol_deg, eigen_tol_deg, metrics, attitude_errors(data))
     lines = (_recording_lines(run) + _topic_lines(run) + _fault_lines(events) + _scenario_lines(run)
-             + _metric_lines(metrics) + _figure_lines(ctx, out))
+             + _metric_lines(metrics) + _figure_lines(ctx, out, jobs))
     path = out / 'report.md'
     path.write_text('\n'.join(lines))
     return path
@@ -98,17 +108,41 @@ def _metric_lines(metrics: dict) -> list[str]:
     return lines
 
 
-def _figure_lines(ctx: Context, out: Path) -> list[str]:
-    """Draw and save each figure of :data:`FIGURES` the run has data for; the section that shows
-    them (or says why one is skipped)."""
+_FORKED: tuple | None = None  # (Context, out): what the forked drawing processes inherit
+
+
+def _draw(index: int, ctx: Context | None = None, out: Path | None = None) -> tuple[bool, str]:
+    """Draw and save figure ``index`` of :data:`FIGURES`: (True, its caption), or (False, why it
+    is skipped). In a forked process the context is the inherited :data:`_FORKED`."""
+    if ctx is None:
+        ctx, out = _FORKED
+    name, _, builder = FIGURES[index]
+    result = builder(ctx)
+    if isinstance(result, str):
+        return False, result
+    fig, caption = result
+    save_figure(fig, out, name)
+    return True, caption
+
+
+def _figure_lines(ctx: Context, out: Path, jobs: int = 1) -> list[str]:
+    """Draw and save each figure of :data:`FIGURES` the run has data for (in ``jobs`` forked
+    processes if > 1); the section that shows them (or says why one is skipped)."""
+    global _FORKED
+    if jobs > 1:
+        _FORKED = (ctx, out)
+        try:
+            with ProcessPoolExecutor(min(jobs, len(FIGURES)), mp_context=multiprocessing.get_context('fork')) as pool:
+                results = list(pool.map(_draw, range(len(FIGURES))))
+        finally:
+            _FORKED = None
+    else:
+        results = [_draw(i, ctx, out) for i in range(len(FIGURES))]
     lines = ['## Figures', '']
-    for name, title, builder in FIGURES:
-        result = builder(ctx)
+    for (name, title, _), (drawn, text) in zip(FIGURES, results):
         lines += [f'### {title}', '']
-        if isinstance(result, str):
-            lines += [f'Skipped: {result}.', '']
+        if not drawn:
+            lines += [f'Skipped: {text}.', '']
             continue
-        fig, caption = result
-        save_figure(fig, out, name)
-        lines += [f'![{title}]({name}.png)', '', f'{caption} ([SVG]({name}.svg))', '']
+        lines += [f'![{title}]({name}.png)', '', f'{text} ([SVG]({name}.svg))', '']
     return lines
