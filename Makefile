@@ -28,3 +28,4 @@ bench: $(VENV)/.installed
 	$(PY) benchmarks/lockstep_vs_pingpong.py
 	$(PY) benchmarks/batch_vs_loop.py
 	$(PY) benchmarks/pointing_montecarlo.py
+	$(PY) benchmarks/law_step.py

@@ -9,7 +9,8 @@ def check_inertia(J: np.ndarray, what: str = 'inertia') -> str | None:
     J = np.asarray(J, dtype=float)
     if J.shape != (3, 3) or not np.all(np.isfinite(J)):
         return f'{what} must be a finite 3x3 matrix'
-    if not np.allclose(J, J.T, rtol=0, atol=1e-12 * max(1.0, np.abs(J).max())):
+    # |J - Jᵀ| <= atol elementwise: np.allclose(J, J.T, rtol=0, atol) for a finite J, without its overhead
+    if not (np.abs(J - J.T) <= 1e-12 * max(1.0, float(np.abs(J).max()))).all():
         return f'{what} must be symmetric'
     eig = np.linalg.eigvalsh(J)
     if eig[0] <= 0:

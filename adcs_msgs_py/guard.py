@@ -191,6 +191,9 @@ class PublisherVetting:
             # a stopped node stays matched for a while after it left the graph.)
             if all(i.node_name != UNKNOWN_NODE for i in infos) or time.monotonic() > deadline:
                 break
+            # Not a synchronisation on our own messages: the graph cache is filled by rmw's
+            # discovery threads and rclpy gives no event when a node name arrives (no graph guard
+            # condition in its API, ros2/rclpy#929; rclpy's own Node.wait_for_node polls too).
             time.sleep(0.005)
         self.matched[topic], self.listed[topic] = matched, len(infos)
         vetted = self.vetted[topic] = set()

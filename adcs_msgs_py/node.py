@@ -4,7 +4,8 @@
   with its :class:`~adcs_msgs_py.params.Schema`; a bad file stops the node before it publishes
   anything, with a message naming the key (exit status 2).
 * :func:`wait_for` blocks until the graph is connected (matched publishers/subscriptions are
-  updated by the DDS threads, so no spinning is needed) with a wall-clock deadline.
+  updated by the DDS threads, so no spinning is needed) with a wall-clock deadline, woken by the
+  endpoints' matched events (:class:`MatchedWait`: no polling, and no callback of the node runs).
 * :func:`main_for` is each executable's ``main``: network hygiene defaults, init on a private
   context, clean shutdown on SIGINT/SIGTERM.
 """
@@ -20,12 +21,21 @@ from collections.abc import Callable
 from pathlib import Path
 
 import rclpy
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.context import Context
 from rclpy.duration import Duration
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.event_handler import (
+    EventHandler,
+    PublisherEventCallbacks,
+    QoSPublisherEventType,
+    QoSSubscriptionEventType,
+    SubscriptionEventCallbacks,
+)
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.publisher import Publisher
 from rclpy.signals import SignalHandlerOptions
 
 from adcs_msgs_py import topics
@@ -84,6 +94,49 @@ def _plain(value):
     if isinstance(value, (list, tuple)):
         return list(value)
     return value
+
+
+# What the matched events do not signal is re-checked this often while waiting: a matched endpoint
+# whose node name is not yet in the graph cache (the run's own subscribers are counted by name,
+# PublisherVetting.subscribers), which rclpy gives no event for (ros2/rclpy#929).
+MATCH_RECHECK_S = 0.02
+
+
+class MatchedWait:
+    """Wait for the matching of some endpoints to change: their rmw matched events
+    (``RCL_PUBLISHER_MATCHED`` / ``RCL_SUBSCRIPTION_MATCHED``) in a wait set of their own. Nothing
+    else is in it, so no callback of the node runs while it waits (an executor would run them,
+    e.g. a controller answering a state before its recorder is matched). The events are not
+    attached to the node: once the graph is connected (:meth:`destroy`), the lockstep loop's spins
+    do not wait on them."""
+
+    def __init__(self, context: Context, endpoints) -> None:
+        self._context = context
+        self._group = MutuallyExclusiveCallbackGroup()
+        self._handlers = [
+            EventHandler(callback_group=self._group, callback=lambda _info: None, parent_impl=e.handle,
+                         event_type=QoSPublisherEventType.RCL_PUBLISHER_MATCHED if isinstance(e, Publisher)
+                         else QoSSubscriptionEventType.RCL_SUBSCRIPTION_MATCHED)
+            for e in endpoints]
+
+    def wait(self, timeout: float) -> None:
+        """Return when an endpoint's matching changed (since the last wait or the construction)
+        or after ``timeout`` s."""
+        if not self._handlers:
+            return
+        with self._context.handle:
+            wait_set = _rclpy.WaitSet(0, 0, 0, 0, 0, len(self._handlers), self._context.handle)
+            for h in self._handlers:
+                h.add_to_wait_set(wait_set)
+            wait_set.wait(max(0, int(timeout * 1e9)))
+            for h in self._handlers:
+                if h.is_ready(wait_set):
+                    h.take_data()  # reset the event: the next wait waits for the next change
+
+    def destroy(self) -> None:
+        for h in self._handlers:
+            h.destroy()
+        self._handlers = []
 
 
 class AdcsNode(Node):
@@ -160,13 +213,20 @@ class AdcsNode(Node):
             event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
         return sub
 
-    def wait_for(self, what: str, ready: Callable[[], bool], timeout: float) -> None:
-        """Block until ``ready()`` or raise GraphTimeout naming ``what`` after ``timeout`` s."""
+    def wait_for(self, what: str, ready: Callable[[], bool], timeout: float, endpoints=()) -> None:
+        """Block until ``ready()`` or raise GraphTimeout naming ``what`` after ``timeout`` s.
+        ``ready()`` is tested again whenever the matching of one of ``endpoints`` (publishers,
+        subscriptions) changes (:class:`MatchedWait`), and at least every MATCH_RECHECK_S."""
         deadline = time.monotonic() + timeout
-        while not ready():
-            if time.monotonic() > deadline:
-                raise GraphTimeout(f'{self.get_name()}: timed out after {timeout:g} s waiting for {what}')
-            time.sleep(0.005)
+        waiter = MatchedWait(self.context, endpoints)  # before the first test: no change is missed
+        try:
+            while not ready():
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise GraphTimeout(f'{self.get_name()}: timed out after {timeout:g} s waiting for {what}')
+                waiter.wait(min(remaining, MATCH_RECHECK_S))
+        finally:
+            waiter.destroy()
 
     def spin_until(self, executor, what: str, ready: Callable[[], bool], timeout: float) -> None:
         """Spin ``executor`` until ``ready()`` (a message-borne condition), or raise GraphTimeout
@@ -200,7 +260,7 @@ class AdcsNode(Node):
         for pub, count in required.items():
             if count > 0:
                 self.wait_for(f'{count} subscriber(s) on {pub.topic_name}',
-                              lambda p=pub, c=count: self._subscribed(p, c), timeout)
+                              lambda p=pub, c=count: self._subscribed(p, c), timeout, endpoints=[pub])
 
     def _subscribed(self, pub, count: int) -> bool:
         matched = pub.get_subscription_count()

@@ -143,6 +143,29 @@ class Schema:
                 raise ParameterError(p.name, f'required but missing ({p.doc})', self.node)
             else:
                 out[p.name] = p.default
+        return self._cross_checked(out)
+
+    def revalidate(self, validated: Mapping[str, Any], changes: Mapping[str, Any]) -> dict[str, Any]:
+        """:meth:`validate` of a section already validated (``validated``, every parameter's value)
+        with the values of ``changes`` given instead: the same result and the same errors, but
+        only the changed values are coerced and checked (then the whole-section check runs), so a
+        Monte Carlo run's dispersed section costs its dispersions, not its every parameter."""
+        out = dict(validated)
+        if not changes:
+            return out
+        for name, value in changes.items():
+            p = self.by_name.get(name)
+            if p is None:
+                raise ParameterError(name, f'unknown parameter for node {self.node!r} (unknown: {name}); '
+                                     f'known: {sorted(self.by_name)}', self.node)
+            try:
+                out[name] = p.coerce(value)
+            except (TypeError, ValueError) as exc:
+                raise ParameterError(name, str(exc), self.node) from None
+        return self._cross_checked(out)
+
+    def _cross_checked(self, out: dict[str, Any]) -> dict[str, Any]:
+        """``out`` after the whole-section check (a ParameterError of it named in this section)."""
         if self.cross_check is not None:
             try:
                 self.cross_check(out)

@@ -106,10 +106,15 @@ def desired_rates(q, w, k, g, a1=np.inf, a2=np.inf, eps_den=0.0):
     Returns ``(wd, wd_dot)``, both (..., 3) with a zero z component: ``wd_dot`` is ``dωd/dt``
     along ``dq/dt = quat_kinematics(q, w)`` (the ``ω̇d`` of eq. 14).
     """
+    return _rates(_rate_terms(q, w, a1, a2, eps_den), k, g)
+
+
+def _rate_terms(q, w, a1, a2, eps_den) -> tuple:
+    """What :func:`desired_rates` computes before its gains ``k``, ``g`` enter: the same for every
+    gain pair on one state, so a law that needs ``ωd`` for several pairs (GSMN: the Lyapunov
+    function's, the low- and the high-gain benchmark's) computes it once (same operations, same bits)."""
     q = np.asarray(q, dtype=float)
     w = np.asarray(w, dtype=float)
-    k = np.asarray(k, dtype=float)
-    g = np.asarray(g, dtype=float)
     q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
     dq = quat_kinematics(q, w)
     d1, d2, d3 = dq[..., 0], dq[..., 1], dq[..., 2]
@@ -121,10 +126,16 @@ def desired_rates(q, w, k, g, a1=np.inf, a2=np.inf, eps_den=0.0):
     dden = 2.0 * (q1 * d1 + q2 * d2)
     dr1 = (d2 * q3 + q2 * d3 - r1 * dden) / safe
     dr2 = (d1 * q3 + q1 * d3 - r2 * dden) / safe
-    zero = np.zeros(q1.shape)
+    return q1, q2, d1, d2, s1, s2, np.where(free1, dr1, 0.0), np.where(free2, dr2, 0.0), np.zeros(q1.shape)
+
+
+def _rates(terms: tuple, k, g):
+    """(ωd, dωd/dt) of gains ``k``, ``g`` from :func:`_rate_terms`."""
+    q1, q2, d1, d2, s1, s2, dr1_free, dr2_free, zero = terms
+    k = np.asarray(k, dtype=float)
+    g = np.asarray(g, dtype=float)
     wd = np.stack([-k * q1 + g * s1, -k * q2 - g * s2, zero + 0.0 * k], axis=-1)
-    wd_dot = np.stack([-k * d1 + g * np.where(free1, dr1, 0.0),
-                       -k * d2 - g * np.where(free2, dr2, 0.0), zero + 0.0 * k], axis=-1)
+    wd_dot = np.stack([-k * d1 + g * dr1_free, -k * d2 - g * dr2_free, zero + 0.0 * k], axis=-1)
     return wd, wd_dot
 
 
@@ -165,8 +176,10 @@ def zero_momentum_wheel_speeds(q, inertia, wheel_inertia, k, g, a1=np.inf, a2=np
     return h_cmd[..., :2] / np.asarray(wheel_inertia, dtype=float), status
 
 
-def _snlc(qe, we, Id, k, g, K, a1, a2, eps_den, scale_by_inertia):
-    wd, wd_dot = desired_rates(qe, we, k, g, a1, a2, eps_den)
+def _snlc(qe, we, Id, k, g, K, a1, a2, eps_den, scale_by_inertia, terms=None):
+    """The snlc torque (law axes), ωd and dωd/dt; ``terms``: :func:`_rate_terms` of the state if known."""
+    terms = _rate_terms(qe, we, a1, a2, eps_den) if terms is None else terms
+    wd, wd_dot = _rates(terms, k, g)
     if scale_by_inertia:  # eq. 14 / 24 as printed: I_i (-K_i (ω_i - ωd_i) + ω̇d_i)
         u = Id * (-gain_vector(K) * (we - wd) + wd_dot)
     else:                 # eq. 31 form (default): -K_i (ω_i - ωd_i) + I_i ω̇d_i
@@ -191,9 +204,10 @@ def snlc_torque(q, w, inertia, k, g, K, a1=np.inf, a2=np.inf, eps_den=0.0, q_ref
     return u, {'mode': mode, 'V': V, 'wd': wd, 'wd_dot': wd_dot}
 
 
-def _lie(qe, we, inertia, k, gamma, sigma, a1, a2, eps_den, h):
-    """(V, LfV, LgV (z = 0), w_gs) of eq. (26) on the error state."""
-    w_gs, w_gs_dot = desired_rates(qe, we, gamma, sigma, a1, a2, eps_den)
+def _lie(qe, we, inertia, k, gamma, sigma, a1, a2, eps_den, h, terms=None):
+    """(V, LfV, LgV (z = 0), w_gs) of eq. (26) on the error state; ``terms`` as for :func:`_snlc`."""
+    terms = _rate_terms(qe, we, a1, a2, eps_den) if terms is None else terms
+    w_gs, w_gs_dot = _rates(terms, gamma, sigma)
     e = we - w_gs
     Iinv = inertia_inverse(inertia)
     LgV = matvec(transpose(Iinv), e) * _XY
@@ -251,9 +265,10 @@ def min_norm_torque(q, w, inertia, k, g, K, gamma, sigma, a1=np.inf, a2=np.inf, 
     """
     qe, we = error_state(q, w, q_ref, w_ref, shortest_path)
     inertia = np.asarray(inertia, dtype=float)
+    terms = _rate_terms(qe, we, a1, a2, eps_den)
     V, LfV, LgV, w_gs = _lie(qe, we, inertia, k, gamma, sigma, a1, a2, eps_den,
-                             None if h is None else np.asarray(h, dtype=float))
-    ub, wd, _ = _snlc(qe, we, _diag(inertia), k, g, K, a1, a2, eps_den, scale_by_inertia)
+                             None if h is None else np.asarray(h, dtype=float), terms)
+    ub, wd, _ = _snlc(qe, we, _diag(inertia), k, g, K, a1, a2, eps_den, scale_by_inertia, terms)
     b = dot(LgV, ub)
     on = b < 0.0
     u = _project(LgV, b, on)
@@ -273,11 +288,12 @@ def gsmn_torque(q, w, inertia, k1, g1, K1, k2, g2, K2, gamma, sigma, epsilon, a1
     """
     qe, we = error_state(q, w, q_ref, w_ref, shortest_path)
     inertia = np.asarray(inertia, dtype=float)
+    terms = _rate_terms(qe, we, a1, a2, eps_den)  # shared by the three ωd below
     V, LfV, LgV, w_gs = _lie(qe, we, inertia, k1, gamma, sigma, a1, a2, eps_den,
-                             None if h is None else np.asarray(h, dtype=float))
+                             None if h is None else np.asarray(h, dtype=float), terms)
     Id = _diag(inertia)
-    ulg, wd, _ = _snlc(qe, we, Id, k1, g1, K1, a1, a2, eps_den, scale_by_inertia)
-    uhg, _, _ = _snlc(qe, we, Id, k2, g2, K2, a1, a2, eps_den, scale_by_inertia)
+    ulg, wd, _ = _snlc(qe, we, Id, k1, g1, K1, a1, a2, eps_den, scale_by_inertia, terms)
+    uhg, _, _ = _snlc(qe, we, Id, k2, g2, K2, a1, a2, eps_den, scale_by_inertia, terms)
     bh = dot(LgV, uhg)
     on = bh < 0.0
     high = np.max(np.abs(uhg), axis=-1) < np.asarray(epsilon, dtype=float)

@@ -337,6 +337,8 @@ class BatchSimulation:
 
     def _record(self, hist: dict, k: int, x: np.ndarray, u: np.ndarray, active: np.ndarray) -> None:
         """Step ``k``'s torque and the state at ``t_k+1`` of the active runs."""
+        if active.all():  # the usual case: slices, not a boolean mask (same values, less indexing)
+            active = slice(None)
         hist['u'][active, k] = u[active]
         hist['q'][active, k + 1] = x[active, :4]
         hist['w'][active, k + 1] = x[active, 4:7]
@@ -383,7 +385,7 @@ class BatchSimulation:
                 for i in np.flatnonzero(active & ~finite):
                     failure[i] = (f'the plant state is no longer finite at t = {t + period:g} s (non-finite '
                                   f'{nonfinite_cause(plant, x_new[i], u[i])} after the step from t = {t:g} s)')
-                x = np.where(active[:, None], x_new, x)
+                x = x_new if active.all() else np.where(active[:, None], x_new, x)
                 self._record(hist, k, x, u, active)
                 done_steps += active
                 active = active & finite & (done_steps < self.n_steps)

@@ -59,6 +59,7 @@ from adcs_msgs_py.params import ParameterError, unflatten
 from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.app.analysis import RunData, attitude_errors_deg, pointing_error_deg, run_metrics
 from adcs_sim.app.batch import BatchSimulation
+from adcs_sim.app.batch_metrics import batch_run_metrics
 from adcs_sim.app.estimation import estimation_metric_names
 from adcs_sim.app.registry import NODES
 from adcs_sim.app.scenario_files import RunError, config_dirs, resolve_scenario, validate_scenario
@@ -124,9 +125,7 @@ class Dispersion:
         if kind == 'so3_uniform':
             return Rotation.random(random_state=rng).as_quat().tolist()
         if kind == 'euler213_uniform':
-            m = np.broadcast_to(np.asarray(a['max_deg'], dtype=float), (3,))
-            angles = rng.uniform(-m, m)
-            return Rotation.from_euler(EULER_213, angles, degrees=True).as_quat().tolist()
+            return Rotation.from_euler(EULER_213, self.euler_angles(rng), degrees=True).as_quat().tolist()
         base = np.asarray(nominal, dtype=float)
         if kind == 'normal':
             mean = np.asarray(a.get('mean', base), dtype=float)
@@ -138,6 +137,11 @@ class Dispersion:
             value = rng.uniform(np.broadcast_to(a['low'], base.shape), np.broadcast_to(a['high'], base.shape))
         value = np.asarray(value, dtype=float)
         return value.tolist() if value.ndim else float(value)
+
+    def euler_angles(self, rng: np.random.Generator) -> np.ndarray:
+        """The 2-1-3 angles (deg) of an ``euler213_uniform`` draw (what :meth:`draw` converts)."""
+        m = np.broadcast_to(np.asarray(self.args['max_deg'], dtype=float), (3,))
+        return rng.uniform(-m, m)
 
 
 # --- reading a campaign file (Campaign.load) ---------------------------------------------------
@@ -339,6 +343,27 @@ class Campaign:
         return {d.target: d.draw(rng, self._nominal_value(d.section, d.key), index)
                 for d in self.dispersions}
 
+    def draws(self, indices: list[int]) -> list[dict[str, Any]]:
+        """``[self.draw(i) for i in indices]``, with the 2-1-3 Euler draws of all the runs turned
+        into quaternions by one scipy call (each run's generator draws in the same order; scipy's
+        conversion is row by row, so the quaternions are the same bits)."""
+        out, pending = [], []
+        for index in indices:
+            rng = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(index,)))
+            inputs = {}
+            for d in self.dispersions:
+                if d.distribution == 'euler213_uniform':
+                    pending.append((inputs, d.target, d.euler_angles(rng)))
+                    inputs[d.target] = None  # the place of the value, in file order
+                else:
+                    inputs[d.target] = d.draw(rng, self._nominal_value(d.section, d.key), index)
+            out.append(inputs)
+        if pending:
+            q = Rotation.from_euler(EULER_213, np.stack([a for _, _, a in pending]), degrees=True).as_quat()
+            for (inputs, target, _), row in zip(pending, q.tolist()):
+                inputs[target] = row
+        return out
+
     def run_given(self, index: int, inputs: dict[str, Any] | None = None) -> dict[str, dict[str, Any]]:
         """The scenario of run ``index`` as written parameters: nominal + draws (+ links).
         ``inputs``: the run's draws if already made (:meth:`draw`)."""
@@ -354,18 +379,23 @@ class Campaign:
         """Validated sections of run ``index``; CampaignError naming the run and the key if the
         draw is impossible (e.g. a negative inertia). ``inputs`` as for :meth:`run_given`."""
         inputs = self.draw(index) if inputs is None else inputs
+        changes: dict[str, dict[str, Any]] = {}
+        for d, value in zip(self.dispersions, inputs.values()):  # what run_given writes, in its order
+            changes.setdefault(d.section, {})[d.key] = value
+            for section, key in d.links:
+                changes.setdefault(section, {})[key] = list(value) if isinstance(value, list) else value
         out = {}
-        for section, given in self.run_given(index, inputs).items():
+        for section in self.nominal:  # the nominal sections are validated (defaults): check the changes
             try:
-                out[section] = NODES[section].schema.validate(given)
+                out[section] = NODES[section].schema.revalidate(self.defaults[section], changes.get(section, {}))
             except ParameterError as exc:
                 raise CampaignError(f'run {index}: drawn {exc} (inputs: {inputs})') from None
         return out
 
     def check_runs(self) -> None:
         """Validate every run's drawn parameters (before anything runs)."""
-        for i in range(self.runs):
-            self.run_sections(i)
+        for i, inputs in enumerate(self.draws(list(range(self.runs)))):
+            self.run_sections(i, inputs)
 
     def scenario_text(self, index: int) -> str:
         """A complete scenario file for run ``index`` alone: replay it with ``adcs-run``."""
@@ -397,12 +427,13 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
 
     A pure function of its arguments (what a Dask worker executes).
     """
-    inputs = [campaign.draw(i) for i in indices]
+    inputs = campaign.draws(indices)
     result = BatchSimulation.from_runs([campaign.run_sections(i, d) for i, d in zip(indices, inputs)]).run()
+    with np.errstate(all='ignore'):  # a diverged run's metrics overflow to inf: that is the result
+        metrics = batch_run_metrics(result, campaign.tol_deg)  # each run's result.metrics(j, tol)
     rows = []
     for j, index in enumerate(indices):
-        with np.errstate(all='ignore'):  # a diverged run's metrics overflow to inf: that is the result
-            columns = metric_columns(result.metrics(j, campaign.tol_deg))
+        columns = metric_columns(metrics[j])
         status, reason = 'ok', ''
         if result.failure[j]:
             status, reason = 'failed', result.failure[j]

@@ -342,7 +342,7 @@ class DynamicsNode(AdcsNode):
         for topic in self.awaited:
             sub = self.subs[topic]
             self.wait_for(f'a controller publishing {sub.topic_name}',
-                          lambda s=sub: s.get_publisher_count() >= 1, timeout)
+                          lambda s=sub: s.get_publisher_count() >= 1, timeout, endpoints=[sub])
         state_subs = p['startup.state_subscribers']
         if state_subs < 0:
             state_subs = (1 if self.awaited else 0) + recorder
