@@ -134,9 +134,11 @@ def estimation_lines(report) -> list[str]:
              'The estimate (`estimate/state`, what a controller with `feedback: estimate` flies on) against '
              'the truth (`truth/state`): errors per body axis with the filter\'s own ±3σ, and its consistency '
              '(NEES of the attitude, NIS of each sensor) inside their 95 % χ² bounds '
-             '(docs/determination.md).', '', '| quantity | value |', '| --- | --- |']
+             '(docs/determination.md). The numbers cover the whole run, the acquisition included.', '',
+             '| quantity | value |', '| --- | --- |']
     lines += [f'| `{k}` | {v:.6g} |' for k, v in metrics.items()]
-    fig = estimation_figure(s, title=f'{report.run.name}: estimation error and consistency')
+    # the y axes scaled to what follows the first tenth of the run (the acquisition stays visible at the left)
+    fig = estimation_figure(s, settle_s=0.1 * float(s.t[-1]), title=f'{report.run.name}: estimation error and consistency')
     save(fig, report.out / 'estimation')
     return lines + ['', '![Estimation error and consistency](estimation.png)', '',
                     'Estimation error with ±3σ of the filter\'s covariance, NEES and NIS with their 95 % bounds '
