@@ -123,15 +123,22 @@ def imu_to_msg(t_ns: int, gyro: Reading) -> Imu:
     return msg
 
 
-def imu_from_msg(msg: Imu, name: str = 'sensors/imu') -> tuple[int, Reading]:
-    """sensor_msgs/Imu -> (t_ns, gyro Reading); raises InvalidMessage."""
+def _body_vector_reading(name: str, msg, field: str) -> tuple[int, Reading]:
+    """(t_ns, Reading) of a body-frame message with a vector ``field`` and its ``field_covariance``
+    (sensor_msgs/Imu's angular_velocity, sensor_msgs/MagneticField's magnetic_field)."""
     t_ns = checked_stamp(name, msg.header.stamp)
     _check_frame(name, msg.header.frame_id, BODY_FRAME)
-    valid = float(msg.angular_velocity_covariance[0]) != NO_MEASUREMENT
-    a = msg.angular_velocity
-    w = _finite(f'{name}.angular_velocity', (a.x, a.y, a.z), 3)
-    cov = _checked_cov(f'{name}.angular_velocity_covariance', msg.angular_velocity_covariance, 3) if valid else _ZERO3
-    return t_ns, Reading(w, cov, np.bool_(valid))
+    covariance = getattr(msg, f'{field}_covariance')
+    valid = float(covariance[0]) != NO_MEASUREMENT
+    v = getattr(msg, field)
+    value = _finite(f'{name}.{field}', (v.x, v.y, v.z), 3)
+    cov = _checked_cov(f'{name}.{field}_covariance', covariance, 3) if valid else _ZERO3
+    return t_ns, Reading(value, cov, np.bool_(valid))
+
+
+def imu_from_msg(msg: Imu, name: str = 'sensors/imu') -> tuple[int, Reading]:
+    """sensor_msgs/Imu -> (t_ns, gyro Reading); raises InvalidMessage."""
+    return _body_vector_reading(name, msg, 'angular_velocity')
 
 
 # --- star tracker: geometry_msgs/PoseWithCovarianceStamped ---------------------------------------
@@ -213,13 +220,7 @@ def magnetometer_to_msg(t_ns: int, reading: Reading) -> MagneticField:
 
 def magnetometer_from_msg(msg: MagneticField, name: str = 'sensors/magnetometer') -> tuple[int, Reading]:
     """sensor_msgs/MagneticField -> (t_ns, magnetometer Reading); raises InvalidMessage."""
-    t_ns = checked_stamp(name, msg.header.stamp)
-    _check_frame(name, msg.header.frame_id, BODY_FRAME)
-    valid = float(msg.magnetic_field_covariance[0]) != NO_MEASUREMENT
-    f = msg.magnetic_field
-    b = _finite(f'{name}.magnetic_field', (f.x, f.y, f.z), 3)
-    cov = _checked_cov(f'{name}.magnetic_field_covariance', msg.magnetic_field_covariance, 3) if valid else _ZERO3
-    return t_ns, Reading(b, cov, np.bool_(valid))
+    return _body_vector_reading(name, msg, 'magnetic_field')
 
 
 # --- estimate: nav_msgs/Odometry ----------------------------------------------------------------

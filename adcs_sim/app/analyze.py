@@ -88,7 +88,7 @@ def _layouts(args) -> int:
     return 0
 
 
-def main(argv=None) -> int:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog='adcs-analyze', description=__doc__.splitlines()[0])
     parser.add_argument('bags', nargs='+', help='bag folder(s) or .mcap file(s)')
     parser.add_argument('--tolerance-deg', type=float, default=0.5,
@@ -110,7 +110,22 @@ def main(argv=None) -> int:
                              'torques, mode) and exit')
     parser.add_argument('--plotjuggler-layout', type=Path, default=None, metavar='OUT.xml',
                         help='write a PlotJuggler layout for the bag (the same plots) and exit')
-    args = parser.parse_args(argv)
+    return parser
+
+
+def _print_table(runs: dict, results: dict) -> None:
+    """The metrics of each bag, with the kind of run it is (adcs_sim.app.report.kinds)."""
+    for path, metrics in results.items():
+        kind = run_kind(runs[path].data.scenario)
+        print(f'{path}: a {kind.kind} run ({kind.why})')
+        if kind.kind in ('spin', 'pointing'):
+            print(f'  (the rest-to-rest metrics below measure the attitude against a fixed target: not '
+                  f'meaningful for a {kind.kind} run; the report leads with its own)')
+        print(format_metrics(metrics))
+
+
+def main(argv=None) -> int:
+    args = _parser().parse_args(argv)
     if args.foxglove_layout is not None or args.plotjuggler_layout is not None:
         return _layouts(args)
     runs, status = _load(args.bags)
@@ -119,13 +134,7 @@ def main(argv=None) -> int:
     if args.json:
         print(json.dumps({p: jsonable_metrics(m) for p, m in results.items()}, indent=2))
     else:
-        for path, metrics in results.items():
-            kind = run_kind(runs[path].data.scenario)
-            print(f'{path}: a {kind.kind} run ({kind.why})')
-            if kind.kind in ('spin', 'pointing'):
-                print(f'  (the rest-to-rest metrics below measure the attitude against a fixed target: not '
-                      f'meaningful for a {kind.kind} run; the report leads with its own)')
-            print(format_metrics(metrics))
+        _print_table(runs, results)
     if args.no_report or not runs:
         return status
     # Where the reports are goes to stdout with the table, to stderr with --json (stdout stays JSON).

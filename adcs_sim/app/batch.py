@@ -156,14 +156,7 @@ class BatchSimulation:
         self.period_ns, steps = step_timing(d)
         self.n_steps = np.broadcast_to(np.asarray(steps, dtype=np.int64), (n_runs,)).copy()
         self.max_step = d['integrator.max_step']
-        seeds = np.broadcast_to(np.asarray(d['noise.seed']), (n_runs,))
-        self.measurement = MeasurementModel(seeds, d['noise.attitude_std'], d['noise.rate_std'],
-                                            d['noise.gyro_bias'])
-        self._sensor_seeds = np.broadcast_to(np.asarray(d['sensors.seed']), (n_runs,))
-        self.sensors = build_sensors(d, self._sensor_seeds)   # rebuilt by run(): each run from t = 0
-        self.environment = build_truth_environment(d) if self.sensors is not None else None
-        self.record_sensors = False   # set True to get every step's readings in BatchResult.sensors
-        self._measured: tuple[int, Measurements] | None = None
+        self._build_measurement(d, n_runs)
         self.law = self.actuation = None
         if self.controller is not None:
             p = sections[self.controller]
@@ -193,6 +186,18 @@ class BatchSimulation:
                 raise ParameterError('wheels.names', f'wheel(s) {missing} of the controller are not '
                                      f'in the dynamics section ({names})', self.controller)
             self.momentum_index = np.array([names.index(n) for n in self.actuation.wheel_names])
+
+    def _build_measurement(self, d: dict, n_runs: int) -> None:
+        """What the dynamics node measures: the noisy state (``noise.*``) and the sensor suite
+        (``sensors.*``) on the truth model's environment, one seed per run."""
+        seeds = np.broadcast_to(np.asarray(d['noise.seed']), (n_runs,))
+        self.measurement = MeasurementModel(seeds, d['noise.attitude_std'], d['noise.rate_std'],
+                                            d['noise.gyro_bias'])
+        self._sensor_seeds = np.broadcast_to(np.asarray(d['sensors.seed']), (n_runs,))
+        self.sensors = build_sensors(d, self._sensor_seeds)   # rebuilt by run(): each run from t = 0
+        self.environment = build_truth_environment(d) if self.sensors is not None else None
+        self.record_sensors = False   # set True to get every step's readings in BatchResult.sensors
+        self._measured: tuple[int, Measurements] | None = None
 
     def _build_estimator(self, sections: dict, sensors, references) -> None:
         """The estimator section's family object (what its node builds) and the sensors feeding it."""

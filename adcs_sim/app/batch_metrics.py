@@ -21,6 +21,7 @@ import numpy as np
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213, pointing_error
 from adcs_sim.app.analysis import POINTING_BANDS_DEG, run_metrics, zoh_durations
+from adcs_sim.app.estimation import estimation_metrics, series_from_batch
 
 
 def settling_times(t: np.ndarray, error: np.ndarray, tol: float) -> np.ndarray:
@@ -118,4 +119,6 @@ def batch_run_metrics(result, tol_deg: float = 0.5) -> list[dict]:
     for j in range(result.n_runs):
         if metrics[j] is None:
             metrics[j] = run_metrics(result.run_data(j), tol_deg)
+        if result.estimate is not None:   # as BatchResult.metrics: the estimation metrics too
+            metrics[j].update(estimation_metrics(series_from_batch(result, j)))
     return metrics
