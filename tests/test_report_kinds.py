@@ -48,7 +48,8 @@ def test_unknown_kind_without_a_scenario_or_a_controller():
 
 
 def test_paper_values_have_one_home():
-    """The published figures the reports show are those the reproduction tests state."""
+    """The published figures the reports show are those the reproduction tests state (the seed 000,
+    001 and 002 tests read them from docs/seed00X/paper.yaml: one home; this checks they are there)."""
     import test_seed000_reproduction as s000
     import test_seed002_reproduction as s002
     for law, name in s000.LAWS.items():

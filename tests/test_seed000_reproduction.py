@@ -21,12 +21,14 @@ from conftest import ROOT
 from numpy.testing import assert_array_equal
 
 from adcs_sim.app.analysis import RunData, attitude_errors, fault_metrics
+from adcs_sim.app.report.lead import paper_values
 
 BAGS = ROOT / 'bags'
 LAWS = {'zero_momentum': 'uosat12_zero_momentum', 'snlc': 'uosat12_snlc', 'gsmn': 'uosat12_gsmn'}
-# (q4 within 1 ± 0.02, within 1 ± 0.01 (s after t0), ∫‖u‖dt after t0 (N m s))
-PAPER = {'zero_momentum': (2452.1, 2956.5, 19.2), 'snlc': (2918.8, 7072.9, 19.62),
-         'gsmn': (521.5, 1748.4, 9.84)}
+# (q4 within 1 ± 0.02, within 1 ± 0.01 (s after t0), ∫‖u‖dt after t0 (N m s)): the paper's Table, from
+# its one home, docs/seed000/paper.yaml (what the reports show beside ours)
+PAPER_KEYS = ('settling_q4_0.02_after_fault_s', 'settling_q4_0.01_after_fault_s', 'integrated_torque_after_fault_Nms')
+PAPER = {law: tuple(paper_values(name)[1][k] for k in PAPER_KEYS) for law, name in LAWS.items()}
 OURS = {'zero_momentum': (190.8, 1083.0, 29.78), 'snlc': (192.4, 1110.2, 24.02),
         'gsmn': (308.5, 944.1, 22.87)}
 T0 = 500.0
