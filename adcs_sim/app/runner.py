@@ -127,16 +127,19 @@ class _Run:
 
 
 def _start_graph(run: _Run, show_progress: bool):
-    """Start the recorder, the other nodes, then the dynamics node, which starts the clock once
-    every expected subscriber is matched; then wait until the recorder is ready. The processes
-    start together (their imports and DDS start-up overlap): the recorder need not be ready first,
-    since every node that publishes what it records waits for its subscriptions
-    (``startup.expect_recorder``) and the fault schedule is TRANSIENT_LOCAL. Returns the dynamics
+    """Start the recorder and wait until it is ready (subscribed to every topic), then the other
+    nodes, then the dynamics node, which starts the clock once every expected subscriber is matched.
+    The recorder comes first: it is then subscribed to every topic before any publisher exists. The
+    nodes' start-up waits count the run's own subscribers (named in ``startup.publishers``), so
+    starting all at once is also correct in principle and saved ~2 s; it was undone because the
+    intruder tests (a rogue discovered during a short run) failed with it in a loaded fresh-clone
+    run, and recorder-first is the ordering every earlier run was tested with. Returns the dynamics
     process."""
     graph, validated = run.graph, run.validated
     common = ['--params-file', str(run.scenario), *publishers_arg(validated)]
     graph.start('recorder', NODES['recorder'].module,
                 [*common, '-p', f'output:={run.bag_dir}', '-p', f'scenario_file:={run.scenario}'])
+    graph.wait_for_line('recorder', READY_LINE, READY_TIMEOUT_S)
     run.others = [s for s in validated if s not in ('recorder', 'dynamics')]
     handshake = startup_counts(validated)
     # With a fault injector, the nodes that act on faults first collect its whole schedule.
@@ -156,7 +159,6 @@ def _start_graph(run: _Run, show_progress: bool):
         dyn_args += ['-p', f'duration:={float(run.duration)!r}']
     graph.check()
     dynamics = graph.start('dynamics', NODES['dynamics'].module, dyn_args)
-    graph.wait_for_line('recorder', READY_LINE, READY_TIMEOUT_S)
     run.progress = Progress(validated['dynamics']['duration'], show_progress, graph.env)
     return dynamics
 
