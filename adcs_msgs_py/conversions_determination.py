@@ -33,8 +33,6 @@ is not symmetric positive semi-definite, a wrong frame.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from geometry_msgs.msg import PoseWithCovarianceStamped, Vector3Stamped
 from nav_msgs.msg import Odometry
@@ -50,7 +48,7 @@ from adcs_msgs_py.conversions import (
     checked_stamp,
     stamp_from_ns,
 )
-from adcs_msgs_py.measurements import UNIT_AS_IS, Estimate, Reading
+from adcs_msgs_py.measurements import Estimate, Reading, received_unit_vector
 
 NO_MEASUREMENT = -1.0        # element 0 of a covariance: no measurement this step (REP 145)
 UNIT_VECTOR_TOLERANCE = 1e-6  # a sun vector whose norm is further than this from 1 (and not 0) is refused
@@ -195,13 +193,12 @@ def sun_from_msg(msg: Vector3Stamped, name: str = 'sensors/sun') -> tuple[int, R
     t_ns = checked_stamp(name, msg.header.stamp)
     _check_frame(name, msg.header.frame_id, BODY_FRAME)
     v = msg.vector
-    s = _finite(f'{name}.vector', (v.x, v.y, v.z), 3)
-    n = math.hypot(*s)   # no overflow for huge components
+    s, n = received_unit_vector(_finite(f'{name}.vector', (v.x, v.y, v.z), 3))
     if n == 0.0:
         return t_ns, Reading(s, _ZERO3, np.bool_(False))
     if abs(n - 1.0) > UNIT_VECTOR_TOLERANCE:
         raise InvalidMessage(f'{name}: sun vector norm {n:.9g} is neither 1 nor 0')
-    return t_ns, Reading(s if abs(n - 1.0) <= UNIT_AS_IS else s / n, _ZERO3, np.bool_(True))
+    return t_ns, Reading(s, _ZERO3, np.bool_(True))
 
 
 # --- magnetometer: sensor_msgs/MagneticField ----------------------------------------------------

@@ -17,6 +17,7 @@ Conventions (the same as :mod:`adcs_core.attitude` and :mod:`adcs_controllers.es
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,6 +27,17 @@ SENSORS = ('gyro', 'star_tracker', 'sun', 'magnetometer')  # the fields of Measu
 # unit vectors then read back bit for bit, so an estimator on the graph sees the batch engine's numbers
 # (the message side, adcs_msgs_py.conversions_determination, and the batch engine's as_received both apply it).
 UNIT_AS_IS = 8 * float(np.finfo(float).eps)
+
+
+def received_unit_vector(v: np.ndarray) -> tuple[np.ndarray, float]:
+    """(the direction an estimator receives for a measured unit vector ``v`` (3,), its norm): ``v`` as it
+    is within :data:`UNIT_AS_IS` of unit norm (and the zero vector), else ``v`` divided by its norm
+    (``math.hypot``: no overflow). The one rule of the message side (``sun_from_msg``) and of the batch
+    engine (``as_received``), so both give the same bits."""
+    n = math.hypot(*v)
+    if n == 0.0 or abs(n - 1.0) <= UNIT_AS_IS:
+        return v, n
+    return v / n, n
 
 
 @dataclass(frozen=True)

@@ -45,7 +45,7 @@ import numpy as np
 
 from adcs_core.attitude import quat_norm, quat_normalize
 from adcs_core.faults import FAULT_ERROR_MODES, split_snapshot
-from adcs_msgs_py.measurements import UNIT_AS_IS, Estimate, Measurements, Reading
+from adcs_msgs_py.measurements import Estimate, Measurements, Reading, received_unit_vector
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app.analysis import RunData, run_metrics
 from adcs_sim.app.estimation import estimation_metrics, series_from_batch
@@ -424,7 +424,7 @@ an optional attribute ``true_bias`` (N, 3) is the gyro's true bias at that step 
 def as_received(m: Measurements) -> Measurements:
     """The readings as an estimator node receives them from the messages
     (:mod:`adcs_msgs_py.conversions_determination`): the star tracker's quaternion divided by its
-    norm, the sun vector by its ``math.hypot``; the rest as sent. So a batch run's estimator sees
+    norm, the sun vector by :func:`adcs_msgs_py.measurements.received_unit_vector`; the rest as sent. So a batch run's estimator sees
     the very bits of the graph's."""
     out = {}
     for name in m.fitted():
@@ -432,9 +432,9 @@ def as_received(m: Measurements) -> Measurements:
         value, valid = np.asarray(r.value, dtype=float), np.asarray(r.valid, dtype=bool)[..., None]
         if name == 'star_tracker':   # no measurement: the message carries the identity
             value = np.where(valid, value / quat_norm(value)[..., None], [0.0, 0.0, 0.0, 1.0])
-        elif name == 'sun':          # no measurement: the zero vector
-            n = np.array([math.hypot(*v) for v in value.reshape(-1, 3)]).reshape(value.shape[:-1] + (1,))
-            unit = np.abs(n - 1.0) <= UNIT_AS_IS   # sun_from_msg keeps a unit vector as it is
-            value = np.where(valid & (n > 0), np.where(unit, value, value / np.where(n > 0, n, 1.0)), 0.0)
+        elif name == 'sun':          # no measurement: the zero vector; else sun_from_msg's own rule
+            rows, ok = value.reshape(-1, 3), np.broadcast_to(valid[..., 0], value.shape[:-1]).reshape(-1)
+            value = np.array([received_unit_vector(v)[0] if good else np.zeros(3)
+                              for v, good in zip(rows, ok)]).reshape(value.shape)
         out[name] = Reading(value, r.cov, r.valid)
     return Measurements(m.t_ns, **out)
