@@ -287,6 +287,48 @@ def test_wheel_failure_in_lockstep_graph(ros_domain, tmp_path):
     assert status[t_fault]['available_wheels'] == 'rw_x,rw_y'
 
 
+def test_the_fault_injector_publishes_its_schedule_only_once_the_recorder_is_matched(ros_domain, tmp_path):
+    """With ``startup.expect_recorder`` (the runner sets it) the schedule goes out only once the
+    recorder's subscription is matched: a subscriber that is not the recorder gets nothing (the
+    dynamics node and the controllers, which wait for the whole schedule, cannot start t = 0
+    before the recorder holds it), and once the recorder joins both receive all of it. The
+    CI failure this pins: on a loaded machine a 40-step run ended before the recorder's
+    participant had discovered the injector, and the bag had the fault's torques, not the fault."""
+    from rclpy.qos import QoSProfile
+    from diagnostic_msgs.msg import DiagnosticArray
+    from conftest import InProcessGraph
+    from adcs_msgs_py import topics
+    from adcs_sim.nodes.fault_injector import FaultInjectorNode
+    from adcs_sim.nodes.recorder import RecorderNode
+
+    bag_dir = tmp_path / 'bag'
+    scenario = make_scenario(tmp_path, {
+        'recorder': {'output': str(bag_dir)},
+        'fault_injector': {'wheels.names': WHEELS, 'schedule.time': [20.0], 'schedule.actuator': ['rw_z'],
+                           'schedule.mode': ['failed'], 'schedule.value': [0.0],
+                           'startup.expect_recorder': True, 'startup.timeout': 60.0}})
+    got = []
+    with InProcessGraph(scenario) as graph:
+        injector = graph.add(FaultInjectorNode)
+        listener = graph.plain('listener')
+        sub = listener.create_subscription(DiagnosticArray, topics.FAULTS, got.append,
+                                           QoSProfile(**{k: getattr(topics.QOS_LATCHED, k) for k in
+                                                         ('history', 'depth', 'reliability', 'durability')}))
+        graph.spin_until(lambda: sub.get_publisher_count() >= 1 and injector.pub_faults.get_subscription_count() >= 1,
+                         what='the listener matched with the injector')
+        for _ in range(20):   # matched, spun: a schedule written at construction would be here now
+            graph.executor.spin_once(timeout_sec=0.01)
+        assert got == [] and not injector._recorder_matched()
+        rec = graph.add(RecorderNode)
+        injector.publish_once_recorded()   # returns once the recorder is matched and has acked it
+        graph.spin_until(lambda: len(got) == 2 and rec.bag.topics['/faults'].count == 2,
+                         what='the schedule at the listener and in the bag')
+        rec.close()
+    from adcs_sim.bag.reader import read_messages
+    recorded = [(t, [(s.name, s.message) for s in msg.status]) for _, t, msg in read_messages(bag_dir, {'/faults'})]
+    assert [t for t, _ in recorded] == [0, 20_000_000_000] and ('rw_z', 'failed') in recorded[1][1]
+
+
 def test_runner_with_fault_injector_is_deterministic(ros_domain, tmp_path):
     """The runner starts the fault injector as its own process and tells the dynamics and the
     controller to collect the schedule first: two runs of a scenario with a fault at t = 20 s

@@ -9,6 +9,14 @@ faults apply each array when their step time reaches its stamp (:mod:`adcs_core.
 fault stamped ``t_k`` holds over exactly ``[t_k, t_k+1]`` however fast the lockstep loop runs:
 publishing "when the time comes" would race the loop. The node then follows ``/clock`` only to
 log each event when it becomes due, and spins until it is stopped.
+
+With ``startup.expect_recorder`` (set by the runner) it publishes the schedule only once the
+recorder's subscription is matched, then waits until every matched reader acknowledged it. The
+dynamics node and the controllers wait for the complete schedule before t = 0
+(``startup.expect_faults``), so the lockstep loop cannot start, and a short run cannot end, before
+the recorder holds the schedule: transient local history alone reaches a late reader only once its
+participant is discovered, which on a loaded machine could come after the last step (a bag with
+the torques of a fault but not the fault).
 """
 from __future__ import annotations
 
@@ -16,6 +24,7 @@ from adcs_core.faults import FAULT_OK_MODES
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.node import AdcsNode, entry_point
+from adcs_sim.bag.schema import RECORDER_SCHEMA
 from adcs_sim.truth.fault_schedule import FAULT_SCHEMA, fault_schedule
 
 
@@ -28,7 +37,8 @@ class FaultInjectorNode(AdcsNode):
         self.pub_faults = self.publisher(topics.FAULTS)
         self._logged = 0  # snapshots already announced as due
         self.sub_clock = self.subscription(topics.CLOCK, self._on_clock)
-        self.publish_schedule()
+        if not self.params['startup.expect_recorder']:
+            self.publish_schedule()
 
     def publish_schedule(self) -> None:
         n = len(self.schedule)
@@ -46,9 +56,28 @@ class FaultInjectorNode(AdcsNode):
             faulty = {w: s.mode for w, s in snapshot.items() if s.mode not in FAULT_OK_MODES}
             self.get_logger().info(f't = {due_ns / cv.NS_PER_S:g} s: faults now {faulty or "none"}')
 
+    def _recorder_matched(self) -> bool:
+        """The recorder subscribes to ``faults`` and this writer is matched with every
+        subscription the graph lists (the recorder's among them)."""
+        infos = self.get_subscriptions_info_by_topic(self.pub_faults.topic_name)
+        ns = self.get_namespace().rstrip('/')
+        listed = any(f'{i.node_namespace.rstrip("/")}/{i.node_name}' == f'{ns}/{RECORDER_SCHEMA.node}' for i in infos)
+        return listed and self.pub_faults.get_subscription_count() >= len(infos)
+
+    def publish_once_recorded(self) -> None:
+        """Wait until the recorder's subscription is matched, publish the schedule, wait until
+        every matched reader acknowledged it (``startup.timeout`` each; GraphTimeout)."""
+        timeout = self.params['startup.timeout']
+        self.wait_for(f'the recorder subscribing to {self.pub_faults.topic_name}',
+                      self._recorder_matched, timeout, endpoints=[self.pub_faults])
+        self.publish_schedule()
+        self.wait_acked([self.pub_faults], timeout)
+
     def run(self, executor) -> None:
-        # No start-up handshake: the topic is transient local, so the recorder, the dynamics node
-        # and the controllers receive the whole schedule whenever they join.
+        # Without a recorder to wait for the schedule went out at construction: the topic is
+        # transient local, so the dynamics node and the controllers receive it whenever they join.
+        if self.params['startup.expect_recorder']:
+            self.publish_once_recorded()
         executor.spin()
 
 
