@@ -46,6 +46,7 @@ from adcs_msgs_py.params_file import load_params_file
 EXIT_BAD_PARAMETERS = 2
 EXIT_GRAPH_TIMEOUT = 3
 EXIT_INTRUSION = 4   # a publisher the run does not allow was matched on a topic this node applies
+INTRUSION_LOG = 'intrusion: '   # the start of the error a node logs for each intruder it finds
 EXIT_RUN_STOPPED = 5   # the run cannot go on (e.g. the plant state is no longer finite)
 
 
@@ -170,7 +171,7 @@ class AdcsNode(Node):
     def on_intrusion(self, intruders: list[Intruder]) -> None:
         """An intruder was matched on a vetted topic (before any of its messages was applied)."""
         for intruder in intruders:
-            self.get_logger().error(f'intrusion: {intruder.describe()} may not publish there; '
+            self.get_logger().error(f'{INTRUSION_LOG}{intruder.describe()} may not publish there; '
                                     'its messages are not applied')
         if self.stop_on_intrusion:
             topic = intruders[0].topic

@@ -13,6 +13,7 @@ named by ``adcs-run``'s non-zero exit; the bag says so.
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -109,6 +110,10 @@ def test_the_runner_allows_each_topic_to_its_nodes_only():
 MAX_TORQUE = 0.01   # microsat_pd_slew's wheel torque limit (N m)
 DURATION_S = 20000  # lockstep runs steps in milliseconds: long enough never to end before the rogue
 RUN_LIMIT_S = 240   # wall seconds: the run ends at the detection; this only turns a miss into a failure
+# interrupt_after counts only the rogue's messages sent once the run is past this step time: the
+# dynamics node has then waited for the recorder's acknowledgement of every step up to
+# ACK_INTERVAL, so those steps are in the bag however the interrupt falls
+INTERRUPT_PAST_NS = (topics.ACK_INTERVAL + 1) * cv.NS_PER_S
 
 
 def _rogue_message(topic: str, t_ns: int):
@@ -122,12 +127,23 @@ def _rogue_message(topic: str, t_ns: int):
     return cv.faults_to_msg(0, {w: FaultState('failed') for w in ('rw_x', 'rw_y', 'rw_z')}, 0, 1)
 
 
-def _run_with_rogue(tmp_path, monkeypatch, topic: str, start_s: float = 2.0, duration_s: float = DURATION_S):
+def _recorder_has(pub, node) -> bool:
+    """The recorder's subscription is listed on ``pub``'s topic and matched with ``pub``."""
+    infos = node.get_subscriptions_info_by_topic(pub.topic_name)
+    return any(i.node_name == 'recorder' for i in infos) and pub.get_subscription_count() >= len(infos)
+
+
+def _run_with_rogue(tmp_path, monkeypatch, topic: str, start_s: float = 2.0, duration_s: float = DURATION_S,
+                    interrupt_after: int = 0):
     """adcs-run of the PD slew (long enough never to end first: DURATION_S) and, once its clock passes
-    ``start_s``, a rogue node in this process publishing on ``topic`` for every state."""
+    ``start_s``, a rogue node in this process publishing on ``topic`` for every state.
+    ``interrupt_after`` > 0: once the run is past INTERRUPT_PAST_NS and the recorder, matched with the
+    rogue, has acknowledged that many more of its messages, SIGINT the runner (a topic nobody applies: nothing else ends the run
+    early, and no wall-clock race decides whether the recorder saw the rogue)."""
     import rclpy
     from nav_msgs.msg import Odometry
     from rclpy.context import Context
+    from rclpy.duration import Duration
     from rclpy.executors import SingleThreadedExecutor
     from rosgraph_msgs.msg import Clock
 
@@ -169,10 +185,16 @@ def _run_with_rogue(tmp_path, monkeypatch, topic: str, start_s: float = 2.0, dur
             node.create_subscription(Clock, topics.CLOCK, on_clock, topics.QOS_CLOCK)
             node.create_subscription(Odometry, topics.STATE, on_state, topics.QOS_LOCKSTEP)
             deadline = time.monotonic() + RUN_LIMIT_S
+            sent_matched = 0   # messages sent once the recorder was matched
             while runner.poll() is None and time.monotonic() < deadline:
                 executor.spin_once(timeout_sec=0.1)
                 if topic == topics.APPLIED_TORQUE and 'pub' in rogue:   # a stream, states or not
                     rogue['pub'].publish(_rogue_message(topic, rogue.get('t_ns', 0)))
+                    if interrupt_after and rogue.get('t_ns', 0) > INTERRUPT_PAST_NS and _recorder_has(rogue['pub'], node):
+                        sent_matched += 1
+                        if sent_matched == interrupt_after:
+                            assert rogue['pub'].wait_for_all_acked(Duration(seconds=60))
+                            runner.send_signal(signal.SIGINT)
             node.destroy_node()
         finally:
             rclpy.try_shutdown(context=context)
@@ -216,16 +238,20 @@ def test_a_spoofed_record_is_quarantined_not_analysed(tmp_path, monkeypatch):
     """actuators/torque is only recorded (nobody applies it): the run goes on, but the injected
     torques (issue 17: peak torque [123, 456, 789], exit 0) never reach the analysed topic; the
     recorder keeps everything of the compromised topic under quarantine/, and the run exits
-    non-zero naming the intruder."""
-    code, err, out = _run_with_rogue(tmp_path, monkeypatch, topics.APPLIED_TORQUE, start_s=0.0, duration_s=20.0)
-    assert code != 0 and 'run compromised' in err and '/rogue' in err and '/actuators/torque' in err, err
+    non-zero naming the intruder. The run is ended by SIGINT once the recorder has acknowledged
+    20 of the rogue's messages (a 20-step run on a loaded machine once ended before the
+    recorder's participant had discovered the rogue: exit 0, nothing to quarantine); an
+    interrupted run that was compromised says both."""
+    code, err, out = _run_with_rogue(tmp_path, monkeypatch, topics.APPLIED_TORQUE, start_s=0.0, interrupt_after=20)
+    assert code != 0 and 'interrupted by SIGINT' in err, err
+    assert 'run compromised' in err and '/rogue' in err and '/actuators/torque' in err, err
     bag = out / 'bag'
     recorded = {name: [m.vector.x for _, _, m in read_messages(bag, {name})]
                 for name in ('/actuators/torque', '/quarantine/actuators/torque')}
     assert 123.0 not in recorded['/actuators/torque']
     assert 123.0 in recorded['/quarantine/actuators/torque']
     run = RunData.from_bag(bag)
-    assert len(run.t) == 21 and not np.any(run.u == 123.0)
+    assert len(run.t) > topics.ACK_INTERVAL and not np.any(run.u == 123.0)
 
 
 # --- DDS Security (SROS2) -------------------------------------------------------------------------

@@ -35,6 +35,7 @@ from datetime import datetime
 from pathlib import Path
 
 from adcs_msgs_py import names
+from adcs_msgs_py.node import EXIT_INTRUSION, INTRUSION_LOG
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app.analysis import (
     RunData,
@@ -54,6 +55,10 @@ __all__ = ['DEFAULT_SCENARIO', 'RunError', 'config_dirs', 'resolve_scenario', 'v
            'graph_env', 'lease_domain', 'run_scenario', 'main']
 
 READY_TIMEOUT_S = 60.0
+# Wall seconds the recorder is given to find and record the intruder a node stopped the run on.
+# The node that applies a topic sees the intruder when its own participant discovers it; the
+# recorder's participant discovers it on its own, maybe later on a loaded machine.
+INTRUSION_RECORD_S = 30.0
 
 
 # --- intruders (issue 17): who may publish where, and what the bag says ---------------------------
@@ -82,6 +87,23 @@ def _compromised(found: list[str], bag_dir: Path) -> RunError | None:
         return None
     return RunError('run compromised, its messages were not applied: ' + '; '.join(found)
                     + f'; bag kept in {bag_dir} (topic {names.INTRUSIONS})')
+
+
+def _await_recorded_intrusion(run: _Run) -> None:
+    """A node stopped the run on an intruder (exit EXIT_INTRUSION): give the recorder, still
+    running, up to INTRUSION_RECORD_S to record it (its periodic sweep logs INTRUSION_LOG as it
+    writes the ``intrusions`` record), so the bag says what the node saw before the graph stops."""
+    graph = run.graph
+    procs = graph.procs
+    if not any(procs[n].poll() == EXIT_INTRUSION for n in ('dynamics', *run.others) if n in procs):
+        return
+    if 'recorder' not in procs or procs['recorder'].poll() is not None:
+        return
+    try:
+        graph.wait_for_line('recorder', INTRUSION_LOG, INTRUSION_RECORD_S)
+    except RunError:
+        print(f'adcs-run: the recorder did not find the intruder within {INTRUSION_RECORD_S:g} s: '
+              f'the bag has no {names.INTRUSIONS} record', file=sys.stderr, flush=True)
 
 
 def run_target(validated: dict) -> list[float]:
@@ -241,8 +263,12 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
         run.started = run.started or recorded_state(run.bag_dir)   # /clock may not have reached us yet
         sig = signal.Signals(graph.signals[0]).name if graph.signals else 'SIGINT'
         kept = f'bag kept in {run.bag_dir}' if run.bag_dir.exists() else 'no bag was recorded yet'
-        raise RunError(f'interrupted by {sig} ({"during" if run.started else "before"} the run); {kept}') from None
+        interrupted = f'interrupted by {sig} ({"during" if run.started else "before"} the run); {kept}'
+        compromised = _compromised(bag_intrusions(run.bag_dir), run.bag_dir)   # say both
+        raise RunError(interrupted if compromised is None else f'{interrupted}; {compromised}') from None
     except BaseException as exc:
+        if isinstance(exc, RunError):
+            _await_recorded_intrusion(run)
         graph.stop_all()
         compromised = _compromised(bag_intrusions(run.bag_dir), run.bag_dir) if isinstance(exc, RunError) else None
         if compromised is not None and compromised is not exc:
