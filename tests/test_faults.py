@@ -294,9 +294,10 @@ def test_the_fault_injector_publishes_its_schedule_only_once_the_recorder_is_mat
     before the recorder holds it), and once the recorder joins both receive all of it. The
     CI failure this pins: on a loaded machine a 40-step run ended before the recorder's
     participant had discovered the injector, and the bag had the fault's torques, not the fault."""
-    from rclpy.qos import QoSProfile
-    from diagnostic_msgs.msg import DiagnosticArray
     from conftest import InProcessGraph
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.qos import QoSProfile
+
     from adcs_msgs_py import topics
     from adcs_sim.nodes.fault_injector import FaultInjectorNode
     from adcs_sim.nodes.recorder import RecorderNode
