@@ -1,6 +1,7 @@
 """Shared fixtures: every ROS test runs on its own domain id, loopback discovery only."""
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -15,6 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from adcs_sim.app.batch import BatchSimulation  # noqa: E402
 from adcs_sim.app.domains import DomainLease  # noqa: E402
 from adcs_sim.truth.plant import Plant  # noqa: E402
 
@@ -196,6 +198,19 @@ def spin_until(executor, condition, timeout: float = 30.0, what: str = 'the expe
     while not condition():
         assert time.monotonic() < deadline, f'graph did not deliver {what} within {timeout} s'
         executor.spin_once(timeout_sec=0.1)
+
+
+_BATCH_RUNS: dict = {}
+
+
+def batch_run_data(validated: dict):
+    """The batch engine's run of one validated scenario, as RunData, computed once per test session
+    for equal scenarios (several modules check the same long runs: a bag against its batch run,
+    a reading study on the same scenario). Callers must not modify what it returns."""
+    key = json.dumps(validated, sort_keys=True, default=repr)
+    if key not in _BATCH_RUNS:
+        _BATCH_RUNS[key] = BatchSimulation.from_runs([validated]).run().run_data(0)
+    return _BATCH_RUNS[key]
 
 
 class InProcessGraph:

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import batch_run_data
 from numpy.testing import assert_allclose, assert_array_equal
 from test_laws_inverse_optimal import (
     GAINS_3F,
@@ -42,12 +43,12 @@ _spec.loader.exec_module(study)
 
 @lru_cache(maxsize=None)
 def table1(lgv: str) -> dict:
-    return study.table1_figures(study.simulate('table1_gsmn', lgv))
+    return study.table1_figures(batch_run_data(study.scenario_with('table1_gsmn', lgv)))
 
 
 @lru_cache(maxsize=None)
 def iii_f(lgv: str, period: float | None = None) -> dict:
-    return study.iii_f_figures(study.simulate('microsat_gsmn_slew', lgv, period))
+    return study.iii_f_figures(batch_run_data(study.scenario_with('microsat_gsmn_slew', lgv, period)))
 
 
 PAPER_T1 = study.table1_paper()

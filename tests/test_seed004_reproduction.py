@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import batch_run_data
 
 from adcs_sim.app.analysis import RunData, run_metrics, settling_times
 from adcs_sim.app.batch import BatchSimulation
@@ -58,7 +59,7 @@ def rel(ours: float, paper: float) -> float:
 def test_recording_is_what_the_code_computes(name):
     """The graph's recording equals the batch engine's run of the same scenario (round-off):
     the bag is current, and the graph ran the law as the pure code defines it."""
-    batch = BatchSimulation.from_runs([validate_scenario(BAGS / name / 'scenario.yaml')]).run().run_data(0)
+    batch = batch_run_data(validate_scenario(BAGS / name / 'scenario.yaml'))
     graph = run(name)
     assert graph.missed_steps == 0
     np.testing.assert_allclose(batch.t, graph.t, rtol=0, atol=1e-12)  # bag stamps: sec + nanosec

@@ -28,14 +28,19 @@ PAPER = yaml.safe_load((ROOT / 'docs' / 'seed004' / 'paper.yaml').read_text())['
 AXES = ('x', 'y', 'z')
 
 
-def simulate(scenario: str, lgv: str, period: float | None = None) -> RunData:
-    """The batch engine's run of ``config/<scenario>.yaml`` with the GSMN section's ``lgv`` set;
-    ``period`` (s) overrides the control period and the integrator step (None: the scenario's)."""
+def scenario_with(scenario: str, lgv: str, period: float | None = None) -> dict:
+    """The validated ``config/<scenario>.yaml`` with the GSMN section's ``lgv`` set; ``period`` (s)
+    overrides the control period and the integrator step (None: the scenario's)."""
     validated = validate_scenario(ROOT / 'config' / f'{scenario}.yaml')
     validated['gsmn_controller']['lgv'] = lgv
     if period is not None:
         validated['dynamics'].update({'control_period': period, 'integrator.max_step': period})
-    return BatchSimulation.from_runs([validated]).run().run_data(0)
+    return validated
+
+
+def simulate(scenario: str, lgv: str, period: float | None = None) -> RunData:
+    """The batch engine's run of :func:`scenario_with`."""
+    return BatchSimulation.from_runs([scenario_with(scenario, lgv, period)]).run().run_data(0)
 
 
 def peaks_signed(run: RunData) -> np.ndarray:
