@@ -16,7 +16,14 @@ through :func:`matmul` (built on :func:`matvec`): a run in a batch gives the sam
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+
+
+def scipy_rotation():
+    """scipy's ``Rotation`` class, imported on first use: ``scipy.spatial`` costs 0.4-1.1 s at import
+    (it brings scipy.sparse and the k-d trees), which every node process paid at start while only
+    the Euler-angle and matrix-to-quaternion conversions use it (``adcs-run``'s start-up, issue #18)."""
+    from scipy.spatial.transform import Rotation
+    return Rotation
 
 # 2-1-3 Euler sequence (rotate about body y, then x, then z): intrinsic 'YXZ' in scipy's notation.
 # Angles come back in sequence order: (theta_2, theta_1, theta_3).
@@ -138,7 +145,7 @@ def euler_213(q: np.ndarray) -> np.ndarray:
     good = np.isfinite(flat).all(axis=1) & (np.abs(flat).sum(axis=1) > 0)
     out = np.full((flat.shape[0], 3), np.nan)
     if good.any():
-        out[good] = Rotation.from_quat(flat[good]).as_euler(EULER_213)
+        out[good] = scipy_rotation().from_quat(flat[good]).as_euler(EULER_213)
     return out.reshape(q.shape[:-1] + (3,))
 
 
@@ -197,7 +204,7 @@ def quaternion_from_rotation(R: np.ndarray) -> np.ndarray:
     (scipy's ``Rotation.from_matrix``, applied element by element along the batch axes)."""
     R = np.asarray(R, dtype=float)
     flat = R.reshape(-1, 3, 3)
-    q = np.stack([Rotation.from_matrix(m).as_quat() for m in flat]) if len(flat) else np.zeros((0, 4))
+    q = np.stack([scipy_rotation().from_matrix(m).as_quat() for m in flat]) if len(flat) else np.zeros((0, 4))
     q = np.where(q[:, 3:4] < 0, -q, q)
     return q.reshape(R.shape[:-2] + (4,))
 

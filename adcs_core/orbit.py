@@ -17,9 +17,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from adcs_core.attitude import cross, matvec, quat_multiply, rotate_to_body
+from adcs_core.attitude import cross, matvec, quat_multiply, rotate_to_body, scipy_rotation
 
 MU_EARTH = 3.986004418e14  # m^3/s^2
 
@@ -76,7 +75,7 @@ def orbit_frame_matrix(orbit: CircularOrbit, t: float) -> np.ndarray:
 
 def orbit_frame_attitude(orbit: CircularOrbit, t: float) -> np.ndarray:
     """Quaternion (scalar last) of the orbit frame in the inertial frame at time ``t``."""
-    q = Rotation.from_matrix(orbit_frame_matrix(orbit, t)).as_quat()
+    q = scipy_rotation().from_matrix(orbit_frame_matrix(orbit, t)).as_quat()
     return q if q[3] >= 0 else -q
 
 

@@ -194,3 +194,18 @@ def test_pure_module_imports_no_ros_at_run_time(module):
     code = f'import sys, {module}; print(sorted(m for m in sys.modules if m.split(".")[0] in {sorted(ROS_ROOTS)!r}))'
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, cwd=ROOT, check=True)
     assert out.stdout.strip() == '[]', f'{module} pulls in {out.stdout.strip()}'
+
+
+HEAVY_AT_FIRST_USE = ('scipy.spatial', 'scipy.linalg', 'pandas', 'ppigrf')
+
+
+def test_node_processes_do_not_import_what_they_only_need_at_first_use():
+    """Every node module, imported as its process starts: scipy.spatial (0.4-1.1 s), scipy.linalg and
+    pandas/ppigrf (0.5-1.3 s) are imported where they are used (Euler angles, the pseudo-inverse and
+    ARE at law construction, an IGRF model), not by every node at start (issue #18)."""
+    from adcs_sim.app.registry import NODES
+    modules = sorted({n.module for n in NODES.values()})
+    code = (f'import sys, importlib; [importlib.import_module(m) for m in {modules!r}]; '
+            f'print(sorted(m for m in sys.modules if m in {HEAVY_AT_FIRST_USE!r}))')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, cwd=ROOT, check=True)
+    assert out.stdout.strip() == '[]', f'imported at start: {out.stdout.strip()}'

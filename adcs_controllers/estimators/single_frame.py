@@ -22,9 +22,8 @@ in the body or the reference frame). Non-unit vectors are normalised (they are d
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from adcs_core.attitude import cross, dot
+from adcs_core.attitude import cross, dot, scipy_rotation
 
 # Observability: the smallest eigenvalue of Σ w_i (I − b_i b_iᵀ), relative to Σ w_i, below which the
 # rotation about the common direction is undetermined (≈ the squared sine of the largest angle
@@ -115,7 +114,7 @@ def triad(b1, r1, b2, r2) -> np.ndarray:
     # R = A^T = sum_k v_k w_k^T
     R = sum(v[..., :, None] * w[..., None, :] for v, w in ((r1, b1), (v2, w2), (v3, w3)))
     flat = R.reshape(-1, 3, 3)
-    q = Rotation.from_matrix(flat).as_quat() if len(flat) else np.zeros((0, 4))
+    q = scipy_rotation().from_matrix(flat).as_quat() if len(flat) else np.zeros((0, 4))
     return _canonical(q.reshape(shape[:-1] + (4,)))
 
 

@@ -62,7 +62,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.linalg
 
 from adcs_controllers.laws.base import SectionLaw
 from adcs_core.attitude import (
@@ -133,6 +132,7 @@ def pseudo_inverse(B: np.ndarray) -> np.ndarray:
     if rank < B.shape[0]:
         raise ValueError(f'actuator matrix has rank {rank} < {B.shape[0]}: B Bᵀ is singular '
                          '(for eq. 21: r_x = r_y gives no thruster yaw torque)')
+    import scipy.linalg  # at first use: scipy.linalg costs ~0.3 s at import, every node paid it (#18)
     return scipy.linalg.pinv(B)
 
 
@@ -160,6 +160,7 @@ def positive_null_vector(T: np.ndarray) -> np.ndarray:
     """A null vector ``n > 0`` (max entry 1) of the thruster torque matrix ``T`` (3, n): adding
     ``c n`` to the forces leaves the torque unchanged. Raises if the null space is not one line
     of one sign (the layout cannot be made all-pushing that way)."""
+    import scipy.linalg  # at first use (see pseudo_inverse)
     N = scipy.linalg.null_space(np.asarray(T, dtype=float))
     if N.shape[1] != 1:
         raise ValueError(f'thruster null space has dimension {N.shape[1]}, need 1')

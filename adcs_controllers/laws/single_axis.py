@@ -84,8 +84,6 @@ solved per run (a (..., 2, 5) array).
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
-from scipy.spatial.transform import Rotation
 
 from adcs_controllers.laws.base import SectionLaw
 from adcs_core.attitude import (
@@ -99,6 +97,7 @@ from adcs_core.attitude import (
     pointing_error,
     rotate_to_body,
     rotate_to_inertial,
+    scipy_rotation,
     transpose,
     unit,
 )
@@ -242,7 +241,7 @@ def final_attitudes(sigma, tau, H):
     T = dcm_313(psi, np.pi / 2 + 0.0 * psi, phi)                      # (..., 2, 3, 3) body <- F_I
     R = transpose(C)[..., None, :, :] @ transpose(T)  # body -> inertial
     shape = R.shape[:-2]
-    q = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_quat().reshape(shape + (4,))
+    q = scipy_rotation().from_matrix(R.reshape(-1, 3, 3)).as_quat().reshape(shape + (4,))
     return q, psi, phi
 
 
@@ -291,6 +290,7 @@ def lqr_gain(inertia, h_f, Q=Q_PAPER, R=R_PAPER, momentum_state='h1'):
     A, B = linearisation(inertia, h_f, momentum_state)
     Q = np.diag(np.asarray(Q, dtype=float))
     R = np.diag(np.asarray(R, dtype=float))
+    import scipy.linalg  # at first use: scipy.linalg costs ~0.3 s at import, every node paid it (#18)
     P = scipy.linalg.solve_continuous_are(A, B, Q, R)
     return np.linalg.solve(R, B.T @ P)
 

@@ -34,15 +34,29 @@ from datetime import datetime
 from functools import lru_cache
 
 import numpy as np
-from ppigrf import ppigrf as _ppigrf
 
 from adcs_core.environment.frames import ecef_to_eci, eci_to_ecef
 
 REFERENCE_RADIUS = 6371200.0   # m, the IGRF's geomagnetic reference radius a
 NANOTESLA = 1e-9
 POLE_GUARD = 1e-9              # rad: the colatitude is kept this far from the poles
-DEFAULT_COEFFICIENTS = _ppigrf.shc_fn          # ppigrf's IGRF-14 file
-IGRF13_COEFFICIENTS = _ppigrf.shc_fn_igrf13
+
+
+def _ppigrf():
+    """ppigrf's module, imported on first use: it brings pandas (0.5-1.3 s at import), which every
+    node process paid at start although only an IGRF model reads its coefficients (issue #18)."""
+    from ppigrf import ppigrf
+    return ppigrf
+
+
+def __getattr__(name: str):
+    """``DEFAULT_COEFFICIENTS`` (ppigrf's IGRF-14 file) and ``IGRF13_COEFFICIENTS``, looked up in
+    ppigrf on first use (PEP 562)."""
+    if name == 'DEFAULT_COEFFICIENTS':
+        return _ppigrf().shc_fn
+    if name == 'IGRF13_COEFFICIENTS':
+        return _ppigrf().shc_fn_igrf13
+    raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
 
 
 def _days(when: datetime) -> float:
@@ -77,8 +91,9 @@ def schmidt_legendre(theta: np.ndarray, nmax: int) -> tuple[dict, dict]:
 class IgrfModel:
     """The IGRF from a ``.shc`` coefficient file (ppigrf's; IGRF-14 by default), up to ``max_degree``."""
 
-    def __init__(self, coefficient_file: str = DEFAULT_COEFFICIENTS, max_degree: int = 13) -> None:
-        g, h = _ppigrf.read_shc(coefficient_file)
+    def __init__(self, coefficient_file: str | None = None, max_degree: int = 13) -> None:
+        coefficient_file = coefficient_file or _ppigrf().shc_fn
+        g, h = _ppigrf().read_shc(coefficient_file)
         keys = [k for k in g.columns if k[0] <= max_degree]
         self.max_degree = max(k[0] for k in keys)
         self.n = np.array([k[0] for k in keys])
@@ -154,9 +169,10 @@ class IgrfModel:
 
 
 @lru_cache(maxsize=4)
-def load_igrf(coefficient_file: str = DEFAULT_COEFFICIENTS, max_degree: int = 13) -> IgrfModel:
+def load_igrf(coefficient_file: str | None = None, max_degree: int = 13) -> IgrfModel:
     """A shared :class:`IgrfModel` per file and degree (reading the file takes ~30 ms: a Monte Carlo
-    builds one environment per run). The model is never modified after construction."""
+    builds one environment per run; None: ppigrf's IGRF-14 file). The model is never modified after
+    construction."""
     return IgrfModel(coefficient_file, max_degree)
 
 
