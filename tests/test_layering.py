@@ -22,7 +22,6 @@ import sys
 from pathlib import Path
 
 import pytest
-
 from conftest import ROOT
 
 PACKAGES = ('adcs_core', 'adcs_msgs_py', 'adcs_controllers', 'adcs_sim')
