@@ -13,6 +13,7 @@ tolerance, next to the paper's, and the qualitative claims are tested.
 """
 from __future__ import annotations
 
+import csv
 import math
 
 import numpy as np
@@ -136,6 +137,20 @@ def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path):
                 '| uosat12_gsmn | `settling_q4_0.01_after_fault_s` | 1748.4 | 944.1 | -46.0 % |',
                 '| uosat12_gsmn | `integrated_torque_after_fault_Nms` | 9.84 | 22.8656 | +132.4 % |'):
         assert row in text
+    # and every one of the nine rows of docs/seed000.md, rounded as it prints them, is the tool's
+    doc = (ROOT / 'docs' / 'seed000.md').read_text(encoding='utf-8')
+    label = {'uosat12_zero_momentum': 'zero momentum', 'uosat12_snlc': 'snlc', 'uosat12_gsmn': 'GSMN'}
+    what = {'settling_q4_0.02_after_fault_s': ('q4 in 1 ± 0.02 after t0 (s)', 1),
+            'settling_q4_0.01_after_fault_s': ('q4 in 1 ± 0.01 after t0 (s)', 1),
+            'integrated_torque_after_fault_Nms': ('∫‖u‖dt after t0 (N·m·s)', 2)}
+    with open(tmp_path / 'reference_comparison.csv', newline='', encoding='utf-8') as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 9
+    for r in rows:
+        text, digits = what[r['metric']]
+        diff = f'{100 * float(r["relative_difference"]):+.1f} %'.replace('-', '\u2212')
+        row = f'| {label[r["run"]]}: {text} | {r["published"]} | {float(r["ours"]):.{digits}f} | {diff} |'
+        assert row in doc, row
 
 
 def test_showcase_bag_is_what_the_code_computes():

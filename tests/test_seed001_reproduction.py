@@ -206,6 +206,13 @@ def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path):
                 '| m2s_nonprincipal_vagc_0p02 | `steady_torque_z_Nm` | 0.0077 | 0.00765893 | -0.5 % |',
                 '| m2s_nonprincipal_vags_0p02 | `steady_torque_y_Nm` | -0.0124 | -0.012366 | +0.3 % |'):
         assert row in text
+    # the doc's three VAG-C rows print the tool's values (with a typographic minus)
+    doc = (ROOT / 'docs' / 'seed001.md').read_text(encoding='utf-8')
+    for axis in 'xyz':
+        key = f'| m2s_nonprincipal_vagc_0p02 | `steady_torque_{axis}_Nm`'
+        line = next(t for t in text.splitlines() if t.startswith(key))
+        published, ours, diff = (c.strip().replace('-', '\u2212') for c in line.split('|')[3:6])
+        assert f': steady u_{axis} (N·m) | {published} | {ours} | {diff} |' in doc, line
 
 
 def test_disturbance_estimate_converges_at_10_and_diverges_at_1_Nm(runs):

@@ -20,6 +20,7 @@ Also: the bag is what the current code computes (the batch engine, bit for bit),
 """
 from __future__ import annotations
 
+import csv
 import math
 
 import numpy as np
@@ -62,6 +63,11 @@ def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path):
     assert analyze([str(BAG / 'bag'), '--compare', '--reference', str(paper), '--out', str(tmp_path)]) == 0
     text = (tmp_path / 'comparison.md').read_text()
     assert '| eseo_backstepping_slew | `settling_eigenaxis_1deg_s` | 38 | 38.1257 | +0.3 % |' in text
+    with open(tmp_path / 'reference_comparison.csv', newline='', encoding='utf-8') as f:
+        (row,) = csv.DictReader(f)
+    doc = (ROOT / 'docs' / 'seed002.md').read_text(encoding='utf-8')
+    line = next(t for t in doc.splitlines() if t.startswith('| slew settling, 1° eigenaxis band against q_d(t) (s) |'))
+    assert f'| {float(row["ours"]):.2f} (' in line and f'| {100 * float(row["relative_difference"]):+.1f} % |' in line
 
 
 def test_attitude_held_after_settling(run):
