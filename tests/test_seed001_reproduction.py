@@ -18,6 +18,7 @@ from conftest import ROOT
 from numpy.testing import assert_allclose, assert_array_equal
 
 from adcs_sim.app.analysis import RunData
+from adcs_sim.app.analyze import main as analyze
 from adcs_sim.app.report.lead import paper_values
 
 BAGS = ROOT / 'bags'
@@ -190,6 +191,28 @@ def test_nonprincipal_steady_torque_at_0p02_Nm(runs, name):
     assert_allclose(np.abs(u).max(), 0.0124, rtol=0.02)
     assert_allclose(u, paper, atol=5e-4)
     assert np.abs(r.data.u).max() <= 0.02
+
+
+def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path):
+    """docs/seed001.md's eq. 59 rows (paper / ours / difference) are ``adcs-analyze --compare --reference
+    docs/seed001/paper.yaml`` on the two committed 0.02 N m bags (the steady torque a spin report leads
+    with): these rows as the doc prints them, so the doc cannot drift from the bags."""
+    bags = [str(BAGS / n / 'bag') for n in ('m2s_nonprincipal_vagc_0p02', 'm2s_nonprincipal_vags_0p02')]
+    paper = ROOT / 'docs' / 'seed001' / 'paper.yaml'
+    assert analyze([*bags, '--compare', '--reference', str(paper), '--out', str(tmp_path)]) == 0
+    text = (tmp_path / 'comparison.md').read_text()
+    for row in ('| m2s_nonprincipal_vagc_0p02 | `steady_torque_x_Nm` | 0.0047 | 0.00470264 | +0.1 % |',
+                '| m2s_nonprincipal_vagc_0p02 | `steady_torque_y_Nm` | -0.0124 | -0.0123655 | +0.3 % |',
+                '| m2s_nonprincipal_vagc_0p02 | `steady_torque_z_Nm` | 0.0077 | 0.00765893 | -0.5 % |',
+                '| m2s_nonprincipal_vags_0p02 | `steady_torque_y_Nm` | -0.0124 | -0.012366 | +0.3 % |'):
+        assert row in text
+    # the doc's three VAG-C rows print the tool's values (with a typographic minus)
+    doc = (ROOT / 'docs' / 'seed001.md').read_text(encoding='utf-8')
+    for axis in 'xyz':
+        key = f'| m2s_nonprincipal_vagc_0p02 | `steady_torque_{axis}_Nm`'
+        line = next(t for t in text.splitlines() if t.startswith(key))
+        published, ours, diff = (c.strip().replace('-', '\u2212') for c in line.split('|')[3:6])
+        assert f': steady u_{axis} (N·m) | {published} | {ours} | {diff} |' in doc, line
 
 
 def test_disturbance_estimate_converges_at_10_and_diverges_at_1_Nm(runs):

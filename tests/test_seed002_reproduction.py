@@ -20,6 +20,7 @@ Also: the bag is what the current code computes (the batch engine, bit for bit),
 """
 from __future__ import annotations
 
+import csv
 import math
 
 import numpy as np
@@ -28,6 +29,7 @@ from conftest import ROOT, assert_recorded_run_equal
 from numpy.testing import assert_allclose
 
 from adcs_sim.app.analysis import RunData, attitude_errors_deg, settling_time, thruster_metrics
+from adcs_sim.app.analyze import main as analyze
 from adcs_sim.app.report.lead import paper_values
 
 BAG = ROOT / 'bags' / 'eseo_backstepping_slew'
@@ -51,6 +53,21 @@ def test_slew_settles_like_the_paper(run):
     assert ts < 60.0
     assert ts == pytest.approx(OURS_SETTLING, abs=3.0)
     assert abs(ts - PAPER_SETTLING) < 5.0
+
+
+def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path):
+    """docs/seed002.md's settling row (paper / ours / difference) is ``adcs-analyze --compare --reference
+    docs/seed002/paper.yaml`` on the committed bag (one bag is enough with a reference): the tracking error's
+    1° settling against q_d(t), the metric a tracking report leads with, as the doc prints it."""
+    paper = ROOT / 'docs' / 'seed002' / 'paper.yaml'
+    assert analyze([str(BAG / 'bag'), '--compare', '--reference', str(paper), '--out', str(tmp_path)]) == 0
+    text = (tmp_path / 'comparison.md').read_text()
+    assert '| eseo_backstepping_slew | `settling_eigenaxis_1deg_s` | 38 | 38.1257 | +0.3 % |' in text
+    with open(tmp_path / 'reference_comparison.csv', newline='', encoding='utf-8') as f:
+        (row,) = csv.DictReader(f)
+    doc = (ROOT / 'docs' / 'seed002.md').read_text(encoding='utf-8')
+    line = next(t for t in doc.splitlines() if t.startswith('| slew settling, 1° eigenaxis band against q_d(t) (s) |'))
+    assert f'| {float(row["ours"]):.2f} (' in line and f'| {100 * float(row["relative_difference"]):+.1f} % |' in line
 
 
 def test_attitude_held_after_settling(run):

@@ -10,7 +10,9 @@ metrics and figures (PNG + SVG), written to ``--out DIR``, else to ``<bag>/../re
 instead (``comparison.csv``, ``comparison.md``, overlaid figures) to ``--out DIR`` or
 ``comparison/`` in the current directory (never among the inputs: bags under ``bags/`` are the
 repository's reference data); with ``--reference FILE`` (published figures per run, e.g.
-``docs/seed004/paper.yaml``) it adds a published-vs-ours table with the differences.
+``docs/seed004/paper.yaml``) it adds a published-vs-ours table with the differences (one bag is enough
+then: a paper with one run, seed 002). The published figures are comparison rows or the metrics a run's
+report leads with for its kind (e.g. seed 000's q4 settling after the fault).
 ``--no-report`` only prints the metrics. ``--foxglove-layout OUT.json`` and / or
 ``--plotjuggler-layout OUT.xml`` write the viewer layouts of one bag instead (no metrics, no
 report; :mod:`adcs_sim.app.layouts`): 3D view, attitude error, rates, wheels, torques, controller
@@ -103,7 +105,7 @@ def _parser() -> argparse.ArgumentParser:
                         help='write one comparison of all the bags (CSV, Markdown, overlaid figures)')
     parser.add_argument('--reference', type=Path, default=None,
                         help='with --compare: a YAML of published figures per run (e.g. a paper\'s), '
-                             'added to the comparison with the relative differences')
+                             'added to the comparison with the relative differences (one bag is enough)')
     parser.add_argument('--no-report', action='store_true', help='only print the metrics')
     parser.add_argument('--foxglove-layout', type=Path, default=None, metavar='OUT.json',
                         help="write a Foxglove layout for the bag's topics (3D view, errors, rates, wheels, "
@@ -142,8 +144,8 @@ def main(argv=None) -> int:
     # matplotlib (behind the figures) only when a report is written: --help and --no-report stay quick
     from adcs_sim.app.report import comparison, single_run
     if args.compare:
-        if len(runs) < 2:
-            print('adcs-analyze: --compare needs at least two readable bags', file=sys.stderr)
+        if len(runs) < (1 if args.reference else 2):
+            print('adcs-analyze: --compare needs at least two readable bags (one with --reference)', file=sys.stderr)
             return 1
         out = args.out or Path.cwd() / 'comparison'
         try:

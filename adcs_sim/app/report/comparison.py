@@ -13,7 +13,8 @@ import yaml
 
 from adcs_sim.app.analysis import attitude_errors
 from adcs_sim.app.report.figures import add_legend, log_positive, new_figure, save_figure, step_plot
-from adcs_sim.app.report.lead import comparison_rows  # defined in .lead (no matplotlib there)
+from adcs_sim.app.report.kinds import reference_attitude, run_kind
+from adcs_sim.app.report.lead import comparison_rows, lead_metrics  # defined in .lead (no matplotlib there)
 from adcs_sim.app.report.loading import Run, fault_events, missing_topics
 from adcs_sim.app.report.markdown import METRIC_NOTES, fmt, md_escape, metric_note
 
@@ -67,6 +68,15 @@ def load_reference(path) -> dict:
     return tree
 
 
+def kind_rows(run: Run) -> dict:
+    """The metrics the run's report leads with (:func:`.lead.lead_metrics`, by run kind: e.g. seed 000's q4
+    settling after the fault, seed 001's steady spin torque, seed 002's tracking settling), ``{key: value}``:
+    published figures that are not comparison rows are compared with these."""
+    kind = run_kind(run.data.scenario)
+    q_ref, _ = reference_attitude(run.data, kind)
+    return {m.key: m.value for m in lead_metrics(run.data, kind, q_ref)}
+
+
 def reference_rows(names: list[str], table: list[dict], reference: dict) -> list[tuple]:
     """(run, metric, published, ours, relative difference) for every published figure of a run
     being compared. ValueError for a metric name that is not a comparison row."""
@@ -117,7 +127,9 @@ def write_comparison(runs: list[Run], out, tol_deg: float = 0.5,
         lines.append(f'| `{k}` | ' + ' | '.join(fmt(row[k]) for row in table)
                      + f' | {md_escape(_note_cmp(k))} |')
     if reference is not None:
-        published = reference_rows(names, table, reference)
+        rows = [{**row, **kind_rows(r)} if name in reference['runs'] else row
+                for name, r, row in zip(names, runs, table)]
+        published = reference_rows(names, rows, reference)
         with open(out / 'reference_comparison.csv', 'w', newline='') as f:
             w = csv.writer(f)
             w.writerow(['run', 'metric', 'published', 'ours', 'relative_difference'])
