@@ -10,12 +10,14 @@ from __future__ import annotations
 import gc
 import math
 from collections import defaultdict
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import yaml
 
 from adcs_msgs_py import names as topics
+from adcs_sim.app.status_records import StatusRecords
 from adcs_sim.bag.batches import ColumnReader
 from adcs_sim.bag.columns import decode_batch, decode_diagnostics
 from adcs_sim.bag.reader import read_raw
@@ -63,7 +65,7 @@ class RunData:
     missed_at: np.ndarray = field(default_factory=lambda: np.empty(0))   # stamps (s) of missed steps
     q_ref: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))
     scenario: dict | None = None
-    controller_status: list = field(default_factory=list)  # (t, name, {key: value text}) per status
+    controller_status: Sequence = field(default_factory=list)  # (t, name, {key: value text}) per status (StatusRecords)
     faults: list = field(default_factory=list)  # (t, level, name, message) per status on faults
     intrusions: list = field(default_factory=list)  # the recorder's intruder lines (intrusion_lines)
     topic_counts: dict = field(default_factory=dict)  # messages per topic (relative to the namespace)
@@ -120,8 +122,11 @@ class RunData:
         columns: dict[str, list] = defaultdict(list)     # topic -> [(first row number, Columns)]
         diagnostics: dict[str, list] = defaultdict(list)  # topic -> [(stamps, statuses)]
         seen: dict[str, int] = defaultdict(int)
+        status_records: dict[str, StatusRecords] = defaultdict(StatusRecords)   # controller/status, compact
         for batch in reader:
-            if batch.type_name == DIAGNOSTIC_ARRAY:
+            if batch.type_name == DIAGNOSTIC_ARRAY and batch.topic.endswith('/' + topics.CONTROLLER_STATUS):
+                status_records[batch.topic].add(*decode_diagnostics(batch))
+            elif batch.type_name == DIAGNOSTIC_ARRAY:
                 diagnostics[batch.topic].append(decode_diagnostics(batch))
             else:
                 columns[batch.topic].extend((seen[batch.topic], c) for c in decode_batch(batch))
@@ -146,9 +151,8 @@ class RunData:
                         run.missed_steps = int(float(status[4]['missed_steps']))
                     except ValueError:
                         pass
-        run.controller_status = [(stamp, s[1], s[4]) for stamp, statuses in
-                                 _merged_statuses(diagnostics.get(ns + topics.CONTROLLER_STATUS, []))
-                                 for s in statuses]
+        if ns + topics.CONTROLLER_STATUS in status_records:
+            run.controller_status = status_records[ns + topics.CONTROLLER_STATUS].freeze()
         run.missed_at = _missed_at(diagnostics.get(ns + topics.DYNAMICS_STATUS, []))
         run.faults = [(stamp, int(s[0]), s[1], s[2]) for stamp, statuses in
                       _merged_statuses(diagnostics.get(ns + topics.FAULTS, [])) for s in statuses]
