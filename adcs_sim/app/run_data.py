@@ -10,12 +10,14 @@ from __future__ import annotations
 import gc
 import math
 from collections import defaultdict
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import yaml
 
 from adcs_msgs_py import names as topics
+from adcs_sim.app.status_records import StatusRecords
 from adcs_sim.bag.batches import ColumnReader
 from adcs_sim.bag.columns import decode_batch, decode_diagnostics
 from adcs_sim.bag.reader import read_raw
@@ -63,7 +65,7 @@ class RunData:
     missed_at: np.ndarray = field(default_factory=lambda: np.empty(0))   # stamps (s) of missed steps
     q_ref: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))
     scenario: dict | None = None
-    controller_status: list = field(default_factory=list)  # (t, name, {key: value text}) per status
+    controller_status: Sequence = field(default_factory=list)  # (t, name, {key: value text}) per status (StatusRecords)
     faults: list = field(default_factory=list)  # (t, level, name, message) per status on faults
     intrusions: list = field(default_factory=list)  # the recorder's intruder lines (intrusion_lines)
     topic_counts: dict = field(default_factory=dict)  # messages per topic (relative to the namespace)
@@ -120,25 +122,33 @@ class RunData:
         columns: dict[str, list] = defaultdict(list)     # topic -> [(first row number, Columns)]
         diagnostics: dict[str, list] = defaultdict(list)  # topic -> [(stamps, statuses)]
         seen: dict[str, int] = defaultdict(int)
+        status_records: dict[str, StatusRecords] = defaultdict(StatusRecords)   # controller/status, compact
         for batch in reader:
-            if batch.type_name == DIAGNOSTIC_ARRAY:
+            if batch.type_name == DIAGNOSTIC_ARRAY and batch.topic.endswith('/' + topics.CONTROLLER_STATUS):
+                status_records[batch.topic].add(*decode_diagnostics(batch))
+            elif batch.type_name == DIAGNOSTIC_ARRAY:
                 diagnostics[batch.topic].append(decode_diagnostics(batch))
             else:
-                columns[batch.topic].extend((seen[batch.topic], c) for c in decode_batch(batch))
+                columns[batch.topic].extend((seen[batch.topic], _kept(c, batch.type_name)) for c in decode_batch(batch))
             seen[batch.topic] += len(batch)
         counts = {name: n for name, n in reader.topic_counts.items() if n}
         ns = fixed if fixed is not None else _namespace(counts, reader.topics)
         state_topic = ns + topics.STATE
         if not any(c.rows.size for _, c in columns.get(state_topic, [])):
             raise _no_state(path, reader, state_topic)
-        truth = _merged(columns.get(ns + topics.TRUTH_STATE, []))
-        t, cols = truth if truth[0].size else _merged(columns[state_topic])
+        # Each topic's decoded parts are let go as soon as they are merged (pop): the reading's peak
+        # memory is the run's arrays plus one topic's parts, not plus every topic's.
+        truth = _merged(columns.pop(ns + topics.TRUTH_STATE, []))
+        t, cols = truth if truth[0].size else _merged(columns.pop(state_topic))
+        del truth
         run = cls(t=t, q=cols['orientation'], w=cols['angular'])
-        t_u, cols = _merged(columns.get(ns + topics.APPLIED_TORQUE, []))
+        columns.pop(state_topic, None)
+        t_u, cols = _merged(columns.pop(ns + topics.APPLIED_TORQUE, []))
         if t_u.size:
             run.t_u, run.u = t_u, cols['vector']
-        _set_wheels(run, columns.get(ns + topics.WHEELS_STATE, []))
-        _set_thrusters(run, columns.get(ns + topics.THRUSTERS_STATE, []))
+        _set_wheels(run, columns.pop(ns + topics.WHEELS_STATE, []))
+        _set_thrusters(run, columns.pop(ns + topics.THRUSTERS_STATE, []))
+        columns.clear()
         for stamp, statuses in _merged_statuses(diagnostics.get(ns + topics.DYNAMICS_STATUS, [])):
             for status in statuses:
                 if 'missed_steps' in status[4]:
@@ -146,9 +156,8 @@ class RunData:
                         run.missed_steps = int(float(status[4]['missed_steps']))
                     except ValueError:
                         pass
-        run.controller_status = [(stamp, s[1], s[4]) for stamp, statuses in
-                                 _merged_statuses(diagnostics.get(ns + topics.CONTROLLER_STATUS, []))
-                                 for s in statuses]
+        if ns + topics.CONTROLLER_STATUS in status_records:
+            run.controller_status = status_records[ns + topics.CONTROLLER_STATUS].freeze()
         run.missed_at = _missed_at(diagnostics.get(ns + topics.DYNAMICS_STATUS, []))
         run.faults = [(stamp, int(s[0]), s[1], s[2]) for stamp, statuses in
                       _merged_statuses(diagnostics.get(ns + topics.FAULTS, [])) for s in statuses]
@@ -204,6 +213,21 @@ def _namespace(counts: dict[str, int], types: dict[str, str]) -> str:
         key = (-score, len(prefix), prefix)
         best = key if best is None or key < best else best
     return best[2] if best else '/'
+
+
+# The fields RunData keeps of each type (decode_batch gives more: Odometry's position and linear
+# velocity are 48 of its 104 bytes a message, and a long run holds every message until the merge).
+KEPT_FIELDS = {ODOMETRY: ('orientation', 'angular')}
+
+
+def _kept(columns, type_name: str):
+    """``columns`` without the fields RunData does not keep (KEPT_FIELDS)."""
+    names = KEPT_FIELDS.get(type_name)
+    if names is not None:
+        # (a copy when a field is a view: the decoded block it views would otherwise stay alive)
+        columns.fields = {name: columns.fields[name] if columns.fields[name].base is None else columns.fields[name].copy()
+                          for name in names}
+    return columns
 
 
 def _merged(parts: list, names=None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
