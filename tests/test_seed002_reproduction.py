@@ -4,8 +4,8 @@ The bag is an ``adcs-run`` of config/eseo_backstepping_slew.yaml (separate proce
 bags/regenerate.py): the first 300 s of the two-orbit mission config/eseo_backstepping.yaml.
 The tests read it and state the paper's figures beside ours (docs/seed002.md):
 
-* paper: the 135.68° slew "settles within approximately 38 seconds" (Fig. 1); ours 38.2 s
-  (1° eigenaxis band), asserted < 60 s and within 3 s of ours;
+* paper: the 135.68° slew "settles within approximately 38 seconds" (Fig. 1); ours 38.126 s
+  (1° eigenaxis band), asserted within half a second of the paper's (its precision);
 * paper: the attitude is then held "constant over the entire orbit" (Fig. 2, two orbits); ours:
   below 1° after settling over the recorded 300 s (graph) and over 1000 s (batch engine, the
   same code; what a test of < 60 s allows here: ~2 ms per step); the whole two orbits through
@@ -35,7 +35,7 @@ from adcs_sim.app.report.lead import paper_values
 BAG = ROOT / 'bags' / 'eseo_backstepping_slew'
 # s, section 4.2 / Fig. 1 ("approximately 38 seconds"), from its one home, docs/seed002/paper.yaml
 PAPER_SETTLING = paper_values('eseo_backstepping_slew')[1]['settling_eigenaxis_1deg_s']
-OURS_SETTLING = 38.2           # s, 1° band
+OURS_SETTLING = 38.126         # s, 1° band (the committed bag's)
 OURS_IMPULSE = 7.904           # N s over the recorded 300 s (all of it in the slew: none after 60 s)
 OURS_FIRINGS = 608             # thruster-periods over the recorded 300 s
 HOLD_HORIZON = 1000.0          # s, the batch hold test (a fifth of an orbit)
@@ -47,12 +47,16 @@ def run() -> RunData:
 
 
 def test_slew_settles_like_the_paper(run):
+    """Paper (section 4.2, Fig. 1): the 135.68° slew "settles within approximately 38 seconds". Ours:
+    38.126 s (1° eigenaxis band against q_d(t), interpolated last exit). Tolerances: the initial
+    error to 0.01° (the paper prints none: it follows from q_d, readings R1); ours to 1 ms, a
+    regression value (the bag is deterministic: any change of law, plant or analysis moves it);
+    the paper's to half a second, its precision ("approximately 38", whole seconds)."""
     eigen, _ = attitude_errors_deg(run)
     assert eigen[0] == pytest.approx(135.68, abs=0.01)   # the short way to q̃ = -1 (readings R1)
     ts = settling_time(run.t, eigen, 1.0)
-    assert ts < 60.0
-    assert ts == pytest.approx(OURS_SETTLING, abs=3.0)
-    assert abs(ts - PAPER_SETTLING) < 5.0
+    assert ts == pytest.approx(OURS_SETTLING, abs=1e-3)
+    assert abs(ts - PAPER_SETTLING) <= 0.5
 
 
 def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path):
