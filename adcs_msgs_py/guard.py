@@ -163,12 +163,26 @@ class PublisherVetting:
             self.refused[topic] += 1
         return ok
 
-    def subscribers(self, topic: str) -> tuple[int, int]:
+    def subscribers(self, topic: str, can_match: Callable[[object], bool] | None = None) -> tuple[int, int]:
         """``(of the run, others)``: the subscriptions to ``topic`` in the graph, by node (one
-        whose node name has not arrived yet counts as another's)."""
-        infos = self._node.get_subscriptions_info_by_topic(topic)
+        whose node name has not arrived yet counts as another's), of those that can match the
+        caller's publisher (``can_match(info)``; all when None). One that never can (another type
+        under the same name, a QoS rmw calls incompatible) never adds to the publisher's matched
+        count: counted among the others, it would keep the start-up handshake waiting forever."""
+        infos = [i for i in self._node.get_subscriptions_info_by_topic(topic) if can_match is None or can_match(i)]
         own = sum(_full_name(i.node_namespace, i.node_name) in self.run_nodes for i in infos)
         return own, len(infos) - own
+
+    def describe_subscribers(self, topic: str, can_match: Callable[[object], bool] | None = None) -> str:
+        """What the graph lists on ``topic`` (for a start-up timeout's message): each subscription's
+        node, whether it counts as the run's, another's or cannot match, and its endpoint GID."""
+        rows = []
+        for info in self._node.get_subscriptions_info_by_topic(topic):
+            node = _full_name(info.node_namespace, info.node_name)
+            kind = ('cannot match' if can_match is not None and not can_match(info)
+                    else 'run' if self.run_nodes is not None and node in self.run_nodes else 'other')
+            rows.append(f'{node} ({kind}, GID {_gid_hex(info.endpoint_gid)})')
+        return '; '.join(rows) or 'none'
 
     def sweep(self, subs) -> None:
         """Look every vetted subscription of ``subs`` up in the graph, message or not, count

@@ -36,6 +36,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
+from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
 from adcs_msgs_py import topics
@@ -101,6 +102,24 @@ def _plain(value):
 # whose node name is not yet in the graph cache (the run's own subscribers are counted by name,
 # PublisherVetting.subscribers), which rclpy gives no event for (ros2/rclpy#929).
 MATCH_RECHECK_S = 0.02
+
+
+def can_match(pub) -> Callable[[object], bool]:
+    """Whether a subscription the graph lists (a topic endpoint info) can ever be matched to the
+    publisher ``pub``: the same type, and no request its offer cannot meet on the two policies DDS
+    matches that the interface sets (a reliable reader of a best-effort writer, a transient-local
+    reader of a volatile one). Anything else (an unknown policy included) may match. (rclpy's
+    ``qos_check_compatible`` is no use here: the publisher's own profile holds "default" durations
+    where the graph lists "infinite", which it reports as incompatible.)"""
+    name = topics.type_name(pub.msg_type)
+    qos = pub.qos_profile
+
+    def check(info) -> bool:
+        wanted = info.qos_profile
+        return info.topic_type == name and not (
+            (qos.reliability == ReliabilityPolicy.BEST_EFFORT and wanted.reliability == ReliabilityPolicy.RELIABLE)
+            or (qos.durability == DurabilityPolicy.VOLATILE and wanted.durability == DurabilityPolicy.TRANSIENT_LOCAL))
+    return check
 
 
 class MatchedWait:
@@ -214,17 +233,20 @@ class AdcsNode(Node):
             event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
         return sub
 
-    def wait_for(self, what: str, ready: Callable[[], bool], timeout: float, endpoints=()) -> None:
-        """Block until ``ready()`` or raise GraphTimeout naming ``what`` after ``timeout`` s.
-        ``ready()`` is tested again whenever the matching of one of ``endpoints`` (publishers,
-        subscriptions) changes (:class:`MatchedWait`), and at least every MATCH_RECHECK_S."""
+    def wait_for(self, what: str, ready: Callable[[], bool], timeout: float, endpoints=(),
+                 state: Callable[[], str] | None = None) -> None:
+        """Block until ``ready()`` or raise GraphTimeout naming ``what`` (and ``state()``: what the
+        graph held then) after ``timeout`` s. ``ready()`` is tested again whenever the matching of
+        one of ``endpoints`` (publishers, subscriptions) changes (:class:`MatchedWait`), and at
+        least every MATCH_RECHECK_S."""
         deadline = time.monotonic() + timeout
         waiter = MatchedWait(self.context, endpoints)  # before the first test: no change is missed
         try:
             while not ready():
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
-                    raise GraphTimeout(f'{self.get_name()}: timed out after {timeout:g} s waiting for {what}')
+                    held = f' ({state()})' if state is not None else ''
+                    raise GraphTimeout(f'{self.get_name()}: timed out after {timeout:g} s waiting for {what}{held}')
                 waiter.wait(min(remaining, MATCH_RECHECK_S))
         finally:
             waiter.destroy()
@@ -261,14 +283,22 @@ class AdcsNode(Node):
         for pub, count in required.items():
             if count > 0:
                 self.wait_for(f'{count} subscriber(s) on {pub.topic_name}',
-                              lambda p=pub, c=count: self._subscribed(p, c), timeout, endpoints=[pub])
+                              lambda p=pub, c=count: self._subscribed(p, c), timeout, endpoints=[pub],
+                              state=lambda p=pub: self._subscription_state(p))
 
     def _subscribed(self, pub, count: int) -> bool:
+        """At least ``count`` subscriptions matched to ``pub``; with ``startup.publishers``, at least
+        ``count`` of the run's nodes among those that can match it, and every other one that can
+        match it matched too (the matched count alone does not say whose they are)."""
         matched = pub.get_subscription_count()
         if matched < count or self.vetting.run_nodes is None:
             return matched >= count
-        own, others = self.vetting.subscribers(pub.topic_name)
+        own, others = self.vetting.subscribers(pub.topic_name, can_match(pub))
         return own >= count and matched >= count + others
+
+    def _subscription_state(self, pub) -> str:
+        return (f'{pub.get_subscription_count()} matched; the graph lists '
+                f'{self.vetting.describe_subscribers(pub.topic_name, can_match(pub))}')
 
     def close(self) -> None:
         """Release resources (files); called once on the way out, whatever happened."""

@@ -124,8 +124,12 @@ class TopicSpec:
     @property
     def type_name(self) -> str:
         """ROS 2 type name, e.g. ``nav_msgs/msg/Odometry``."""
-        module = self.msg_type.__module__.split('.')[0]
-        return f'{module}/msg/{self.msg_type.__name__}'
+        return type_name(self.msg_type)
+
+
+def type_name(msg_type: type) -> str:
+    """ROS 2 type name of a message class, as the graph lists it (``nav_msgs/msg/Odometry``)."""
+    return f'{msg_type.__module__.split(".")[0]}/msg/{msg_type.__name__}'
 
 
 
