@@ -52,10 +52,6 @@ def message_class(type_name: str):
     return cls if hasattr(type(cls), '__import_type_support__') else None
 
 
-def _type_name(msg_type) -> str:
-    return f'{msg_type.__module__.split(".")[0]}/msg/{msg_type.__name__}'
-
-
 class RecorderNode(AdcsNode):
     schema = RECORDER_SCHEMA
     # The recorder applies nothing: an intruder is written into the bag (INTRUSIONS) and the
@@ -101,7 +97,7 @@ class RecorderNode(AdcsNode):
         resolved = self.resolve_topic_name(name)
         if resolved in self.subs:
             return
-        type_name = _type_name(msg_type)
+        type_name = topics.type_name(msg_type)
         self.bag.add_topic(resolved, type_name, qos_dicts(offered))
         stamped = type_name in STAMP_FIRST_TYPES
         derive_tf = name in names.FRAME_TOPICS
