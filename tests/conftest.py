@@ -200,6 +200,14 @@ def spin_until(executor, condition, timeout: float = 30.0, what: str = 'the expe
         executor.spin_once(timeout_sec=0.1)
 
 
+def reference_comparison(bags, paper: Path, out: Path) -> str:
+    """``comparison.md`` of ``adcs-analyze BAGS --compare --reference PAPER --out OUT`` (which must exit
+    0): the published-vs-ours rows every seed's doc table is checked against."""
+    from adcs_sim.app.analyze import main as analyze   # matplotlib behind it: only for these tests
+    assert analyze([*map(str, bags), '--compare', '--reference', str(paper), '--out', str(out)]) == 0
+    return (out / 'comparison.md').read_text()
+
+
 _BATCH_RUNS: dict = {}
 
 

@@ -18,11 +18,10 @@ import math
 
 import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import ROOT, reference_comparison
 from numpy.testing import assert_array_equal
 
 from adcs_sim.app.analysis import RunData, attitude_errors, fault_metrics
-from adcs_sim.app.analyze import main as analyze
 from adcs_sim.app.report.lead import paper_values
 
 BAGS = ROOT / 'bags'
@@ -130,8 +129,7 @@ def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path):
     the metrics the reports lead with): these rows as the doc prints them, so the doc cannot drift from the bags."""
     bags = [str(BAGS / name / 'bag') for name in LAWS.values()]
     paper = ROOT / 'docs' / 'seed000' / 'paper.yaml'
-    assert analyze([*bags, '--compare', '--reference', str(paper), '--out', str(tmp_path)]) == 0
-    text = (tmp_path / 'comparison.md').read_text()
+    text = reference_comparison(bags, paper, tmp_path)
     for row in ('| uosat12_zero_momentum | `settling_q4_0.02_after_fault_s` | 2452.1 | 190.766 | -92.2 % |',
                 '| uosat12_snlc | `integrated_torque_after_fault_Nms` | 19.62 | 24.0243 | +22.4 % |',
                 '| uosat12_gsmn | `settling_q4_0.01_after_fault_s` | 1748.4 | 944.1 | -46.0 % |',

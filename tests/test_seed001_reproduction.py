@@ -14,11 +14,10 @@ import math
 
 import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import ROOT, reference_comparison
 from numpy.testing import assert_allclose, assert_array_equal
 
 from adcs_sim.app.analysis import RunData
-from adcs_sim.app.analyze import main as analyze
 from adcs_sim.app.report.lead import paper_values
 
 BAGS = ROOT / 'bags'
@@ -200,8 +199,7 @@ def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path):
     with): these rows as the doc prints them, so the doc cannot drift from the bags."""
     bags = [str(BAGS / n / 'bag') for n in ('m2s_nonprincipal_vagc_0p02', 'm2s_nonprincipal_vags_0p02')]
     paper = ROOT / 'docs' / 'seed001' / 'paper.yaml'
-    assert analyze([*bags, '--compare', '--reference', str(paper), '--out', str(tmp_path)]) == 0
-    text = (tmp_path / 'comparison.md').read_text()
+    text = reference_comparison(bags, paper, tmp_path)
     for row in ('| m2s_nonprincipal_vagc_0p02 | `steady_torque_x_Nm` | 0.0047 | 0.00470264 | +0.1 % |',
                 '| m2s_nonprincipal_vagc_0p02 | `steady_torque_y_Nm` | -0.0124 | -0.0123655 | +0.3 % |',
                 '| m2s_nonprincipal_vagc_0p02 | `steady_torque_z_Nm` | 0.0077 | 0.00765893 | -0.5 % |',

@@ -25,11 +25,10 @@ import math
 
 import numpy as np
 import pytest
-from conftest import ROOT, assert_recorded_run_equal
+from conftest import ROOT, assert_recorded_run_equal, reference_comparison
 from numpy.testing import assert_allclose
 
 from adcs_sim.app.analysis import RunData, attitude_errors_deg, settling_time, thruster_metrics
-from adcs_sim.app.analyze import main as analyze
 from adcs_sim.app.report.lead import paper_values
 
 BAG = ROOT / 'bags' / 'eseo_backstepping_slew'
@@ -64,8 +63,7 @@ def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path):
     docs/seed002/paper.yaml`` on the committed bag (one bag is enough with a reference): the tracking error's
     1° settling against q_d(t), the metric a tracking report leads with, as the doc prints it."""
     paper = ROOT / 'docs' / 'seed002' / 'paper.yaml'
-    assert analyze([str(BAG / 'bag'), '--compare', '--reference', str(paper), '--out', str(tmp_path)]) == 0
-    text = (tmp_path / 'comparison.md').read_text()
+    text = reference_comparison([BAG / 'bag'], paper, tmp_path)
     assert '| eseo_backstepping_slew | `settling_eigenaxis_1deg_s` | 38 | 38.1257 | +0.3 % |' in text
     with open(tmp_path / 'reference_comparison.csv', newline='', encoding='utf-8') as f:
         (row,) = csv.DictReader(f)

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import batch_run_data
+from conftest import batch_run_data, reference_comparison
 
 from adcs_sim.app.analysis import RunData, run_metrics, settling_times
 from adcs_sim.app.batch import BatchSimulation
@@ -213,8 +213,7 @@ def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path, capsys):
     from adcs_sim.app.analyze import main as analyze
     bags = [str(BAGS / n / 'bag') for n in ('microsat_pd_slew', 'microsat_gsmn_slew')]
     paper = ROOT / 'docs' / 'seed004' / 'paper.yaml'
-    assert analyze([*bags, '--compare', '--reference', str(paper), '--out', str(tmp_path / 'cmp')]) == 0
-    text = (tmp_path / 'cmp' / 'comparison.md').read_text()
+    text = reference_comparison(bags, paper, tmp_path / 'cmp')
     assert '| microsat_gsmn_slew | `settling_euler213_all_0.5deg_s` | 123.8 | 119.776 | -3.3 % |' in text
     bad = tmp_path / 'bad.yaml'
     bad.write_text('source: x\nruns:\n  microsat_gsmn_slew:\n    settling_time: 1.0\n')
