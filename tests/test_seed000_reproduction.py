@@ -72,10 +72,13 @@ def test_three_axis_stabilisation_with_two_wheels(runs, law):
 
 @pytest.mark.parametrize('law', list(LAWS))
 def test_settling_and_torque_beside_the_paper(runs, law):
-    """Our figures (pinned, 1 %) beside the paper's; printed for the record."""
+    """Our figures beside the paper's (printed for the record), pinned as regression values to half a
+    unit of the last digit docs/seed000.md prints (0.05 s, 0.005 N m s): the bags are deterministic,
+    so any change of law, plant or analysis that moves a figure of the doc fails here."""
     ours = figures(runs[law])
     print(f'{law}: paper {PAPER[law]}, ours {tuple(round(v, 1) for v in ours)}')
-    np.testing.assert_allclose(ours, OURS[law], rtol=0.01)
+    for value, pinned, half_digit in zip(ours, OURS[law], (0.05, 0.05, 0.005)):
+        assert abs(value - pinned) <= half_digit, (value, pinned)
 
 
 def test_gsmn_settles_first_in_the_fine_band(runs):
