@@ -20,7 +20,8 @@ from adcs_sim.app.batch import BatchSimulation  # noqa: E402
 from adcs_sim.app.domains import DomainLease  # noqa: E402
 from adcs_sim.truth.plant import Plant  # noqa: E402
 
-# Tests use UDP only: a killed Fast DDS process would otherwise leave shared-memory files.
+# Asks Fast DDS for UDP only. rmw_fastrtps's LOCALHOST discovery range sets its own transports and
+# adds shared memory anyway (test_recorder.remove_if_orphaned cleans what a SIGKILLed node leaves).
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ['FASTDDS_BUILTIN_TRANSPORTS'] = 'UDPv4'
 from adcs_msgs_py.node import network_hygiene_defaults  # noqa: E402
