@@ -119,18 +119,7 @@ class RunData:
                        for rel in READ_TYPES)
 
         reader = ColumnReader(path, select)
-        columns: dict[str, list] = defaultdict(list)     # topic -> [(first row number, Columns)]
-        diagnostics: dict[str, list] = defaultdict(list)  # topic -> [(stamps, statuses)]
-        seen: dict[str, int] = defaultdict(int)
-        status_records: dict[str, StatusRecords] = defaultdict(StatusRecords)   # controller/status, compact
-        for batch in reader:
-            if batch.type_name == DIAGNOSTIC_ARRAY and batch.topic.endswith('/' + topics.CONTROLLER_STATUS):
-                status_records[batch.topic].add(*decode_diagnostics(batch))
-            elif batch.type_name == DIAGNOSTIC_ARRAY:
-                diagnostics[batch.topic].append(decode_diagnostics(batch))
-            else:
-                columns[batch.topic].extend((seen[batch.topic], _kept(c, batch.type_name)) for c in decode_batch(batch))
-            seen[batch.topic] += len(batch)
+        columns, diagnostics, status_records = _read(reader)
         counts = {name: n for name, n in reader.topic_counts.items() if n}
         ns = fixed if fixed is not None else _namespace(counts, reader.topics)
         state_topic = ns + topics.STATE
@@ -149,13 +138,7 @@ class RunData:
         _set_wheels(run, columns.pop(ns + topics.WHEELS_STATE, []))
         _set_thrusters(run, columns.pop(ns + topics.THRUSTERS_STATE, []))
         columns.clear()
-        for stamp, statuses in _merged_statuses(diagnostics.get(ns + topics.DYNAMICS_STATUS, [])):
-            for status in statuses:
-                if 'missed_steps' in status[4]:
-                    try:
-                        run.missed_steps = int(float(status[4]['missed_steps']))
-                    except ValueError:
-                        pass
+        run.missed_steps = _missed_steps(diagnostics.get(ns + topics.DYNAMICS_STATUS, []))
         if ns + topics.CONTROLLER_STATUS in status_records:
             run.controller_status = status_records[ns + topics.CONTROLLER_STATUS].freeze()
         run.missed_at = _missed_at(diagnostics.get(ns + topics.DYNAMICS_STATUS, []))
@@ -173,6 +156,38 @@ class RunData:
             run.q_ref = target_attitude(run.scenario)
             run.pointing = pointing_request(run.scenario)
         return run
+
+
+def _read(reader: ColumnReader) -> tuple[dict, dict, dict]:
+    """Every batch of ``reader``, decoded: ``(columns, diagnostics, status records)`` by topic;
+    columns as ``[(first row number, Columns)]``, diagnostics as ``[(stamps, statuses)]``, the
+    controller status compact (:class:`StatusRecords`, not yet frozen)."""
+    columns: dict[str, list] = defaultdict(list)
+    diagnostics: dict[str, list] = defaultdict(list)
+    status_records: dict[str, StatusRecords] = defaultdict(StatusRecords)
+    seen: dict[str, int] = defaultdict(int)
+    for batch in reader:
+        if batch.type_name == DIAGNOSTIC_ARRAY and batch.topic.endswith('/' + topics.CONTROLLER_STATUS):
+            status_records[batch.topic].add(*decode_diagnostics(batch))
+        elif batch.type_name == DIAGNOSTIC_ARRAY:
+            diagnostics[batch.topic].append(decode_diagnostics(batch))
+        else:
+            columns[batch.topic].extend((seen[batch.topic], _kept(c, batch.type_name)) for c in decode_batch(batch))
+        seen[batch.topic] += len(batch)
+    return columns, diagnostics, status_records
+
+
+def _missed_steps(parts: list) -> int | None:
+    """The last ``missed_steps`` the dynamics node's status gave (None: none readable)."""
+    missed = None
+    for _, statuses in _merged_statuses(parts):
+        for status in statuses:
+            if 'missed_steps' in status[4]:
+                try:
+                    missed = int(float(status[4]['missed_steps']))
+                except ValueError:
+                    pass
+    return missed
 
 
 def _scenario(text: str | None) -> dict | None:
