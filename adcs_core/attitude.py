@@ -172,10 +172,17 @@ def pointing_error(q: np.ndarray, sigma: np.ndarray, tau: np.ndarray) -> np.ndar
 # --- rotation matrices (seed 001's attitude representation) -----------------------------------
 
 def matmul(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``A B`` for (..., 3, 3) matrices, column by column through :func:`matvec` (fixed order)."""
+    """``A B`` for (..., m, k) and (..., k, n) matrices, batch axes broadcast: ``k`` element-wise
+    multiply-adds of whole matrices in the fixed order of :func:`matvec` (element ``ij`` is
+    ``A[i,0] B[0,j] + A[i,1] B[1,j] + ...`` from the left, the same operations as ``matvec`` of each
+    column, so the same bits), without BLAS and without a call per column (seed 001's laws make
+    eight products a step)."""
     A = np.asarray(A, dtype=float)
     B = np.asarray(B, dtype=float)
-    return np.stack([matvec(A, B[..., :, j]) for j in range(B.shape[-1])], axis=-1)
+    out = A[..., :, 0, None] * B[..., None, 0, :]
+    for k in range(1, A.shape[-1]):
+        out = out + A[..., :, k, None] * B[..., None, k, :]
+    return out
 
 
 def hat(w: np.ndarray) -> np.ndarray:
