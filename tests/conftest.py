@@ -304,7 +304,9 @@ def run_lockstep_graph(scenario: Path, controller_class, expected: dict, faults:
     with InProcessGraph(scenario) as graph:
         rec = graph.add(RecorderNode)
         if faults:
-            graph.add(FaultInjectorNode)
+            injector = graph.add(FaultInjectorNode)
+            if injector.params['startup.expect_recorder']:   # what its run() does first, under the runner
+                injector.publish_once_recorded()
         dyn = graph.add(DynamicsNode)
         ctrl = graph.add(controller_class)
         if faults:
