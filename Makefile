@@ -19,7 +19,7 @@ run: $(VENV)/.installed
 	$(VENV)/bin/adcs-run $(SCENARIO) --report
 
 test: $(VENV)/.installed
-	$(PY) -m pytest -q tests
+	$(PY) -m pytest -q -n 2 --dist loadfile tests
 
 # BENCH_FLAGS=--basilisk adds the Basilisk comparisons (bsk installed into a throwaway venv in /tmp).
 bench: $(VENV)/.installed
