@@ -163,6 +163,11 @@ class AdcsNode(Node):
     """A node whose parameters are checked against a schema at construction."""
 
     schema: Schema
+    #: The executor its process spins (:func:`main_for`): rclpy's single-threaded one by default.
+    executor_class = rclpy.executors.SingleThreadedExecutor
+    #: Whether subscription callbacks take the message info (for the vetting's per-message publisher
+    #: GID, which Jazzy's MessageInfo does not carry yet: the vetting then looks the graph up).
+    message_info = True
 
     def __init__(self, context: Context, schema: Schema | None = None, **kwargs) -> None:
         schema = schema or self.schema
@@ -222,14 +227,16 @@ class AdcsNode(Node):
         resolved = self.resolve_topic_name(name)
         vetted = resolved in vetting.allowed
 
-        def on_message(msg, info) -> None:
+        def on_message(msg, info) -> None:   # two parameters: rclpy then passes the message info
             if vetted and not vetting.admit(sub, info, resolved):
                 self.on_refused(resolved, msg)
                 return
             rejects.guarded(name, callback, msg)
 
         sub = self.create_subscription(
-            msg_type or s.msg_type, name, on_message, qos or topics.subscriber_qos(s.qos), raw=raw,
+            msg_type or s.msg_type, name,
+            on_message if self.message_info else (lambda msg, info=None: on_message(msg, info)),  # message only
+            qos or topics.subscriber_qos(s.qos), raw=raw,
             event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
         return sub
 
@@ -371,7 +378,7 @@ def main_for(node_class: type[AdcsNode], args=None, handle_signals: bool = True)
         except ParameterError as exc:
             print(f'[{node_class.schema.node}] error: {exc}', file=sys.stderr, flush=True)
             return EXIT_BAD_PARAMETERS
-        executor = rclpy.executors.SingleThreadedExecutor(context=context)
+        executor = node_class.executor_class(context=context)
         executor.add_node(node)
         node.run(executor)
     except GraphTimeout as exc:
