@@ -192,19 +192,25 @@ def test_disagreement_table1_gsmn_settles_over_1s_faster_than_the_paper_on_x_y_u
             assert np.all(table1(lgv)[key][:2] < PAPER_T1[key][:2] - 1.0), (lgv, key)
 
 
-# --- section III.F: does not discriminate --------------------------------------------------------
+# --- section III.F: leans weakly to (a); Table I decides ------------------------------------------
 
-def test_iii_f_gsmn_settling_within_5pct_under_both_readings_at_both_periods():
-    """Paper: 123.8 s (0.5°, all axes; printed to 0.1 s). Ours at the scenario's 0.1 s period (a reading):
-    (a) 122.3 s (-1.2 %), (b) 119.8 s (-3.3 %); at 1 s: (a) 128.1 s (+3.5 %), (b) 117.7 s (-4.9 %). Both
-    readings fall within 5 % at both periods, on either side: III.F does not discriminate. Tolerance 5 %,
-    the method's: the paper gives no control period, and 1 s -> 0.1 s moves (a) by 4.5 %."""
+def test_iii_f_gsmn_settling_within_the_period_sensitivity_under_the_printed_reading_only():
+    """Paper: 123.8 s (0.5°, all axes; printed to 0.1 s). Ours at the scenario's 0.1 s period (a reading) and at
+    1 s: (a) printed 122.3 / 128.1 s (-1.2 / +3.5 %), (b) 119.8 / 117.7 s (-3.3 / -4.9 %). Tolerance per reading,
+    the method's: how far the unknown control period moves that reading's figure from 0.1 s to 1 s, measured here
+    ((a) 4.7 %, (b) 1.8 %; no period of 0.01-1 s moves either further: docs/seed004.md). (a) is within its
+    sensitivity at both periods, (b) at neither: III.F leans to (a), weakly (a settling time that also depends on
+    the wheels, which the paper does not give), against Table I's peaks, printed to 4 digits, which only (b)
+    gives (kept: (b)). The paper lies between the two readings at 1 s. (Was: both readings within 5 % at both
+    periods, "the method's" from (a)'s 4.5 %, which (b)'s 4.9 % at 1 s sat just under.)"""
     paper = PAPER_3F['settling_euler213_all_0.5deg_s']
-    for lgv in io.LGV_READINGS:
-        assert abs(iii_f(lgv)['settling 0.5 deg all axes (s)'] - paper) < 0.05 * paper, lgv
-        assert abs(iii_f(lgv, 1.0)['settling 0.5 deg all axes (s)'] - paper) < 0.05 * paper, lgv
-    assert iii_f('printed', 1.0)['settling 0.5 deg all axes (s)'] > paper > iii_f(
-        'inertia_weighted', 1.0)['settling 0.5 deg all axes (s)']
+    key = 'settling 0.5 deg all axes (s)'
+    for lgv, within in (('printed', True), ('inertia_weighted', False)):
+        fine, coarse = iii_f(lgv)[key], iii_f(lgv, 1.0)[key]
+        sensitivity = abs(coarse - fine) / fine
+        for ours in (fine, coarse):
+            assert (abs(ours - paper) < sensitivity * paper) == within, (lgv, ours, sensitivity)
+    assert iii_f('printed', 1.0)[key] > paper > iii_f('inertia_weighted', 1.0)[key]
 
 
 def test_disagreement_iii_f_gsmn_integrated_torque_12_to_16pct_below_the_paper_under_both_readings():
