@@ -203,8 +203,10 @@ def test_gsmn_peak_torque_below_kt_table1():
 
 
 def test_table1_control_period_is_converged():
-    """The 1 ms control period of the Table I scenarios: halving it changes the integrated torque
-    by less than 0.2 % and no per-axis settling time by more than 0.02 s (batch engine)."""
+    """The 1 ms control period of the Table I scenarios is converged to Table I's printed precision: halving it
+    moves the integrated torque by less than half a unit of the paper's last digit (26.95: 0.005 N m s; observed
+    0.0016) and no per-axis settling time by more than half of its 0.1 s (0.05 s; observed 0.009 s), batch
+    engine. (Was 0.2 % and 0.02 s, with no reason.)"""
     out = {}
     for period in (0.001, 0.0005):
         validated = validate_scenario(ROOT / 'config' / 'table1_gsmn.yaml')
@@ -214,9 +216,9 @@ def test_table1_control_period_is_converged():
         out[period] = (run_metrics(result)['integrated_torque_Nms'],
                        settling_times(result, (1.0, 0.5)))
     (i1, s1), (i2, s2) = out[0.001], out[0.0005]
-    assert rel(i1, i2) < 0.002
+    assert abs(i1 - i2) < 0.005
     for tol in (1.0, 0.5):
-        assert np.max(np.abs(np.subtract(s1[tol]['euler213_per_axis'], s2[tol]["euler213_per_axis"]))) < 0.02
+        assert np.max(np.abs(np.subtract(s1[tol]['euler213_per_axis'], s2[tol]["euler213_per_axis"]))) < 0.05
     assert all(math.isfinite(v) for v in s1[0.5]['euler213_per_axis'])
 
 
