@@ -216,11 +216,19 @@ def test_iii_f_gsmn_settling_within_the_period_sensitivity_under_the_printed_rea
     assert iii_f('printed', 1.0)[key] > paper > iii_f('inertia_weighted', 1.0)[key]
 
 
-def test_disagreement_iii_f_gsmn_integrated_torque_12_to_16pct_below_the_paper_under_both_readings():
-    """Paper: 0.214 N m s. Ours (0.1 s period): (a) 0.183 (-14.5 %), (b) 0.181 (-15.5 %); at 1 s 0.187 /
-    0.182. Neither; both keep the peak inside the 0.01 N m limit (the paper's "admissible instantaneous
-    torque")."""
+def test_disagreement_iii_f_gsmn_integrated_torque_below_the_paper_beyond_the_period_under_both_readings():
+    """DISAGREEMENT with III.F, pinned: paper 0.214 N m s. Ours (0.1 s period): (a) 0.183 (-14.5 %), (b) 0.181
+    (-15.5 %); at 1 s 0.187 / 0.182. The miss is beyond the method's sensitivity (how far the unknown period
+    moves each reading from 0.1 s to 1 s, measured here: (a) 1.9 %, (b) 0.8 %) plus the paper's printed
+    precision (0.0005 of 0.214) under both: neither reading explains it. Ours pinned to half a unit of the
+    digit docs/seed004_readings.md prints (0.0005 N m s). Both keep the peak inside the 0.01 N m limit (the
+    paper's "admissible instantaneous torque"). (Was: a miss between 12 and 16 %, a band around the
+    observed with no reason.)"""
     paper = PAPER_3F['integrated_torque_Nms']
-    for lgv in io.LGV_READINGS:
-        assert 0.12 < (paper - iii_f(lgv)['int |u| dt (N m s)']) / paper < 0.16
+    key = 'int |u| dt (N m s)'
+    for lgv, ours in (('printed', 0.183), ('inertia_weighted', 0.181)):
+        fine, coarse = iii_f(lgv)[key], iii_f(lgv, 1.0)[key]
+        assert abs(fine - ours) <= 0.0005, (lgv, fine)
+        sensitivity = abs(coarse - fine)
+        assert paper - fine > sensitivity + 0.0005 and paper - coarse > 0.0005, (lgv, fine, coarse)
         assert iii_f(lgv)['peak |u|_inf (N m)'] <= 0.01
