@@ -187,12 +187,15 @@ def test_table1_gsmn_integrated_torque_within_1pct_inertia_weighted_not_printed(
     assert abs(table1('printed')['int |u| dt (N m s)'] - paper) > 0.01 * paper
 
 
-def test_disagreement_table1_gsmn_settles_over_1s_faster_than_the_paper_on_x_y_under_both_readings():
-    """Paper 1° X / Y: 9.6 / 7.1 s, 0.5°: 10.6 / 10.1 s (printed to 0.1 s). Ours 1°: (a) 7.35 / 5.79,
-    (b) 7.04 / 4.89; 0.5°: (a) 7.83 / 7.00, (b) 8.15 / 6.17 s: neither reading explains the settling times."""
+def test_disagreement_table1_gsmn_settles_faster_than_the_paper_on_x_y_under_both_readings():
+    """DISAGREEMENT with Table I, pinned: paper 1° X / Y: 9.6 / 7.1 s, 0.5°: 10.6 / 10.1 s (printed to 0.1 s).
+    Ours 1°: (a) 7.35 / 5.79, (b) 7.04 / 4.89; 0.5°: (a) 7.83 / 7.00, (b) 8.15 / 6.17 s, 1.3-3.9 s early:
+    neither reading explains the settling times. Asserted beyond the paper's printed precision (0.05 s), which
+    is also more than the 1 ms period moves them (0.009 s, test_table1_control_period_is_converged). (Was:
+    "over 1 s" early, a margin under the smallest miss with no reason.)"""
     for lgv in io.LGV_READINGS:
         for key in ('settling 1 deg (s)', 'settling 0.5 deg (s)'):
-            assert np.all(table1(lgv)[key][:2] < PAPER_T1[key][:2] - 1.0), (lgv, key)
+            assert np.all(table1(lgv)[key][:2] < PAPER_T1[key][:2] - 0.05), (lgv, key)
 
 
 # --- section III.F: leans weakly to (a); Table I decides ------------------------------------------
