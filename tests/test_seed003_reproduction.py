@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import assert_recorded_run_equal
 
 from adcs_sim.app.analysis import RunData, pointing_error_deg, run_metrics
 from adcs_sim.app.batch import BatchSimulation
@@ -35,14 +36,17 @@ def run(which: str) -> RunData:
 @pytest.mark.parametrize('which', ['a', 'b'])
 def test_recording_is_what_the_code_computes(which):
     """The bag equals the batch engine's run of its scenario (the graph runs the pure law; the
-    recording is current)."""
+    recording is current). Tolerances: the stamps to 1e-12 s (sec + nanosec); q and u as every committed bag
+    against a fresh run (conftest.assert_recorded_run_equal: CROSS_CPU_RTOL). Not bit for bit even here: the
+    node runs the law step by step, the batch engine vectorised (round-off, observed 3.8e-15 on q, 9.5e-16 on
+    u; was atol 1e-12 / 1e-15, the latter just above the observed, with no reason)."""
     graph = run(which)
     batch = BatchSimulation.from_runs([validate_scenario(BAGS / f'pointing_controller_{which}' / 'scenario.yaml')]
                                       ).run().run_data(0)
     assert graph.missed_steps == 0
     np.testing.assert_allclose(batch.t, graph.t, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(batch.q, graph.q, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(batch.u, graph.u, rtol=0, atol=1e-15)
+    assert_recorded_run_equal(batch.q, graph.q)
+    assert_recorded_run_equal(batch.u, graph.u)
 
 
 @pytest.mark.parametrize('which', ['a', 'b'])
