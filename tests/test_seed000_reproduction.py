@@ -8,8 +8,8 @@ check that the showcase bag is what the current code computes (the batch engine,
 Paper, section VI.A (q4 settling from t0 = 500 s within 1 ± 0.02 / 1 ± 0.01; ∫‖u‖dt from t0):
 GSMN 521.5 / 1748.4 s, 9.84 N m s; zero momentum 2452.1 / 2956.5 s, 19.2; snlc 2918.8 / 7072.9 s,
 19.62. These numbers are NOT reproduced (the attitude at t0, the three-wheel phase, the wheels'
-spin inertia and speed loop are not given): ours are pinned below as regression values with a 1 %
-tolerance, next to the paper's, and the qualitative claims are tested.
+spin inertia and speed loop are not given): ours are pinned below as regression values to half a unit of
+the digit docs/seed000.md prints, next to the paper's, and the qualitative claims are tested.
 """
 from __future__ import annotations
 
@@ -55,7 +55,11 @@ def figures(run: RunData) -> tuple[float, float, float]:
 def test_three_axis_stabilisation_with_two_wheels(runs, law):
     """VI.A: "the attitude is stabilized on all three axes with admissible torque": from t0 the
     run enters and stays in both of the paper's q4 bands (all three axes: 1 - q4 bounds the whole
-    rotation), no z torque, no wheel above its limit, the unactuated q3 down to a tenth."""
+    rotation), no z torque, no wheel above its limit, the unactuated q3 smaller at the end than at t0
+    (ours: 1e-7 of it for zero momentum and snlc, 0.105 for GSMN, still converging:
+    tests/test_seed000_showcase_tail.py). The end inside the paper's fine band 1 - q4 < 0.01 (ours 4.6e-9,
+    1.7e-9, 3.6e-4). Both were thresholds with no reason (q3 < 0.15 x, 1 - q4 < 0.001): now the claim's
+    ordering and the paper's own band."""
     run = runs[law]
     m = fault_metrics(run)
     assert m['first_fault_time_s'] == T0
@@ -66,8 +70,8 @@ def test_three_axis_stabilisation_with_two_wheels(runs, law):
     assert np.abs(run.u).max() <= U_MAX + 1e-12
     qe, _, _ = attitude_errors(run)
     k0 = int(np.flatnonzero(run.t == T0)[0])
-    assert abs(qe[-1, 2]) < 0.15 * abs(qe[k0, 2])
-    assert 1.0 - abs(qe[-1, 3]) < 0.001  # 5.1° of rotation left at most, from 45.5° at t0
+    assert abs(qe[-1, 2]) < abs(qe[k0, 2])
+    assert 1.0 - abs(qe[-1, 3]) < 0.01  # the paper's 1 ± 0.01 band on q4
 
 
 @pytest.mark.parametrize('law', list(LAWS))
@@ -114,12 +118,14 @@ def test_disagreement_snlc_needs_less_torque_than_zero_momentum(runs):
 def test_gsmn_has_zero_torque_phases(runs):
     """VI.A: the min-norm law "remains stable despite several horizontal zero torque phases": the
     status switches between the projected low-gain torque and zero torque many times, the torque
-    is exactly zero then, and V never increases over a zero-torque step by more than rounding."""
+    is exactly zero then. "Several" asserted as at least two zero-torque phases; ours, 455 switches (a count
+    of the deterministic bag, docs/seed000.md), exactly (was: > 50, with no reason)."""
     run = runs['gsmn']
     status = [(t, v) for t, _, v in run.controller_status if t >= T0]
     modes = [v['mode'] for _, v in status]
     switches = sum(a != b for a, b in zip(modes, modes[1:]))
-    assert {'low_gain', 'zero_torque'} <= set(modes) and switches > 50
+    assert {'low_gain', 'zero_torque'} <= set(modes) and switches == 455
+    assert sum(a != 'zero_torque' and b == 'zero_torque' for a, b in zip(modes, modes[1:])) >= 2
     zero_t = {t for t, v in status if v['mode'] == 'zero_torque'}
     k = np.isin(run.t_u, sorted(zero_t))
     assert np.all(run.u[k] == 0.0)
@@ -166,15 +172,25 @@ def test_showcase_bag_is_what_the_code_computes():
     assert_array_equal(run.u, bag.u)
 
 
-@pytest.mark.parametrize('name, limit_deg', [('uosat12_sun_tracking', 15.0), ('ukdmc_two_wheels', 45.0)])
-def test_in_orbit_cases_have_bounded_errors(name, limit_deg):
+# ours, as docs/seed000.md prints them: eigenaxis error max over the 1st / 2nd orbit (°), wheel speed max (rad/s)
+IN_ORBIT = {'uosat12_sun_tracking': (35.0, 9.2, 71.9), 'ukdmc_two_wheels': (39.6, 16.2, 12.1)}
+
+
+@pytest.mark.parametrize('name', list(IN_ORBIT))
+def test_in_orbit_cases_have_bounded_errors(name):
     """VI.B: "controlling the unactuated axis within bounded errors" with measurement noise, the
-    gravity-gradient torque and a bias momentum that breaks the zero-momentum assumption: over the
-    second orbit the eigenaxis error stays below ``limit_deg`` and no larger than over the first,
-    and the wheels stay far from their 5000 rpm."""
+    gravity-gradient torque and a bias momentum that breaks the zero-momentum assumption. The paper prints no
+    bound: the claim is asserted as the second orbit's eigenaxis error no larger than the first's and the
+    wheels below their 5000 rpm (523.6 rad/s). Ours (35.0 / 9.2° with wheels 71.9 rad/s; 39.6 / 16.2° with
+    12.1 rad/s) pinned to half a unit of the digit docs/seed000.md prints (0.05° and 0.05 rad/s), regression values
+    of the deterministic bags. (Was: the 2nd orbit below 15° / 45° and the wheels below 20 % of their limit,
+    thresholds with no reason.)"""
     run = load(name)
     _, eigen, _ = attitude_errors(run)
     half = run.t >= run.t_end / 2
-    assert eigen[half].max() < limit_deg
+    wheels = np.abs(run.wheel_speed).max()
     assert eigen[half].max() <= eigen[~half].max()
-    assert np.abs(run.wheel_speed).max() < 0.2 * 523.6
+    assert wheels < 523.6
+    first, second, wheel = IN_ORBIT[name]
+    assert abs(eigen[~half].max() - first) <= 0.05 and abs(eigen[half].max() - second) <= 0.05, eigen.max()
+    assert abs(wheels - wheel) <= 0.05, wheels

@@ -28,7 +28,9 @@ U_MAX = 0.02                       # N m
 
 def test_showcase_tail_is_the_saturated_singular_demand_and_still_converging():
     """The recorded run, 2 000 s windows from 4 000 s: the unactuated |q3| falls in every window (0.09 -> 0.06 ->
-    0.04 -> 0.02) and so does the error, so at 10 000 s it is not a steady cycle. The x / y rates stay below the
+    0.04 -> 0.02) and so does the error (10.9 -> 7.8 -> 5.2 -> 3.1°, the last pinned to half a unit of the 3.1 the
+    docs print, a regression value of the committed bag; was "> 1°", no reason), so at 10 000 s it is not a
+    steady cycle. The x / y rates stay below the
     saturated singular term of eq. 8, g1 a = 2 mrad/s, plus k1 |q| (the desired rate's cap), and the pulses at
     the wheel limit are K1 times that demand (10 x 2 mrad/s = 20 mN m)."""
     run = RunData.from_bag(ROOT / 'bags' / 'uosat12_gsmn' / 'bag')
@@ -37,7 +39,8 @@ def test_showcase_tail_is_the_saturated_singular_demand_and_still_converging():
     q3 = [np.abs(qe[(run.t >= t) & (run.t < t + 2000.0), 2]).max() for t in (4000.0, 6000.0, 8000.0)]
     assert q3[0] > q3[1] > q3[2] > np.abs(qe[-1, 2])
     e = [eig[(run.t >= t) & (run.t < t + 2000.0)].max() for t in (4000.0, 6000.0, 8000.0)]
-    assert e[0] > e[1] > e[2] > eig[-1] > 1.0
+    assert e[0] > e[1] > e[2] > eig[-1]
+    assert abs(eig[-1] - 3.1) <= 0.05, eig[-1]
     tail = run.t >= 8000.0
     cap = G1 * A + 0.02 * np.abs(qe[tail, :2]).max()
     assert np.abs(run.w[tail, :2]).max() < cap
@@ -47,7 +50,10 @@ def test_showcase_tail_is_the_saturated_singular_demand_and_still_converging():
 
 def test_the_slow_tail_is_eq8s_saturation_and_the_low_gain_mode_not_a_bug():
     """The same two-wheel start (the showcase at t0), 5 000 s on the batch engine, one thing changed per run:
-    as recorded 8.4° at the end; eq. 7 (a1 = a2 = inf) 1.6e-6°; the high gains allowed (epsilon = 1 N m) 1.9°.
+    as recorded 8.37° at the end; eq. 7 (a1 = a2 = inf) 1.6e-6°; the high gains allowed (epsilon = 1 N m) 1.96°
+    (docs/seed000.md's table prints the sample one step before: 8.38 / 2e-6 / 1.92°). Fresh batch runs through
+    eq. 30's mode switches, so no regression pin (an ulp across CPUs may move a switch): the thresholds are
+    the claims' words with wide margins (degrees off: > 5°; at rest: < 1e-3°; much faster: under half).
     The law as printed (eq. 8 with the paper's a = 0.025 and eq. 30 with epsilon = the torque limit, where
     the high-gain mode is never entered) is what is slow; the paper itself says the saturated law ends in a
     limit cycle near the origin whose amplitude depends on the saturation limit (section III)."""

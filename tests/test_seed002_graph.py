@@ -174,7 +174,8 @@ def test_scenario_files_hold_the_papers_numbers():
     full = validate_scenario(CONFIG / 'eseo_backstepping.yaml')
     slew = validate_scenario(CONFIG / SLEW)
     assert slew['dynamics'].pop('duration') == 300.0
-    assert full['dynamics'].pop('duration') == pytest.approx(2 * 2 * math.pi / 1.1699887158899546e-3, abs=1.0)
+    # two orbits, written in whole seconds (10741 for 10740.59): half a second (was 1 s, no reason)
+    assert full['dynamics'].pop('duration') == pytest.approx(2 * 2 * math.pi / 1.1699887158899546e-3, abs=0.5)
     assert slew == full
     d, c = full['dynamics'], full['backstepping_controller']
     plant = build_plant(d)
@@ -192,7 +193,8 @@ def test_scenario_files_hold_the_papers_numbers():
                 'wheels.max_torque', 'wheels.spin_inertia', 'wheels.max_speed'):
         assert c[key] == d[key], key   # the controller's model is the plant
     tree = yaml.safe_load((CONFIG / 'eseo_backstepping.yaml').read_text())
-    assert tree['dynamics']['ros__parameters']['wheels']['max_speed'] == [pytest.approx(5035 * math.pi / 30)]
+    # 5035 rpm written to 15 significant digits (repr): round-off (was pytest.approx's default 1e-6)
+    assert tree['dynamics']['ros__parameters']['wheels']['max_speed'] == [pytest.approx(5035 * math.pi / 30, rel=1e-15)]
 
 
 def test_batched_geometries_and_gains_equal_single_runs():

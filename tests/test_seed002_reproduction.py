@@ -10,7 +10,7 @@ The tests read it and state the paper's figures beside ours (docs/seed002.md):
   below 1° after settling over the recorded 300 s (graph) and over 1000 s (batch engine, the
   same code; what a test of < 60 s allows here: ~2 ms per step); the whole two orbits through
   the graph (one run, 0.98° max after settling) are in docs/seed002.md;
-* thruster impulse and firings: not given by the paper; ours pinned (1 %);
+* thruster impulse and firings: not given by the paper; ours pinned (the doc's digits; the count exactly);
 * what the 38 s agreement means: the gains are ours (the paper gives none), and 9 of the 12 gain
   pairs of the readings' grid pass the ±5 s check (the slew is thrust-saturated); the paper's own
   "q_i = [±1 0 0 0]" start: either sign gives the same run.
@@ -73,24 +73,30 @@ def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path):
 
 
 def test_attitude_held_after_settling(run):
-    """Below 1° from the settling time to the end of the recording (the law's own error on
-    controller/status agrees with the analysis of the state to 1e-9 deg); V2 fell by 1e3."""
+    """Below 1° (the settling band) from the settling time to the end of the recording (0.98° at most). The law's
+    own error on controller/status agrees with the analysis of the state to round-off (1e-12 deg, ~35 ulps of
+    135°; observed 2.8e-14; was 1e-9, no reason). V2 (eq. 31) falls, 1.263 -> 7.3e-6 over the 300 s, pinned to
+    half a unit of the digits docs/seed002.md prints (regression values of the deterministic bag; was "by 1e3",
+    no reason; V2 is not monotone step by step: the thrusters are on / off)."""
     eigen, _ = attitude_errors_deg(run)
     ts = settling_time(run.t, eigen, 1.0)
     assert eigen[run.t >= ts].max() <= 1.0
     assert run.t_end == pytest.approx(300.0)
     status = run.controller_status
     angle = np.array([float(v['angle_deg']) for _, _, v in status])
-    assert_allclose(angle, eigen[:len(angle)], atol=1e-9)
+    assert_allclose(angle, eigen[:len(angle)], atol=1e-12)
     V2 = np.array([float(v['V2']) for _, _, v in status])
-    assert V2[-1] < 1e-3 * V2[0]
+    assert V2[-1] < V2[0] and abs(V2[0] - 1.263) <= 5e-4 and abs(V2[-1] - 7.3e-6) <= 5e-8, (V2[0], V2[-1])
     assert run.missed_steps == 0
 
 
 def test_thruster_impulse_and_firings(run):
+    """Paper: neither figure. Ours, regression values of the deterministic bag (was 1 % each, with no reason):
+    the impulse 7.904 N s to half a unit of the digit docs/seed002.md prints (0.0005 N s; observed 7.904000),
+    the firings, a count, exactly (608)."""
     m = thruster_metrics(run)
-    assert m['thruster_impulse_Ns'] == pytest.approx(OURS_IMPULSE, rel=0.01)
-    assert m['thruster_firings'] == pytest.approx(OURS_FIRINGS, rel=0.01)
+    assert abs(m['thruster_impulse_Ns'] - OURS_IMPULSE) <= 0.0005, m['thruster_impulse_Ns']
+    assert m['thruster_firings'] == OURS_FIRINGS
     # each thruster's impulse = 0.13 N x its total on-time; every firing lasts a whole period
     assert_allclose(run.thruster_impulse[-1], 0.13 * run.thruster_on_time.sum(axis=0), rtol=1e-12)
     assert set(np.unique(run.thruster_on_time).tolist()) <= {0.0, 0.1}
@@ -137,8 +143,9 @@ def test_attitude_held_after_settling_batch():
 
 def test_start_near_minus_one_does_not_unwind():
     """q̃(0) = 5° from [-1, 0, 0, 0] (η̃ < 0), at rest in the orbit frame: the law goes to
-    q̃ = -1 directly; the error never exceeds 5.5° and is below 1° at 60 s, with < 1 N s, where
-    a law driving η̃ to +1 would turn 355°."""
+    q̃ = -1 directly: the error never exceeds its start (ours: the max is the start, 5°), is inside the 1°
+    settling band at 60 s (0.14°), with less impulse than the 135.68° slew (0.364 against 7.904 N s), where
+    a law driving η̃ to +1 would turn 355°. (Was: never above 5.5°, < 1 N s: margins with no reason.)"""
     from adcs_core.attitude import quat_multiply, rotate_to_body
     q_d = np.array([-0.43289710176360546, 0.6644955512171767, 0.47829679781365786, -0.3771974746713605])
     e = np.array([0.3, -0.8, 0.5]) / np.linalg.norm([0.3, -0.8, 0.5])
@@ -149,9 +156,9 @@ def test_start_near_minus_one_does_not_unwind():
     result = _batch(60.0, q0, w0)
     eigen, _ = attitude_errors_deg(result.run_data(0))
     assert eigen[0] == pytest.approx(5.0, abs=1e-6)
-    assert eigen.max() < 5.5
+    assert eigen.max() <= eigen[0]
     assert eigen[-1] < 1.0
-    assert np.nansum(result.thruster_impulse[0, -1]) < 1.0
+    assert np.nansum(result.thruster_impulse[0, -1]) < OURS_IMPULSE
 
 
 def test_start_from_either_sign_of_q_is_the_same_run():

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import assert_recorded_run_equal
 
 from adcs_sim.app.analysis import RunData, pointing_error_deg, run_metrics
 from adcs_sim.app.batch import BatchSimulation
@@ -35,14 +36,17 @@ def run(which: str) -> RunData:
 @pytest.mark.parametrize('which', ['a', 'b'])
 def test_recording_is_what_the_code_computes(which):
     """The bag equals the batch engine's run of its scenario (the graph runs the pure law; the
-    recording is current)."""
+    recording is current). Tolerances: the stamps to 1e-12 s (sec + nanosec); q and u as every committed bag
+    against a fresh run (conftest.assert_recorded_run_equal: CROSS_CPU_RTOL). Not bit for bit even here: the
+    node runs the law step by step, the batch engine vectorised (round-off, observed 3.8e-15 on q, 9.5e-16 on
+    u; was atol 1e-12 / 1e-15, the latter just above the observed, with no reason)."""
     graph = run(which)
     batch = BatchSimulation.from_runs([validate_scenario(BAGS / f'pointing_controller_{which}' / 'scenario.yaml')]
                                       ).run().run_data(0)
     assert graph.missed_steps == 0
     np.testing.assert_allclose(batch.t, graph.t, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(batch.q, graph.q, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(batch.u, graph.u, rtol=0, atol=1e-15)
+    assert_recorded_run_equal(batch.q, graph.q)
+    assert_recorded_run_equal(batch.u, graph.u)
 
 
 @pytest.mark.parametrize('which', ['a', 'b'])
@@ -52,9 +56,12 @@ def test_both_controllers_converge_through_the_graph(which):
     assert math.isfinite(m['pointing_settling_0.01deg_s']) and m['final_pointing_error_deg'] < 1e-3
     assert np.abs(r.u).max() <= 0.02 + 1e-12            # 20 mN m
     assert np.all(r.wheel_speed[:, 2] == 0.0)           # the failed Z wheel holds no momentum
-    # the momentum ends in the two wheels: |h| = J_w |Omega| -> H0 = 0.85 N m s, body at rest
+    # the momentum ends in the two wheels: |h| = J_w |Omega| -> H0 = 0.85 N m s, body at rest. Tolerance: what
+    # the rate bound below leaves in the body, max(I) x 1e-6 rad/s = 1e-5 N m s, 1.2e-5 of H0 (was 1e-4, no
+    # reason; observed 3e-8 A / 6e-8 B)
     h = 0.0077 * np.linalg.norm(r.wheel_speed[-1, :2])
-    assert h == pytest.approx(0.85, rel=1e-4) and np.linalg.norm(r.w[-1]) < 1e-6
+    assert np.linalg.norm(r.w[-1]) < 1e-6
+    assert h == pytest.approx(0.85, rel=10.0 * 1e-6 / 0.85)
 
 
 def test_comparison_of_a_and_b_from_the_same_initial_condition():
@@ -105,13 +112,14 @@ PINNED_B_SPREAD_RATIO = 1.290865412931518  # ours, from docs/montecarlo/pointing
 
 def test_disagreement_b_spread_grows_with_the_precision():
     """DISAGREEMENT with the paper's remark on Table 1, pinned: its B spread is "apparently
-    unaffected by the required level of pointing precision" (98 / 100 / 101 s: max/min 1.03);
-    ours grows from 42 to 54 s (staying below; max/min 1.29) while the mean doubles (282 -> 599 s).
-    The ratio is pinned to 1e-9 (the campaign's rows are deterministic)."""
+    unaffected by the required level of pointing precision" (98 / 100 / 101 s: max/min 1.03, and at most
+    101.5 / 97.5 = 1.041 within its printed precision, half a second); ours grows from 42 to 54 s
+    (staying below; max/min 1.29) while the mean doubles (282 -> 599 s): above the paper's 1.041
+    (was: a 1.05 with no reason). The ratio is pinned to 1e-9 (the campaign's rows are deterministic)."""
     b = results('pointing_table1')
     std = [column(b, f'pointing_settling_{x}deg_s').std() for x in ('1', '0.1', '0.01')]
-    assert 101 / 98 < 1.05
-    assert max(std) / min(std) > 1.05
+    paper_max = (101 + 0.5) / (98 - 0.5)      # the paper's ratio at the edge of its printed digits
+    assert max(std) / min(std) > paper_max
     assert max(std) / min(std) == pytest.approx(PINNED_B_SPREAD_RATIO, rel=1e-9)
 
 

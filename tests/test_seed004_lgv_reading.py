@@ -158,60 +158,80 @@ def _printed_digits_band(axis: int) -> float:
 
 def test_table1_gsmn_x_y_peaks_match_the_paper_to_its_printed_digits_inertia_weighted():
     """Paper: X -40.4, Y -16.77 N m. Ours (b): -40.41, -16.77; (a) printed: -53.06, -15.04. Tolerance: the
-    printed precision (half a unit of the last digit) plus the initial quaternion's rounding."""
+    printed precision (half a unit of the last digit) plus the initial quaternion's rounding; (a) is asserted
+    outside that band (it misses by 12.7 and 1.7 N m; was "> 1 N m", a margin with no reason)."""
     ours, printed = table1('inertia_weighted')['peak (N m)'], table1('printed')['peak (N m)']
     for i in (0, 1):
         band = _printed_digits_band(i)
         assert abs(ours[i] - PAPER_T1['peak (N m)'][i]) < band
-        assert abs(printed[i] - PAPER_T1['peak (N m)'][i]) > 1.0  # (a) misses by 1.7 and 12.7 N m
+        assert abs(printed[i] - PAPER_T1['peak (N m)'][i]) > band  # (a) misses by 12.7 and 1.7 N m
 
 
 def test_disagreement_table1_gsmn_z_peak_inertia_weighted_0p02_Nm_beyond_the_printed_digits():
     """Paper: Z -69.98 N m. Ours (b): -69.996 (1.6 units of the last digit, 0.023 %), outside the printed
-    precision; within the issue's 1 % for peaks. (a) printed: -55.50 (21 % low)."""
+    precision; within the issue's 1 % for peaks. (a) printed: -55.50 (21 % low), asserted outside that 1 %
+    (was "> 20 %", a margin under the miss with no reason)."""
     ours, paper = table1('inertia_weighted')['peak (N m)'][2], PAPER_T1['peak (N m)'][2]
     assert abs(ours - paper) > _printed_digits_band(2)
     assert abs(ours - paper) < 0.01 * abs(paper)
-    assert abs(table1('printed')['peak (N m)'][2] - paper) > 0.2 * abs(paper)
+    assert abs(table1('printed')['peak (N m)'][2] - paper) > 0.01 * abs(paper)
 
 
 def test_table1_gsmn_integrated_torque_within_1pct_inertia_weighted_not_printed():
     """Paper: 26.95 N m s (4 digits). Ours (b): 26.86 (-0.33 %); (a) printed: 27.66 (+2.6 %). Tolerance 1 %,
     the method's, not the paper's digits: the paper gives no control period, and moving ours from 1 ms to
-    10 ms moves ∫‖u‖dt by +0.6 % (a) / +1.0 % (b) (27.83 / 27.12 N m s; docs/seed004/lgv_readings.py)."""
+    10 ms moves ∫‖u‖dt by +0.6 % (a) / +1.0 % (b) (27.83 / 27.12 N m s; docs/seed004/lgv_readings.py). (a) is
+    asserted outside the same 1 % (was "> 2 %", a margin under its 2.6 % miss with no reason)."""
     paper = PAPER_T1['int |u| dt (N m s)']
     assert abs(table1('inertia_weighted')['int |u| dt (N m s)'] - paper) < 0.01 * paper
-    assert abs(table1('printed')['int |u| dt (N m s)'] - paper) > 0.02 * paper
+    assert abs(table1('printed')['int |u| dt (N m s)'] - paper) > 0.01 * paper
 
 
-def test_disagreement_table1_gsmn_settles_over_1s_faster_than_the_paper_on_x_y_under_both_readings():
-    """Paper 1° X / Y: 9.6 / 7.1 s, 0.5°: 10.6 / 10.1 s (printed to 0.1 s). Ours 1°: (a) 7.35 / 5.79,
-    (b) 7.04 / 4.89; 0.5°: (a) 7.83 / 7.00, (b) 8.15 / 6.17 s: neither reading explains the settling times."""
+def test_disagreement_table1_gsmn_settles_faster_than_the_paper_on_x_y_under_both_readings():
+    """DISAGREEMENT with Table I, pinned: paper 1° X / Y: 9.6 / 7.1 s, 0.5°: 10.6 / 10.1 s (printed to 0.1 s).
+    Ours 1°: (a) 7.35 / 5.79, (b) 7.04 / 4.89; 0.5°: (a) 7.83 / 7.00, (b) 8.15 / 6.17 s, 1.3-3.9 s early:
+    neither reading explains the settling times. Asserted beyond the paper's printed precision (0.05 s), which
+    is also more than the 1 ms period moves them (0.009 s, test_table1_control_period_is_converged). (Was:
+    "over 1 s" early, a margin under the smallest miss with no reason.)"""
     for lgv in io.LGV_READINGS:
         for key in ('settling 1 deg (s)', 'settling 0.5 deg (s)'):
-            assert np.all(table1(lgv)[key][:2] < PAPER_T1[key][:2] - 1.0), (lgv, key)
+            assert np.all(table1(lgv)[key][:2] < PAPER_T1[key][:2] - 0.05), (lgv, key)
 
 
-# --- section III.F: does not discriminate --------------------------------------------------------
+# --- section III.F: leans weakly to (a); Table I decides ------------------------------------------
 
-def test_iii_f_gsmn_settling_within_5pct_under_both_readings_at_both_periods():
-    """Paper: 123.8 s (0.5°, all axes; printed to 0.1 s). Ours at the scenario's 0.1 s period (a reading):
-    (a) 122.3 s (-1.2 %), (b) 119.8 s (-3.3 %); at 1 s: (a) 128.1 s (+3.5 %), (b) 117.7 s (-4.9 %). Both
-    readings fall within 5 % at both periods, on either side: III.F does not discriminate. Tolerance 5 %,
-    the method's: the paper gives no control period, and 1 s -> 0.1 s moves (a) by 4.5 %."""
+def test_iii_f_gsmn_settling_within_the_period_sensitivity_under_the_printed_reading_only():
+    """Paper: 123.8 s (0.5°, all axes; printed to 0.1 s). Ours at the scenario's 0.1 s period (a reading) and at
+    1 s: (a) printed 122.3 / 128.1 s (-1.2 / +3.5 %), (b) 119.8 / 117.7 s (-3.3 / -4.9 %). Tolerance per reading,
+    the method's: how far the unknown control period moves that reading's figure from 0.1 s to 1 s, measured here
+    ((a) 4.7 %, (b) 1.8 %; no period of 0.01-1 s moves either further: docs/seed004.md). (a) is within its
+    sensitivity at both periods, (b) at neither: III.F leans to (a), weakly (a settling time that also depends on
+    the wheels, which the paper does not give), against Table I's peaks, printed to 4 digits, which only (b)
+    gives (kept: (b)). The paper lies between the two readings at 1 s. (Was: both readings within 5 % at both
+    periods, "the method's" from (a)'s 4.5 %, which (b)'s 4.9 % at 1 s sat just under.)"""
     paper = PAPER_3F['settling_euler213_all_0.5deg_s']
-    for lgv in io.LGV_READINGS:
-        assert abs(iii_f(lgv)['settling 0.5 deg all axes (s)'] - paper) < 0.05 * paper, lgv
-        assert abs(iii_f(lgv, 1.0)['settling 0.5 deg all axes (s)'] - paper) < 0.05 * paper, lgv
-    assert iii_f('printed', 1.0)['settling 0.5 deg all axes (s)'] > paper > iii_f(
-        'inertia_weighted', 1.0)['settling 0.5 deg all axes (s)']
+    key = 'settling 0.5 deg all axes (s)'
+    for lgv, within in (('printed', True), ('inertia_weighted', False)):
+        fine, coarse = iii_f(lgv)[key], iii_f(lgv, 1.0)[key]
+        sensitivity = abs(coarse - fine) / fine
+        for ours in (fine, coarse):
+            assert (abs(ours - paper) < sensitivity * paper) == within, (lgv, ours, sensitivity)
+    assert iii_f('printed', 1.0)[key] > paper > iii_f('inertia_weighted', 1.0)[key]
 
 
-def test_disagreement_iii_f_gsmn_integrated_torque_12_to_16pct_below_the_paper_under_both_readings():
-    """Paper: 0.214 N m s. Ours (0.1 s period): (a) 0.183 (-14.5 %), (b) 0.181 (-15.5 %); at 1 s 0.187 /
-    0.182. Neither; both keep the peak inside the 0.01 N m limit (the paper's "admissible instantaneous
-    torque")."""
+def test_disagreement_iii_f_gsmn_integrated_torque_below_the_paper_beyond_the_period_under_both_readings():
+    """DISAGREEMENT with III.F, pinned: paper 0.214 N m s. Ours (0.1 s period): (a) 0.183 (-14.5 %), (b) 0.181
+    (-15.5 %); at 1 s 0.187 / 0.182. The miss is beyond the method's sensitivity (how far the unknown period
+    moves each reading from 0.1 s to 1 s, measured here: (a) 1.9 %, (b) 0.8 %) plus the paper's printed
+    precision (0.0005 of 0.214) under both: neither reading explains it. Ours pinned to half a unit of the
+    digit docs/seed004_readings.md prints (0.0005 N m s). Both keep the peak inside the 0.01 N m limit (the
+    paper's "admissible instantaneous torque"). (Was: a miss between 12 and 16 %, a band around the
+    observed with no reason.)"""
     paper = PAPER_3F['integrated_torque_Nms']
-    for lgv in io.LGV_READINGS:
-        assert 0.12 < (paper - iii_f(lgv)['int |u| dt (N m s)']) / paper < 0.16
+    key = 'int |u| dt (N m s)'
+    for lgv, ours in (('printed', 0.183), ('inertia_weighted', 0.181)):
+        fine, coarse = iii_f(lgv)[key], iii_f(lgv, 1.0)[key]
+        assert abs(fine - ours) <= 0.0005, (lgv, fine)
+        sensitivity = abs(coarse - fine)
+        assert paper - fine > sensitivity + 0.0005 and paper - coarse > 0.0005, (lgv, fine, coarse)
         assert iii_f(lgv)['peak |u|_inf (N m)'] <= 0.01

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import batch_run_data, reference_comparison
+from conftest import assert_recorded_run_equal, batch_run_data, reference_comparison
 
 from adcs_sim.app.analysis import RunData, run_metrics, settling_times
 from adcs_sim.app.batch import BatchSimulation
@@ -57,36 +57,43 @@ def rel(ours: float, paper: float) -> float:
 @pytest.mark.parametrize('name', ['microsat_pd_slew', 'microsat_gsmn_slew', 'microsat_minnorm_slew', 'table1_gsmn',
                                   'table1_krstic_tsiotras'])
 def test_recording_is_what_the_code_computes(name):
-    """The graph's recording equals the batch engine's run of the same scenario (round-off):
-    the bag is current, and the graph ran the law as the pure code defines it."""
+    """The graph's recording equals the batch engine's run of the same scenario: the bag is current, and the
+    graph ran the law as the pure code defines it. q and u as every committed bag against a fresh run
+    (conftest.assert_recorded_run_equal: bit for bit on the recording CPU, as observed here; CROSS_CPU_RTOL
+    elsewhere; was atol 1e-9, called round-off); the stamps to 1e-12 s (sec + nanosec; observed 3.6e-15)."""
     batch = batch_run_data(validate_scenario(BAGS / name / 'scenario.yaml'))
     graph = run(name)
     assert graph.missed_steps == 0
     np.testing.assert_allclose(batch.t, graph.t, rtol=0, atol=1e-12)  # bag stamps: sec + nanosec
-    np.testing.assert_allclose(batch.q, graph.q, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(batch.u, graph.u, rtol=0, atol=1e-9 * np.abs(graph.u).max())
+    assert_recorded_run_equal(batch.q, graph.q)
+    assert_recorded_run_equal(batch.u, graph.u)
 
 
 # --- section III.F: the micro-satellite slew (0.01 N m wheels) --------------------------------
 
-def test_gsmn_settling_time_iii_f():
-    """Paper: GSMN settles to 0.5 deg on all 3 axes in 123.8 s. Ours (LgV = (w + γq)ᵀ, the default;
-    0.1 s control period, a reading): 119.8 s (-3.3 %). Tolerance 5 %, the method's: the paper gives
-    neither the control period nor the wheels, and the period alone moves the figure by 2 % (117.7 s at
-    1 s, 119.4-120.1 s from 0.5 s to 0.01 s; docs/seed004.md)."""
+def test_disagreement_gsmn_settles_3pct_before_the_paper_iii_f():
+    """DISAGREEMENT with III.F, pinned: the paper's GSMN settles to 0.5 deg on all 3 axes in 123.8 s (printed to
+    0.1 s). Ours (LgV = (w + γq)ᵀ, the default; 0.1 s control period, a reading): 119.8 s, 3.3 % early. The
+    period, which the paper does not give, moves ours by 1.8 % at most (117.7 s at 1 s, 119.4-120.1 s from 0.5 s
+    to 0.01 s; docs/seed004.md), so the miss is beyond the method's sensitivity: a disagreement, small.
+    Ours pinned to half a unit of the digit docs/seed004.md prints (119.8: 0.05 s), a regression value of the
+    deterministic bag; the miss asserted above the period's 1.8 %. (Was: within 5 %, a tolerance with no
+    measured reason.)"""
     ours = metrics('microsat_gsmn_slew')['settling_euler213_0.5deg_s']
-    assert rel(ours, 123.8) < 0.05, ours
+    assert abs(ours - 119.8) <= 0.05, ours
+    assert rel(ours, 123.8) > rel(117.7, 119.8), ours   # 3.3 % > the period's 1.8 %
 
 
 def test_gsmn_beats_pd_with_admissible_torque_iii_f():
-    """Paper: GSMN 123.8 s vs PD 228.2 s, integrated torque 0.214 vs 0.245, "admissible
-    instantaneous torque". Ours: 119.8 s (0.1 s period) vs 183.1 s (PD at 1 s; 186.3 s at 0.1 s),
-    0.181 vs 0.268; GSMN's applied torque never
+    """Paper: GSMN 123.8 s vs PD 228.2 s (0.54 of it), integrated torque 0.214 vs 0.245, "admissible
+    instantaneous torque". Ours: 119.8 s (0.1 s period) vs 183.1 s (PD at 1 s; 186.3 s at 0.1 s; 0.65 of
+    it), 0.181 vs 0.268. The claim is an ordering, asserted as one (was: < 0.8 x PD's, a margin with no
+    reason). GSMN's applied torque never
     exceeds the PD's peak (nor the 0.01 N m limit: its demand stays below it). The two peaks are the
     t = 0 torques on X and equal: -kp1 (qᵀIq/qᵀq) q1 and -kp1 I_x q1 with qᵀIq/qᵀq = 12 = I_x for this
     q(0), so the comparison allows round-off (1e-12 relative)."""
     g, p = metrics('microsat_gsmn_slew'), metrics('microsat_pd_slew')
-    assert g['settling_euler213_0.5deg_s'] < 0.8 * p['settling_euler213_0.5deg_s']
+    assert g['settling_euler213_0.5deg_s'] < p['settling_euler213_0.5deg_s']
     assert g['integrated_torque_Nms'] < p['integrated_torque_Nms']
     assert max(g['peak_torque_Nm']) <= max(p['peak_torque_Nm']) * (1 + 1e-12)
     demand = [float(s['demand_max']) for _, _, s in run('microsat_gsmn_slew').controller_status]
@@ -96,9 +103,12 @@ def test_gsmn_beats_pd_with_admissible_torque_iii_f():
 def test_high_gain_min_norm_exceeds_the_torque_limit_iii_f():
     """Paper (fig. 3): the standard min-norm law with the higher gains "causes a higher initial
     torque value, potentially causing torque saturation" - why gain scheduling is needed. Ours:
-    its demand peaks at 0.078 N m, 7.8 times the 0.01 N m the wheels give (they saturate)."""
+    its demand peaks at 0.0776 N m, 7.8 times the 0.01 N m the wheels give (they saturate). The claim is
+    asserted against the limit itself (was: > 0.05, no reason); ours pinned to half a unit of the digit
+    docs/seed004.md prints (0.078: 0.0005 N m), a regression value of the deterministic bag."""
     demand = [float(s['demand_max']) for _, _, s in run('microsat_minnorm_slew').controller_status]
-    assert max(demand) > 0.05
+    assert max(demand) > 0.01
+    assert abs(max(demand) - 0.078) <= 0.0005, max(demand)
     assert max(metrics('microsat_minnorm_slew')['peak_torque_Nm']) == pytest.approx(0.01, rel=1e-9)
     modes = {s['mode'] for _, _, s in run('microsat_minnorm_slew').controller_status}
     assert modes == {'min_norm', 'zero_torque'}
@@ -141,19 +151,23 @@ def test_gsmn_uses_all_three_modes_iii_f():
 # --- Table I: GSMN vs Krstic-Tsiotras (140 N m) -------------------------------------------
 
 def test_kt_integrated_torque_table1():
-    """Paper: KT total integrated torque 35.66 N m s. Ours: 35.80. Tolerance 2 %."""
+    """Paper: KT total integrated torque 35.66 N m s. Ours: 35.79 (+0.36 %). Tolerance 1 %, the method's (as for
+    GSMN's): the paper gives no control period, and 1 ms -> 10 ms moves ours by +1.1 % (36.18 N m s;
+    docs/seed004.md). (Was 2 %, with no reason.)"""
     ours = metrics('table1_krstic_tsiotras')['integrated_torque_Nms']
-    assert rel(ours, 35.66) < 0.02, ours
+    assert rel(ours, 35.66) < 0.01, ours
 
 
 def test_gsmn_saves_integrated_torque_over_kt_table1():
     """Paper (Table I): GSMN needs less integrated torque than KT (26.95 vs 35.66 N m s, a 24.4 %
-    saving). Ours: 26.86 vs 35.79 (24.9 %). Tolerance on the saving: 1 point of percentage, the sum
-    of the two integrals' 1 % tolerances below and of test_kt_integrated_torque_table1 at most."""
+    saving). Ours: 26.86 vs 35.79 (24.9 %, +0.5 point). Tolerance on the saving 1 - g/k: the two integrals'
+    1 % tolerances (test_gsmn_integrated_torque_table1, test_kt_integrated_torque_table1) carried through,
+    (g/k) x (1 % + 1 %) = 1.5 points with the paper's g/k = 0.756. (Was 1 point, said to be that sum: it
+    is not.)"""
     g = metrics('table1_gsmn')['integrated_torque_Nms']
     k = metrics('table1_krstic_tsiotras')['integrated_torque_Nms']
     assert g < k, (g, k)
-    assert abs((1 - g / k) - (1 - 26.95 / 35.66)) < 0.01, (g, k)
+    assert abs((1 - g / k) - (1 - 26.95 / 35.66)) < 26.95 / 35.66 * (0.01 + 0.01), (g, k)
 
 
 def test_gsmn_integrated_torque_table1():
@@ -191,8 +205,10 @@ def test_gsmn_peak_torque_below_kt_table1():
 
 
 def test_table1_control_period_is_converged():
-    """The 1 ms control period of the Table I scenarios: halving it changes the integrated torque
-    by less than 0.2 % and no per-axis settling time by more than 0.02 s (batch engine)."""
+    """The 1 ms control period of the Table I scenarios is converged to Table I's printed precision: halving it
+    moves the integrated torque by less than half a unit of the paper's last digit (26.95: 0.005 N m s; observed
+    0.0016) and no per-axis settling time by more than half of its 0.1 s (0.05 s; observed 0.009 s), batch
+    engine. (Was 0.2 % and 0.02 s, with no reason.)"""
     out = {}
     for period in (0.001, 0.0005):
         validated = validate_scenario(ROOT / 'config' / 'table1_gsmn.yaml')
@@ -202,9 +218,9 @@ def test_table1_control_period_is_converged():
         out[period] = (run_metrics(result)['integrated_torque_Nms'],
                        settling_times(result, (1.0, 0.5)))
     (i1, s1), (i2, s2) = out[0.001], out[0.0005]
-    assert rel(i1, i2) < 0.002
+    assert abs(i1 - i2) < 0.005
     for tol in (1.0, 0.5):
-        assert np.max(np.abs(np.subtract(s1[tol]['euler213_per_axis'], s2[tol]["euler213_per_axis"]))) < 0.02
+        assert np.max(np.abs(np.subtract(s1[tol]['euler213_per_axis'], s2[tol]["euler213_per_axis"]))) < 0.05
     assert all(math.isfinite(v) for v in s1[0.5]['euler213_per_axis'])
 
 
