@@ -5,9 +5,10 @@
 2. Leases a fresh ``ROS_DOMAIN_ID`` (1..99) and sets ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``
    for every process it starts. Only ``--allow-network`` (discovery on the local subnet, for a
    graph spread over several hosts; give every host the same ``--domain-id``) widens that.
-3. Starts the recorder first (always: a run of the runner is always recorded; a ``recorder``
-   section only tunes it), waits until it is subscribed, then every other node of the file as
-   its own process, each told to wait for the recorder before its first message.
+3. Starts the recorder (always: a run of the runner is always recorded; a ``recorder`` section
+   only tunes it) and every other node of the file, each as its own process and at once, each
+   told to wait for the recorder's subscriptions before its first message; then waits until the
+   recorder says it is ready.
 4. Shows a progress bar in simulated time (from ``/clock``) until the dynamics node finishes.
 5. Stops the controllers, then the recorder (which closes the bag), and prints the metrics
    (:mod:`adcs_sim.app.analysis`), also written to ``<out>/metrics.json``.
@@ -149,19 +150,19 @@ class _Run:
 
 
 def _start_graph(run: _Run, show_progress: bool):
-    """Start the recorder and wait until it is ready (subscribed to every topic), then the other
-    nodes, then the dynamics node, which starts the clock once every expected subscriber is matched.
-    The recorder comes first: it is then subscribed to every topic before any publisher exists. The
-    nodes' start-up waits count the run's own subscribers (named in ``startup.publishers``), so
-    starting all at once is also correct in principle and saved ~2 s; it was undone because the
-    intruder tests (a rogue discovered during a short run) failed with it in a loaded fresh-clone
-    run, and recorder-first is the ordering every earlier run was tested with. Returns the dynamics
-    process."""
+    """Start the recorder, the other nodes, then the dynamics node, which starts the clock once
+    every expected subscriber is matched; then wait until the recorder is ready. The processes
+    start together (their imports and DDS start-up overlap, ~2 s): the recorder need not be ready
+    first, since every node that publishes what it records waits for its subscriptions
+    (``startup.expect_recorder``; the fault injector publishes its schedule only once the recorder
+    is matched) and the start-up waits count only the run's own subscribers (``startup.publishers``).
+    (Undone once, when two intruder tests failed under load with it: their cause was the recorder
+    discovering a rogue or the injector late, fixed since by the runner's and the injector's waits
+    for the recorder.) Returns the dynamics process."""
     graph, validated = run.graph, run.validated
     common = ['--params-file', str(run.scenario), *publishers_arg(validated)]
     graph.start('recorder', NODES['recorder'].module,
                 [*common, '-p', f'output:={run.bag_dir}', '-p', f'scenario_file:={run.scenario}'])
-    graph.wait_for_line('recorder', READY_LINE, READY_TIMEOUT_S)
     run.others = [s for s in validated if s not in ('recorder', 'dynamics')]
     handshake = startup_counts(validated)
     # With a fault injector, the nodes that act on faults first collect its whole schedule.
@@ -181,6 +182,7 @@ def _start_graph(run: _Run, show_progress: bool):
         dyn_args += ['-p', f'duration:={float(run.duration)!r}']
     graph.check()
     dynamics = graph.start('dynamics', NODES['dynamics'].module, dyn_args)
+    graph.wait_for_line('recorder', READY_LINE, READY_TIMEOUT_S)
     run.progress = Progress(validated['dynamics']['duration'], show_progress, graph.env)
     return dynamics
 
