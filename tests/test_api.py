@@ -116,12 +116,6 @@ def test_dataframe_holds_the_arrays(batch_run):
                        rtol=0, atol=1e-9)
 
 
-def test_dataframe_without_pandas_says_so(batch_run, monkeypatch):
-    monkeypatch.setitem(sys.modules, 'pandas', None)   # as if pandas were not installed
-    with pytest.raises(ImportError, match='needs pandas'):
-        batch_run.dataframe()
-
-
 def test_figures_are_the_reports(batch_run, tmp_path):
     figures = batch_run.figures()
     assert {'attitude_error', 'euler_213', 'body_rates', 'torque', 'wheels'} <= set(figures)

@@ -6,7 +6,7 @@ ROS 2 node graph as ``adcs-run`` does (:func:`adcs_sim.app.runner.run_scenario`:
 node, lockstep, recorded to a bag), :meth:`Scenario.run_batch` through the batch engine
 (:class:`adcs_sim.app.batch.BatchSimulation`: no ROS, N runs at once). Either gives
 :class:`RunResult` objects: the run's time series as numpy arrays (:class:`RunData`, the analysis
-library's), as a pandas DataFrame where pandas is installed, the metrics
+library's), as a pandas DataFrame, the metrics
 (:func:`adcs_sim.app.analysis.run_metrics`) and the report's figures (:data:`adcs_sim.app.report.figures.FIGURES`).
 
 Examples
@@ -291,23 +291,16 @@ class RunResult:
         Columns: ``q_x q_y q_z q_w`` (true attitude), ``w_x w_y w_z`` (rad/s), ``eigenaxis_error_deg``,
         ``euler213_y_deg euler213_x_deg euler213_z_deg`` (signed 2-1-3 errors, sequence order),
         ``u_x u_y u_z`` (applied torque, N m; NaN at the last state, after the last command) and
-        ``wheel_speed.<name>`` (rad/s) per wheel. Needs pandas (not a dependency of the package).
+        ``wheel_speed.<name>`` (rad/s) per wheel.
 
         Returns
         -------
         pandas.DataFrame
 
-        Raises
-        ------
-        ImportError
-            pandas is not installed.
         """
-        # pandas is optional (the package does not depend on it): imported only when asked for.
-        try:
-            import pandas as pd
-        except ImportError:
-            raise ImportError('RunResult.dataframe() needs pandas (pip install pandas); the arrays are '
-                              'in RunResult.data') from None
+        # pandas (a dependency: ppigrf reads the IGRF coefficients with it) costs 0.5-1.3 s to import:
+        # only when a DataFrame is asked for.
+        import pandas as pd
         run = self.data
         _, eigen, euler = attitude_errors(run)
         state = {**{f'q_{a}': run.q[:, i] for i, a in enumerate('xyzw')},
