@@ -109,6 +109,16 @@ def _full_name(namespace: str, name: str) -> str:
     return f'{namespace.rstrip("/")}/{name}'
 
 
+def subscribed_by(node, pub, name: str) -> bool:
+    """Whether node ``name`` (in ``node``'s namespace) is listed with a subscription on ``pub``'s
+    topic and ``pub`` is matched with every subscription listed there (that one among them): e.g.
+    the fault injector publishing its schedule once the recorder is matched."""
+    infos = node.get_subscriptions_info_by_topic(pub.topic_name)
+    wanted = _full_name(node.get_namespace(), name)
+    return (any(_full_name(i.node_namespace, i.node_name) == wanted for i in infos)
+            and pub.get_subscription_count() >= len(infos))
+
+
 class PublisherVetting:
     """Which publishers a node admits on each of its vetted topics (see the module doc).
 

@@ -25,7 +25,7 @@ from conftest import ROOT
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
-from adcs_msgs_py.guard import UNKNOWN_NODE, PublisherVetting
+from adcs_msgs_py.guard import UNKNOWN_NODE, PublisherVetting, subscribed_by
 from adcs_sim.app.analysis import RunData, bag_intrusions
 from adcs_sim.app.batch import BatchSimulation
 from adcs_sim.app.runner import allowed_publishers
@@ -127,19 +127,14 @@ def _rogue_message(topic: str, t_ns: int):
     return cv.faults_to_msg(0, {w: FaultState('failed') for w in ('rw_x', 'rw_y', 'rw_z')}, 0, 1)
 
 
-def _recorder_has(pub, node) -> bool:
-    """The recorder's subscription is listed on ``pub``'s topic and matched with ``pub``."""
-    infos = node.get_subscriptions_info_by_topic(pub.topic_name)
-    return any(i.node_name == 'recorder' for i in infos) and pub.get_subscription_count() >= len(infos)
-
-
 def _run_with_rogue(tmp_path, monkeypatch, topic: str, start_s: float = 2.0, duration_s: float = DURATION_S,
                     interrupt_after: int = 0):
     """adcs-run of the PD slew (long enough never to end first: DURATION_S) and, once its clock passes
     ``start_s``, a rogue node in this process publishing on ``topic`` for every state.
     ``interrupt_after`` > 0: once the run is past INTERRUPT_PAST_NS and the recorder, matched with the
-    rogue, has acknowledged that many more of its messages, SIGINT the runner (a topic nobody applies: nothing else ends the run
-    early, and no wall-clock race decides whether the recorder saw the rogue)."""
+    rogue, has acknowledged that many more of its messages, SIGINT the runner (a topic nobody
+    applies: nothing else ends the run early, and no wall-clock race decides whether the recorder
+    saw the rogue)."""
     import rclpy
     from nav_msgs.msg import Odometry
     from rclpy.context import Context
@@ -190,7 +185,8 @@ def _run_with_rogue(tmp_path, monkeypatch, topic: str, start_s: float = 2.0, dur
                 executor.spin_once(timeout_sec=0.1)
                 if topic == topics.APPLIED_TORQUE and 'pub' in rogue:   # a stream, states or not
                     rogue['pub'].publish(_rogue_message(topic, rogue.get('t_ns', 0)))
-                    if interrupt_after and rogue.get('t_ns', 0) > INTERRUPT_PAST_NS and _recorder_has(rogue['pub'], node):
+                    if (interrupt_after and rogue.get('t_ns', 0) > INTERRUPT_PAST_NS
+                            and subscribed_by(node, rogue['pub'], 'recorder')):
                         sent_matched += 1
                         if sent_matched == interrupt_after:
                             assert rogue['pub'].wait_for_all_acked(Duration(seconds=60))

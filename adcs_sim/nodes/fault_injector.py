@@ -23,6 +23,7 @@ from __future__ import annotations
 from adcs_core.faults import FAULT_OK_MODES
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
+from adcs_msgs_py.guard import subscribed_by
 from adcs_msgs_py.node import AdcsNode, entry_point
 from adcs_sim.bag.schema import RECORDER_SCHEMA
 from adcs_sim.truth.fault_schedule import FAULT_SCHEMA, fault_schedule
@@ -59,10 +60,7 @@ class FaultInjectorNode(AdcsNode):
     def _recorder_matched(self) -> bool:
         """The recorder subscribes to ``faults`` and this writer is matched with every
         subscription the graph lists (the recorder's among them)."""
-        infos = self.get_subscriptions_info_by_topic(self.pub_faults.topic_name)
-        ns = self.get_namespace().rstrip('/')
-        listed = any(f'{i.node_namespace.rstrip("/")}/{i.node_name}' == f'{ns}/{RECORDER_SCHEMA.node}' for i in infos)
-        return listed and self.pub_faults.get_subscription_count() >= len(infos)
+        return subscribed_by(self, self.pub_faults, RECORDER_SCHEMA.node)
 
     def publish_once_recorded(self) -> None:
         """Wait until the recorder's subscription is matched, publish the schedule, wait until
