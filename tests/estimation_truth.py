@@ -18,6 +18,15 @@ from adcs_msgs_py.measurements import Measurements, Reading
 
 NS_PER_S = 1_000_000_000
 
+# The filter tests' scenario (tests/test_estimators_mekf.py, tests/test_estimator_families.py):
+DT, STAR_EVERY, STEPS = 0.1, 10, 3000          # 10 Hz gyro, 1 Hz star tracker, 300 s
+SIGMA_V, SIGMA_U = 1e-5, 1e-7                   # ARW rad/√s, RRW rad/s^1.5
+SIGMA_ST = 1e-4                                 # star tracker, rad per axis (~20 arcsec)
+OMEGA = np.array([0.02, -0.01, 0.015])          # rad/s, ~1.5 deg/s
+SIGMA_ATT0 = np.radians(10.0) / np.sqrt(3.0)    # 10 deg RMS initial attitude error
+SIGMA_BIAS0 = np.radians(0.1)                   # 0.1 deg/s per axis
+RUNS = 100
+
 
 class Truth:
     """``M`` runs; ``step()`` returns the Measurements stamped ``t_k`` and advances to ``k + 1``.

@@ -24,19 +24,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from estimation_truth import DT, OMEGA, RUNS, SIGMA_ATT0, SIGMA_BIAS0, SIGMA_ST, SIGMA_U, SIGMA_V, STAR_EVERY, STEPS
 from scipy.linalg import expm
 from scipy.stats import chi2
 
 from adcs_controllers.estimators import mekf
 from adcs_core.attitude import hat, quat_conjugate, quat_multiply, rotate_to_body
 
-DT, STAR_EVERY, STEPS = 0.1, 10, 3000          # 10 Hz gyro, 1 Hz star tracker, 300 s
-SIGMA_V, SIGMA_U = 1e-5, 1e-7                   # ARW rad/√s, RRW rad/s^1.5
-SIGMA_ST = 1e-4                                 # star tracker, rad per axis (~20 arcsec)
-OMEGA = np.array([0.02, -0.01, 0.015])          # rad/s, ~1.5 deg/s
-SIGMA_ATT0 = np.radians(10.0) / np.sqrt(3.0)    # 10 deg RMS initial attitude error
-SIGMA_BIAS0 = np.radians(0.1)                   # 0.1 deg/s per axis
-RUNS = 100
 P0 = np.diag([SIGMA_ATT0 ** 2] * 3 + [SIGMA_BIAS0 ** 2] * 3)
 
 
