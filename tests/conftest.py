@@ -24,6 +24,7 @@ from adcs_sim.truth.plant import Plant  # noqa: E402
 # adds shared memory anyway (test_recorder.remove_if_orphaned cleans what a SIGKILLed node leaves).
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ['FASTDDS_BUILTIN_TRANSPORTS'] = 'UDPv4'
+from adcs_msgs_py.conversions import InvalidMessage  # noqa: E402
 from adcs_msgs_py.node import network_hygiene_defaults  # noqa: E402
 
 network_hygiene_defaults()  # the same Fast DDS profile as the nodes, for in-process graphs
@@ -199,6 +200,16 @@ def spin_until(executor, condition, timeout: float = 30.0, what: str = 'the expe
     while not condition():
         assert time.monotonic() < deadline, f'graph did not deliver {what} within {timeout} s'
         executor.spin_once(timeout_sec=0.1)
+
+
+def refused(convert) -> bool:
+    """Whether ``convert()`` (a message conversion of the interface) refuses its input
+    (InvalidMessage): what a fuzzed node must then have counted instead of applied."""
+    try:
+        convert()
+    except InvalidMessage:
+        return True
+    return False
 
 
 def reference_comparison(bags, paper: Path, out: Path) -> str:

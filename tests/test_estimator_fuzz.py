@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import InProcessGraph, make_scenario
+from conftest import InProcessGraph, make_scenario, refused
 from geometry_msgs.msg import PoseWithCovarianceStamped, Vector3Stamped
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -88,14 +88,6 @@ def estimator(tmp_path_factory):
     lease.release()
 
 
-def _refused(convert) -> bool:
-    try:
-        convert()
-    except cv.InvalidMessage:
-        return True
-    return False
-
-
 @FUZZ
 @given(imu=imus(), pose=poses(), sun=vectors(), field=fields(), step=st.integers(0, 10 ** 6))
 def test_estimator_survives_any_sensor_message(estimator, imu, pose, sun, field, step):
@@ -117,7 +109,7 @@ def test_estimator_survives_any_sensor_message(estimator, imu, pose, sun, field,
                                ('sun', sun, cd.sun_from_msg), ('magnetometer', field, cd.magnetometer_from_msg)):
         before = estimator.rejects.total
         estimator.subs[name].callback(msg, {})
-        if _refused(lambda: convert(msg)):
+        if refused(lambda: convert(msg)):
             assert estimator.rejects.total == before + 1, (name, msg)
     e = estimator.estimator
     assert e.t_ns is None or np.shape(e.q) == (4,)
