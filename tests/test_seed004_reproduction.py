@@ -140,6 +140,34 @@ def test_sensitivity_at_a_1s_period_the_saturated_min_norm_is_slower_than_pd_iii
     assert mn > metrics('microsat_pd_slew')['settling_euler213_0.5deg_s']
 
 
+# The paper's own scale of "the same" integrated torque (III.F.2): GSMN's 0.214 against PD's 0.245 it calls
+# "smaller", so two integrals 12.7 % apart are not "the same" in its words.
+PAPER_SMALLER_GAP = (0.245 - 0.214) / 0.245
+
+
+def test_disagreement_iii_f_min_norm_integrated_torque_is_not_pds():
+    """DISAGREEMENT with III.F.2, pinned: min-norm's gains kp = 0.02, kd = 0.15 "were tuned to consume the same
+    overall integrated torque as the PD benchmark". Ours with those printed gains: ∫‖u‖dt 0.197 N m s against
+    PD's 0.268 (bags; 0.266 for PD at 0.1 s), 26 % less. Tolerance, the paper's own: it calls GSMN's 0.214 against
+    0.245 "smaller", a 12.7 % gap, so "the same" is closer than that; ours is twice as far. No reading the text
+    leaves open gives the equality (docs/seed004/minnorm_torque_readings.py, docs/seed004.md): ∫‖u‖dt stays at
+    0.71-0.86 of PD's with the wheels unlimited, the demand scaled, LgV printed or a 1 s period, and III.D's
+    own ∫uᵀu dt puts min-norm on the other side (1.96 times PD's as run; 9.6 with the wheels unlimited, the
+    law's "higher initial torque" applied: checked here on a fresh batch run). The two bag figures are pinned
+    to half a unit of the digit docs/seed004.md prints (0.0005 N m s)."""
+    mn, pd = metrics('microsat_minnorm_slew'), metrics('microsat_pd_slew')
+    assert abs(mn['integrated_torque_Nms'] - 0.197) <= 0.0005 and abs(pd['integrated_torque_Nms'] - 0.268) <= 0.0005
+    assert mn['integrated_torque_Nms'] < (1 - PAPER_SMALLER_GAP) * pd['integrated_torque_Nms']
+    assert mn['control_energy_N2m2s'] > pd['control_energy_N2m2s'] / (1 - PAPER_SMALLER_GAP)
+    validated = validate_scenario(ROOT / 'config' / 'microsat_minnorm_slew.yaml')
+    for section in ('dynamics', 'minnorm_controller'):
+        validated[section]['wheels.max_torque'] = [1.0, 1.0, 1.0]   # N m: the 0.078 N m demand applied
+    unlimited = run_metrics(BatchSimulation.from_runs([validated]).run().run_data(0))
+    assert max(unlimited['peak_torque_Nm']) > 0.07
+    assert unlimited['integrated_torque_Nms'] < (1 - PAPER_SMALLER_GAP) * pd['integrated_torque_Nms']
+    assert unlimited['control_energy_N2m2s'] > pd['control_energy_N2m2s'] / (1 - PAPER_SMALLER_GAP)
+
+
 def test_gsmn_uses_all_three_modes_iii_f():
     """Eq. 17: low gains first, torque off, then high gains (section IV's assumed sequence)."""
     modes = [s['mode'] for _, _, s in run('microsat_gsmn_slew').controller_status]
