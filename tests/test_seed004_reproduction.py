@@ -263,3 +263,15 @@ def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path, capsys):
     bad.write_text('source: x\nruns:\n  microsat_gsmn_slew:\n    settling_time: 1.0\n')
     assert analyze([*bags, '--compare', '--reference', str(bad), '--out', str(tmp_path / 'c2')]) == 2
     assert "settling_time: not a comparison metric" in capsys.readouterr().err
+
+
+def test_iii_f_pd_slew_report_leads_with_iii_f_even_through_a_sensor_outage():
+    """bags/microsat_pd_slew_star_tracker_outage is III.F's PD slew flown on the MEKF with a 100 s star tracker
+    outage (issue #20). A sensor's outage is not seed 000's wheel fault: the law's task is unchanged, so its
+    committed report leads with III.F's quantities (the all-axes 0.5° settling, ∫‖u‖dt) and the Euler-settling
+    figure, not with 1 − |q4| after the fault and "the paper's bands" of another paper (as it did)."""
+    text = (BAGS / 'microsat_pd_slew_star_tracker_outage' / 'report' / 'report.md').read_text(encoding='utf-8')
+    lead = text.split('## What this run is: ', 1)[1].split('\n## ', 1)[0]
+    assert lead.startswith('regulation')
+    assert '| `settling_euler213_all_0.5deg_s` |' in lead and '| `integrated_torque_Nms` |' in lead
+    assert 'settling_q4' not in lead and 'euler_settling.png' in lead

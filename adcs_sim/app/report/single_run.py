@@ -14,12 +14,12 @@ from pathlib import Path
 from typing import Callable
 
 from adcs_msgs_py import names as topics
-from adcs_sim.app.analysis import attitude_errors, first_fault_time, run_metrics
+from adcs_sim.app.analysis import attitude_errors, run_metrics
 from adcs_sim.app.report.estimation import estimation_lines
 from adcs_sim.app.report.figures import FIGURES, Context, save_figure
 from adcs_sim.app.report.kind_figures import LEAD_FIGURES
 from adcs_sim.app.report.kinds import UNKNOWN, phases, reference_attitude, run_kind
-from adcs_sim.app.report.lead import lead_metrics, paper_values, with_paper
+from adcs_sim.app.report.lead import actuator_fault, lead_metrics, paper_values, with_paper
 from adcs_sim.app.report.loading import Run, fault_events, has_wheels, missing_topics
 from adcs_sim.app.report.markdown import fmt, md_escape, metric_note
 from adcs_sim.app.report.status_figure import fig_controller_status
@@ -198,7 +198,7 @@ def _lead_lines(report: Report) -> list[str]:
 def lead_figures(ctx: Context) -> list:
     """(file name, title, builder) of the figures the kind of run leads with."""
     kind = ctx.kind.kind
-    after_fault = kind == 'regulation' and math.isfinite(first_fault_time(ctx.run))
+    after_fault = kind == 'regulation' and actuator_fault(ctx.run, ctx.kind)
     return LEAD_FIGURES.get('regulation_after_fault' if after_fault else kind, [])
 
 
