@@ -225,6 +225,10 @@ def _metric_lines(report: Report) -> list[str]:
     for k, v in metrics.items():
         if kind in ('spin', 'pointing') and k.startswith(REST_TO_REST):
             left.append(f'`{k}` (rest to rest: not meaningful for a {kind} run)')
+        elif k.startswith('settling_q4_') and kind != 'regulation':
+            left.append(f'`{k}` (seed 000\'s 1 − |q4| to a fixed target: not meaningful for a {kind} run)')
+        elif k.startswith('settling_q4_') and not actuator_fault(report.run.data, report.ctx.kind):
+            left.append(f'`{k}` (seed 000\'s settling after a wheel fault: the fault here is not on an actuator)')
         elif k == 'peak_wheel_speed_rad_s' and not has_wheels(report.run.data.scenario):
             left.append(f'`{k}` (the spacecraft has no reaction wheels)')
         else:
