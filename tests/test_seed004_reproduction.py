@@ -275,3 +275,48 @@ def test_iii_f_pd_slew_report_leads_with_iii_f_even_through_a_sensor_outage():
     assert lead.startswith('regulation')
     assert '| `settling_euler213_all_0.5deg_s` |' in lead and '| `integrated_torque_Nms` |' in lead
     assert 'settling_q4' not in lead and 'euler_settling.png' in lead
+
+
+def _doc_row(doc: str, label: str) -> str:
+    rows = [line for line in doc.splitlines() if line.startswith(f'| {label} |')]
+    assert len(rows) == 1, label
+    return rows[0]
+
+
+def test_doc_tables_are_the_tools_rows(tmp_path):
+    """docs/seed004.md's III.F and Table I tables, paper and ours, are ``adcs-analyze --compare --reference
+    docs/seed004/paper.yaml`` on the committed bags, rounded as the doc prints them (III.F to 0.1 s and
+    0.001 N m s with the difference to 0.1 %; Table I to 0.01, peaks signed as Table I prints them, negative:
+    test_gsmn_peak_torque_below_kt_table1): the doc cannot drift from the bags (was: one III.F row checked)."""
+    import csv
+    paper = ROOT / 'docs' / 'seed004' / 'paper.yaml'
+    rows = {}
+    for name, bags in (('iii_f', ('microsat_pd_slew', 'microsat_gsmn_slew')),
+                       ('table1', ('table1_krstic_tsiotras', 'table1_gsmn'))):
+        reference_comparison([BAGS / b / 'bag' for b in bags], paper, tmp_path / name)
+        with open(tmp_path / name / 'reference_comparison.csv', newline='', encoding='utf-8') as f:
+            rows.update({(r['run'], r['metric']): (float(r['published']), float(r['ours'])) for r in csv.DictReader(f)})
+    doc = (ROOT / 'docs' / 'seed004.md').read_text(encoding='utf-8')
+    minus = str.maketrans({'-': '\u2212'})
+    for law, run_name in (('GSMN', 'microsat_gsmn_slew'), ('PD', 'microsat_pd_slew')):
+        for label, metric, digits in ((f'{law} settling, 0.5° all axes (s)', 'settling_euler213_all_0.5deg_s', 1),
+                                      (f'{law} ∫‖u‖dt', 'integrated_torque_Nms', 3)):
+            pub, ours = rows[(run_name, metric)]
+            cell = f'| {label} | {pub:g} | {ours:.{digits}f}'
+            assert _doc_row(doc, label).startswith(cell), cell
+            assert f'{100 * (ours - pub) / pub:+.1f} %'.translate(minus) in _doc_row(doc, label), label
+    kt, gs = 'table1_krstic_tsiotras', 'table1_gsmn'
+    pub_k, ours_k = rows[(kt, 'integrated_torque_Nms')]
+    pub_g, ours_g = rows[(gs, 'integrated_torque_Nms')]
+    assert _doc_row(doc, '∫‖u‖dt (N·m·s)').startswith(f'| ∫‖u‖dt (N·m·s) | {pub_k:g} | {ours_k:.2f} |')
+    assert f'| {pub_g:g} | {ours_g:.2f} |' in _doc_row(doc, '∫‖u‖dt (N·m·s)')
+    for axis in 'xyz':
+        row = _doc_row(doc, f'peak {axis.upper()} (N·m)')
+        (pk, ok), (pg, og) = rows[(kt, f'peak_torque_{axis}_Nm')], rows[(gs, f'peak_torque_{axis}_Nm')]
+        assert row.startswith(f'| peak {axis.upper()} (N·m) | −{pk:g} | −{ok:.2f} |'), row
+        assert f'| −{pg:g} | −{og:.2f} |' in row, row
+        angle = {'x': 'theta1_x', 'y': 'theta2_y', 'z': 'theta3_z'}[axis]
+        row = _doc_row(doc, f'settling {axis.upper()} 1° / 0.5° (s)')
+        for run_name in (kt, gs):
+            (p1, o1), (p05, o05) = (rows[(run_name, f'settling_euler213_{angle}_{b}deg_s')] for b in ('1', '0.5'))
+            assert f'| {p1:g} / {p05:g} | {o1:.2f} / {o05:.2f} |' in row, (run_name, row)
