@@ -24,6 +24,7 @@ _spec.loader.exec_module(study)
 
 K1, G1, A = 10.0, 0.08, 0.025      # N m s/rad, rad/s, - (config/uosat12_gsmn.yaml, the paper's VI.A gains)
 U_MAX = 0.02                       # N m
+PAPER_ACCURACY_DEG = 0.5           # deg, VI.A: its bands are "attitude errors of approximately 0.5 degree"
 
 
 def test_showcase_tail_is_the_saturated_singular_demand_and_still_converging():
@@ -51,12 +52,17 @@ def test_showcase_tail_is_the_saturated_singular_demand_and_still_converging():
 def test_the_slow_tail_is_eq8s_saturation_and_the_low_gain_mode_not_a_bug():
     """The same two-wheel start (the showcase at t0), 5 000 s on the batch engine, one thing changed per run:
     as recorded 8.37° at the end; eq. 7 (a1 = a2 = inf) 1.6e-6°; the high gains allowed (epsilon = 1 N m) 1.96°
-    (docs/seed000.md's table prints the sample one step before: 8.38 / 2e-6 / 1.92°). Fresh batch runs through
-    eq. 30's mode switches, so no regression pin (an ulp across CPUs may move a switch): the thresholds are
-    the claims' words with wide margins (degrees off: > 5°; at rest: < 1e-3°; much faster: under half).
+    (docs/seed000.md's table prints the sample one step before: 8.38 / 2e-6 / 1.92°).
+    Asserted as what the paper says, no threshold of ours: section III, the saturated law ends "at a
+    neighborhood of the origin, of which the amplitude depends on the saturation limit" (so without eq. 8's
+    saturation the run comes closer: eq. 7 < printed); section V.B, the high gains "favor rapidity" (high gains
+    < printed); and the accuracy VI.A names, "approximately 0.5 degree" (its bands are in fact 23° and 16°:
+    docs/seed000.md), as the pointing the paper aims at: eq. 7 is inside it, the printed law is not
+    (margins of 5 decades and 16 times: fresh batch runs through eq. 30's mode switches, which an ulp on
+    another CPU may move, cannot cross them). (Was: > 5°, < 1e-3° and "under half", margins with no reason.)
     The law as printed (eq. 8 with the paper's a = 0.025 and eq. 30 with epsilon = the torque limit, where
-    the high-gain mode is never entered) is what is slow; the paper itself says the saturated law ends in a
-    limit cycle near the origin whose amplitude depends on the saturation limit (section III)."""
+    the high-gain mode is never entered: tests/test_seed000_reproduction.py::
+    test_finding_the_printed_epsilon_never_admits_the_high_gain_mode) is what is slow."""
     given = study._given()
     given['dynamics']['duration'] = 5000.0
     runs = []
@@ -65,7 +71,8 @@ def test_the_slow_tail_is_eq8s_saturation_and_the_low_gain_mode_not_a_bug():
         g[study.GSMN].update(change)
         runs.append({n: NODES[n].schema.validate(v) for n, v in g.items()})
     result = BatchSimulation.from_runs(runs).run()
-    final = [attitude_errors_deg(result.run_data(i))[0][-1] for i in range(3)]
-    assert final[0] > 5.0                    # printed law: still degrees off
-    assert final[1] < 1e-3                   # eq. 7: at rest
-    assert final[2] < 0.5 * final[0]         # high gains: much faster
+    printed, eq7, high_gains = (attitude_errors_deg(result.run_data(i))[0][-1] for i in range(3))
+    print(f'error at 5000 s after t0 (deg): printed {printed:.3g}, eq. 7 {eq7:.3g}, high gains {high_gains:.3g}')
+    assert eq7 < printed                     # III: the saturation limit sets the residual
+    assert high_gains < printed              # V.B: the high gains favour rapidity
+    assert eq7 < PAPER_ACCURACY_DEG < printed  # VI.A's "approximately 0.5 degree"

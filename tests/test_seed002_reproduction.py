@@ -11,8 +11,9 @@ The tests read it and state the paper's figures beside ours (docs/seed002.md):
   same code; what a test of < 60 s allows here: ~2 ms per step); the whole two orbits through
   the graph (one run, 0.98° max after settling) are in docs/seed002.md;
 * thruster impulse and firings: not given by the paper; ours pinned (the doc's digits; the count exactly);
-* what the 38 s agreement means: the gains are ours (the paper gives none), and 9 of the 12 gain
-  pairs of the readings' grid pass the ±5 s check (the slew is thrust-saturated); the paper's own
+* what the 38 s agreement means: the gains are ours (the paper gives none, ours chosen for fuel); the grid's
+  settling times (30.0-63.8 s) bracket the paper's 38 s and 2 of its 12 pairs are within the paper's
+  precision (the slew is thrust-saturated); the paper's own
   "q_i = [±1 0 0 0]" start: either sign gives the same run.
 
 Also: the bag is what the current code computes (the batch engine, bit for bit), and a start
@@ -35,6 +36,7 @@ BAG = ROOT / 'bags' / 'eseo_backstepping_slew'
 # s, section 4.2 / Fig. 1 ("approximately 38 seconds"), from its one home, docs/seed002/paper.yaml
 PAPER_SETTLING = paper_values('eseo_backstepping_slew')[1]['settling_eigenaxis_1deg_s']
 OURS_SETTLING = 38.126         # s, 1° band (the committed bag's)
+PAPER_PRECISION = 0.5          # s, "approximately 38 seconds": whole seconds
 OURS_IMPULSE = 7.904           # N s over the recorded 300 s (all of it in the slew: none after 60 s)
 OURS_FIRINGS = 608             # thruster-periods over the recorded 300 s
 HOLD_HORIZON = 1000.0          # s, the batch hold test (a fifth of an orbit)
@@ -55,7 +57,7 @@ def test_slew_settles_like_the_paper(run):
     assert eigen[0] == pytest.approx(135.68, abs=0.01)   # the short way to q̃ = -1 (readings R1)
     ts = settling_time(run.t, eigen, 1.0)
     assert ts == pytest.approx(OURS_SETTLING, abs=1e-3)
-    assert abs(ts - PAPER_SETTLING) <= 0.5
+    assert abs(ts - PAPER_SETTLING) <= PAPER_PRECISION
 
 
 def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path):
@@ -181,12 +183,16 @@ GRID_K1 = (0.05, 0.1, 0.2, 0.4)
 GRID_K2 = (2.0, 4.0, 8.0)
 
 
-def test_the_38s_agreement_holds_for_9_of_the_12_gain_pairs_of_the_grid():
-    """What the ±5 s check does and does not mean. The paper gives no K1, K2; ours (0.1, 4) were chosen on the
-    R9 grid for fuel. Over that grid (120 s, batch engine) the 1° settling time is 30.0-63.8 s and 9 of the 12
-    pairs fall within 38 ± 5 s: the slew is thrust-saturated (~1-2 N m asked, ~0.07 N m available), so its
-    time is set by the thrusters, the inertia and the 135.68° angle, not by the gains. The agreement checks
-    the plant and the saturated law, not the gains nor the transient of the paper's Fig. 1."""
+def test_the_38s_agreement_to_the_papers_precision_holds_for_2_of_the_12_gain_pairs_of_the_grid():
+    """What the 38 s agreement does and does not mean. The paper gives no K1, K2; ours (0.1, 4) were chosen on the
+    R9 grid for fuel, not for the settling time. Over that grid (120 s, batch engine) the 1° settling time is
+    30.0-63.8 s: the paper's 38 s lies inside the grid's range (an ordering: some gains give it, others do not,
+    so the agreement does not identify the paper's gains), and within the paper's own precision, 38 ± 0.5 s
+    ("approximately 38", whole seconds; the tolerance of test_slew_settles_like_the_paper), 2 of the 12 pairs
+    settle: ours (38.13 s) and (0.1, 2) (37.97 s). The slew is thrust-saturated (~1-2 N m asked, ~0.07 N m
+    available), so K1 = 0.1 with either K2 lands there; the other pairs miss it by 0.7-25.8 s. The count is robust
+    to a moved thruster switch: the nearest pair to an edge of the band is 0.21 s (two control periods) away
+    (38.71 s). (Was: 9 of 12 within ± 5 s and all in 25-70 s, bounds with no reason.)"""
     from adcs_sim.app.batch import BatchSimulation
     from adcs_sim.app.scenario_files import validate_scenario
     runs = []
@@ -200,8 +206,8 @@ def test_the_38s_agreement_holds_for_9_of_the_12_gain_pairs_of_the_grid():
     result = BatchSimulation.from_runs(runs).run()
     ts = np.array([settling_time(result.run_data(i).t, attitude_errors_deg(result.run_data(i))[0], 1.0)
                    for i in range(len(runs))])
-    within = np.abs(ts - PAPER_SETTLING) < 5.0
-    assert within.sum() == 9, ts
-    assert ts.min() > 25.0 and ts.max() < 70.0, ts
-    ours = GRID_K1.index(0.1) * len(GRID_K2) + GRID_K2.index(4.0)
-    assert within[ours]
+    print('1° settling over the grid (s):', np.round(ts, 2).reshape(len(GRID_K1), len(GRID_K2)).tolist())
+    assert ts.min() < PAPER_SETTLING < ts.max()
+    within = np.abs(ts - PAPER_SETTLING) <= PAPER_PRECISION
+    pair = {(k1, k2): w for (k1, k2), w in zip([(a, b) for a in GRID_K1 for b in GRID_K2], within)}
+    assert {p for p, w in pair.items() if w} == {(0.1, 4.0), (0.1, 2.0)}, ts

@@ -123,24 +123,60 @@ def test_disagreement_b_spread_grows_with_the_precision():
     assert max(std) / min(std) == pytest.approx(PINNED_B_SPREAD_RATIO, rel=1e-9)
 
 
-def test_table1_rows_of_the_doc_are_the_committed_campaign():
-    """docs/seed003.md's six Table 1 rows (paper / ours / difference) are the paper's figures of
-    docs/seed003/paper.yaml (its one home; the paper prints no single-run number, so they are keyed by our
-    campaign, not by a bag) beside the committed campaign's summary.json (``adcs-montecarlo``), written here
-    as the doc prints them: the doc cannot drift from the campaign. Table 1 is not reproduced (ours ~2x
-    faster): the rows are reported, not asserted against the paper."""
+def summary(name: str) -> dict:
+    return json.loads((MC / name / 'summary.json').read_text(encoding='utf-8'))['metrics']
+
+
+def table1_b_rows() -> list[str]:
+    """The six Table 1 rows (paper / ours / difference) as the docs print them: the paper's figures of
+    docs/seed003/paper.yaml (its one home; keyed by our campaign, not by a bag: the paper prints no single-run
+    number) beside the committed B campaign's summary.json (``adcs-montecarlo``)."""
     paper = yaml.safe_load((ROOT / 'docs' / 'seed003' / 'paper.yaml').read_text(encoding='utf-8'))
     assert paper['runs'] == {}
     published = paper['campaigns']['pointing_table1']
-    summary = json.loads((MC / 'pointing_table1' / 'summary.json').read_text(encoding='utf-8'))['metrics']
-    doc = (ROOT / 'docs' / 'seed003.md').read_text(encoding='utf-8')
     assert len(published) == 3
+    ours, rows = summary('pointing_table1'), []
     for stat in ('mean', 'std'):
         for key, figures in published.items():
             band = key.split('_')[2].removesuffix('deg')
-            ours, pub = summary[key][stat], figures[stat]
-            diff = f'{100 * (ours - pub) / pub:+.1f} %'.replace('-', '\u2212')
-            assert f'| Table 1, B: time to {band}°, {stat} (s) | {pub} | {ours:.1f} | {diff} |' in doc, (key, stat)
+            diff = f'{100 * (ours[key][stat] - figures[stat]) / figures[stat]:+.1f} %'.replace('-', '\u2212')
+            rows.append(f'| Table 1, B: time to {band}°, {stat} (s) | {figures[stat]} | {ours[key][stat]:.1f} | {diff} |')
+    return rows
+
+
+def test_table1_rows_of_the_doc_are_the_committed_campaign():
+    """docs/seed003.md's six Table 1 rows are :func:`table1_b_rows`, written from the paper's yaml and the
+    committed campaign: the doc cannot drift from the campaign. Table 1 is not reproduced (ours ~2x faster):
+    the rows are reported, not asserted against the paper."""
+    doc = (ROOT / 'docs' / 'seed003.md').read_text(encoding='utf-8')
+    for row in table1_b_rows():
+        assert row in doc, row
+
+
+def test_readings_r7_rows_are_the_committed_campaigns():
+    """docs/seed003_readings.md R7's table (paper / ours / difference / test) is written from the committed
+    campaigns, as docs/seed003.md's: the six Table 1 rows, B and A (same draws) first entry and staying below,
+    the orderings the paper draws (section 5.3) and B's spread ratio (from results.csv, as
+    test_disagreement_b_spread_grows_with_the_precision computes it)."""
+    doc = (ROOT / 'docs' / 'seed003_readings.md').read_text(encoding='utf-8')
+    r7 = doc[doc.index('## R7.'):doc.index('## R8.')]
+    b, a = summary('pointing_table1'), summary('pointing_table1_a')
+
+    def bands(d, kind):
+        return ' / '.join(f"{d[f'pointing_{kind}_{x}deg_s']['mean']:.1f} ± {d[f'pointing_{kind}_{x}deg_s']['std']:.1f}"
+                          for x in ('1', '0.1', '0.01'))
+    rows = table1_b_rows() + [
+        f'| B, staying below 1° / 0.1° / 0.01°: mean ± std (s) | not given | {bands(b, "settling")} |',
+        f'| A (same draws), first entry below 1° / 0.1° / 0.01°: mean ± std (s) | not given | {bands(a, "first")} |',
+        f'| A (same draws), staying below 1° / 0.1° / 0.01°: mean ± std (s) | not given | {bands(a, "settling")} |',
+        f"| B faster to 1° (first entry), A faster to 0.01° (staying below): means (s) | section 5.3 | "
+        f"B {b['pointing_first_1deg_s']['mean']:.1f} vs A {a['pointing_first_1deg_s']['mean']:.1f}; "
+        f"A {a['pointing_settling_0.01deg_s']['mean']:.1f} vs B {b['pointing_settling_0.01deg_s']['mean']:.1f} | ✔ |"]
+    std = [column(results('pointing_table1'), f'pointing_settling_{x}deg_s').std() for x in ('1', '0.1', '0.01')]
+    rows.append(f"| B's std, max / min over the three bands (staying below) | 1.03 (98 / 100 / 101 s) | "
+                f"{max(std) / min(std):.2f} | ✘ |")
+    for row in rows:
+        assert row in r7, row
 
 
 @pytest.mark.parametrize('name, campaign', [('pointing_table1', 'pointing_table1.yaml'),

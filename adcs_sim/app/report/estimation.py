@@ -33,7 +33,7 @@ def _band(ax, t, err, sigma, scale: float, unit: str, title: str) -> None:
         ax.plot(t, -3 * scale * sigma[:, i], color=COLORS[i], linewidth=0.8, linestyle='--')
     ax.set_ylabel(unit)
     ax.set_title(title + ' (dashed: ±3σ of the filter)', fontsize=9, loc='left')
-    ax.legend(loc='upper right', fontsize=8, ncol=3)
+    ax.legend(loc='upper left', bbox_to_anchor=(1.01, 1.0), fontsize=8)   # beside the panel, not over the data
     ax.grid(True, alpha=0.3)
 
 
@@ -57,7 +57,7 @@ def _chi2_panel(ax, t, values, dof: int, label: str, runs: int = 1) -> None:
     if ok.any():   # a few tiny values (a first update) must not squash the band
         ax.set_ylim(max(float(values[ok].min()), lo / 30.0) / 1.5, max(float(values[ok].max()), hi) * 1.5)
     ax.set_title(f'{label}: {100 * inside:.1f} % of the steps inside', fontsize=9, loc='left')
-    ax.legend(loc='upper right', fontsize=8)
+    ax.legend(loc='upper left', bbox_to_anchor=(1.01, 1.0), fontsize=8)
     ax.grid(True, alpha=0.3, which='both')
 
 
@@ -68,7 +68,7 @@ def estimation_figure(s: EstimationSeries, settle_s: float = 0.0, title: str = '
     e = estimation_errors(s)
     sensors = [k for k, v in sorted(s.nis.items()) if np.isfinite(v).any()]
     rows = 3 + ('bias' in e and 'sigma_bias' in e) + len(sensors)
-    fig = Figure(figsize=(8.0, 0.9 + 2.3 * rows), layout='constrained')
+    fig = Figure(figsize=(10.0, 0.9 + 2.3 * rows), layout='constrained')
     axes = fig.subplots(rows, 1, sharex=True, squeeze=False)[:, 0]
     _band(axes[0], s.t, e['attitude'], e['sigma_attitude'], ARCSEC, 'arcsec', 'attitude error δθ (body axes)')
     _zoom(axes[0], ARCSEC * 3 * e['sigma_attitude'], s.t, settle_s)
@@ -93,7 +93,7 @@ def estimation_figure(s: EstimationSeries, settle_s: float = 0.0, title: str = '
 def consistency_figure(consistency: dict, t: np.ndarray, runs: int, title: str = '') -> Figure:
     """The run-averaged NEES of a batch (:func:`adcs_sim.app.estimation.batch_consistency`) against
     the 95 % bounds of the mean of ``runs`` runs."""
-    fig = Figure(figsize=(8.0, 3.4), layout='constrained')
+    fig = Figure(figsize=(10.0, 3.4), layout='constrained')
     ax = fig.subplots()
     mean = consistency['nees']
     _chi2_panel(ax, t[:mean.size], mean, consistency['nees_dof'], f'mean NEES of {runs} runs', runs)

@@ -186,21 +186,28 @@ def fig_body_rates(c: Context):
     return fig, 'Body angular rate ω (rad/s, body axes).'
 
 
+def torque_unit(*values: np.ndarray) -> tuple[float, str]:
+    """(scale, unit) for torques: N·m from 1 N·m up (Table I's 140 N·m), mN·m below (wheels of 10-20 mN·m)."""
+    peak = max((float(np.nanmax(np.abs(v))) for v in values if np.size(v)), default=0.0)
+    return (1.0, 'N·m') if peak >= 1.0 else (1e3, 'mN·m')
+
+
 def fig_torque(c: Context):
     run = c.run
     cmd = commanded_torque(run)
     if not run.u.size and cmd is None:
         return (f'no applied torque ({topics.APPLIED_TORQUE}) and no commanded torque (u_x, u_y, u_z on '
                 f'{topics.CONTROLLER_STATUS})')
+    scale, unit = torque_unit(run.u, cmd[1] if cmd is not None else np.empty(0))
     fig, axes = new_figure(rows=3, height=1.9)
     for i, (a, ax) in enumerate(zip(AXES, axes)):
         if run.u.size:
-            step_plot(ax, run.t_u, 1e3 * run.u[:, i], run.t_end, color=COLORS[a], linewidth=3.0, alpha=0.7,
+            step_plot(ax, run.t_u, scale * run.u[:, i], run.t_end, color=COLORS[a], linewidth=3.0, alpha=0.7,
                   label='applied')
         if cmd is not None:
-            step_plot(ax, cmd[0], 1e3 * cmd[1][:, i], run.t_end, color='k', linestyle='--', linewidth=1,
+            step_plot(ax, cmd[0], scale * cmd[1][:, i], run.t_end, color='k', linestyle='--', linewidth=1,
                   label='commanded')
-        ax.set_ylabel(f'$u_{a}$ (mN·m)')
+        ax.set_ylabel(f'$u_{a}$ ({unit})')
     axes[0].set_title('Control torque per body axis: commanded (controller) vs applied (actuators)')
     mark_faults(axes, c.events)
     add_legend(axes[0])
@@ -209,7 +216,7 @@ def fig_torque(c: Context):
         missing.append(f'no applied torque recorded ({topics.APPLIED_TORQUE})')
     if cmd is None:
         missing.append(f'no commanded torque recorded (u_x, u_y, u_z on {topics.CONTROLLER_STATUS})')
-    return fig, ('Control torque per body axis (mN·m): commanded by the controller (status values u_x, u_y, '
+    return fig, (f'Control torque per body axis ({unit}): commanded by the controller (status values u_x, u_y, '
                  f'u_z on `{topics.CONTROLLER_STATUS}`) and applied to the body (`{topics.APPLIED_TORQUE}`), '
                  'held over each control period.' + (' ' + '; '.join(missing) + '.' if missing else ''))
 
@@ -220,18 +227,19 @@ def fig_wheels(c: Context):
         return f'no wheel states ({topics.WHEELS_STATE})'
     torque = run.wheel_torque.size > 0   # a batch engine's run has the speeds only
     fig, axes = new_figure(rows=2 if torque else 1, height=2.5)
+    scale, unit = torque_unit(run.wheel_torque)
     for j, name in enumerate(run.wheel_names):
         axes[0].plot(run.t_wheels, run.wheel_speed[:, j], **_line(j), label=name)
         if torque:
-            step_plot(axes[1], run.t_wheels, 1e3 * run.wheel_torque[:, j], **_line(j), label=name)
+            step_plot(axes[1], run.t_wheels, scale * run.wheel_torque[:, j], **_line(j), label=name)
     axes[0].set_ylabel('wheel speed (rad/s)')
     axes[0].set_title('Reaction wheels: speed relative to the body'
                       + (' (top), motor torque (bottom)' if torque else ''))
-    axes[-1].set_ylabel('motor torque (mN·m)' if torque else 'wheel speed (rad/s)')
+    axes[-1].set_ylabel(f'motor torque ({unit})' if torque else 'wheel speed (rad/s)')
     mark_faults(axes, c.events)
     for ax in axes:
         add_legend(ax)
-    return fig, 'Wheel speeds relative to the body (rad/s)' + (' and wheel motor torques (mN·m).' if torque else '.')
+    return fig, 'Wheel speeds relative to the body (rad/s)' + (f' and wheel motor torques ({unit}).' if torque else '.')
 
 
 def fig_thrusters(c: Context):

@@ -77,6 +77,9 @@ def fig_q4_bands(c: Context):
         paper = _published(c, f'settling_q4_{band:g}_after_fault_s')
         if paper is not None:
             ax.plot(t0 + paper, band, 'x', color=colour, markersize=9, mew=2, label=f'paper: {paper:g} s after t0')
+    floor = e[after & (e > 0)]
+    if floor.size:   # the range after t0 (the three-wheel phase starts at the final target: 1 − |q4| ~ 0)
+        ax.set_ylim(bottom=min(0.3 * float(floor.min()), 0.003))
     ax.set_ylabel('1 − |q4| (–, log)')
     ax.set_title('Scalar part of the error quaternion after the first fault: 1 − |q4| (seed 000\'s bands)')
     mark_faults([ax], c.events)

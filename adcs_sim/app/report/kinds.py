@@ -47,7 +47,9 @@ class RunKind:
 
     @property
     def description(self) -> str:
-        return RUN_KINDS.get(self.kind, 'unknown: the report cannot tell what the run is meant to do')
+        """The kind's one line, without a leading repeat of its name (the report prints the name before it)."""
+        text = RUN_KINDS.get(self.kind, 'unknown: the report cannot tell what the run is meant to do')
+        return text.removeprefix(f'{self.kind}: ')
 
 
 def section_params(section) -> dict:

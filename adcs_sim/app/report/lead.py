@@ -112,8 +112,16 @@ def _torque(run: RunData) -> list[Metric]:
                    '∫‖u‖dt of the applied body torque over the run (zero-order hold)')]
 
 
+def actuator_fault(run: RunData, rk: RunKind) -> bool:
+    """A fault (level ERROR) on one of the controller's own actuators (its wheels or thrusters): the law
+    reconfigures and seed 000's quantities after the fault lead the report. A sensor's outage (a star tracker
+    under an estimator) leaves the law's task as it was: the slew's own quantities lead."""
+    own = set(param_value(rk.params, 'wheels.names') or []) | set(param_value(rk.params, 'thrusters.names') or [])
+    return any(level >= 2 and name in own for _, level, name, _ in run.faults)
+
+
 def _regulation(run: RunData, rk: RunKind, q_ref) -> list[Metric]:
-    if math.isfinite(first_fault_time(run)):
+    if actuator_fault(run, rk):
         return _after_fault(run, q_ref)
     rows = comparison_rows(run)
     out = []

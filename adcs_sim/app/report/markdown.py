@@ -19,6 +19,12 @@ METRIC_NOTES = {
     'thruster_impulse_Ns': 'total thruster impulse Σ∫F dt at the end (N·s)',
     'thruster_firings': 'thruster-periods with a non-zero on-time',
     'thruster_on_time_s': 'total thruster on-time, all thrusters (s)',
+    'first_fault_time_s': 'time t0 of the first fault, an ERROR status on `faults` (s)',
+    'settling_q4_': 'seed 000: time after t0 from which 1 − |q4| stays inside the band (s; inf: not settled)',
+    'integrated_torque_after_fault_Nms': '∫‖u‖dt of the applied torque from t0 to the end (N·m·s)',
+    'pointing_first_': 'first time the pointing error ∠(σ̂, τ̂) reaches the band (s; seed 003 Table 1)',
+    'pointing_settling_': 'time after which the pointing error ∠(σ̂, τ̂) stays inside the band (s)',
+    'final_pointing_error_deg': 'pointing error ∠(σ̂, τ̂) at the end (deg)',
 }
 
 

@@ -14,12 +14,12 @@ from pathlib import Path
 from typing import Callable
 
 from adcs_msgs_py import names as topics
-from adcs_sim.app.analysis import attitude_errors, first_fault_time, run_metrics
+from adcs_sim.app.analysis import attitude_errors, run_metrics
 from adcs_sim.app.report.estimation import estimation_lines
 from adcs_sim.app.report.figures import FIGURES, Context, save_figure
 from adcs_sim.app.report.kind_figures import LEAD_FIGURES
 from adcs_sim.app.report.kinds import UNKNOWN, phases, reference_attitude, run_kind
-from adcs_sim.app.report.lead import lead_metrics, paper_values, with_paper
+from adcs_sim.app.report.lead import actuator_fault, lead_metrics, paper_values, with_paper
 from adcs_sim.app.report.loading import Run, fault_events, has_wheels, missing_topics
 from adcs_sim.app.report.markdown import fmt, md_escape, metric_note
 from adcs_sim.app.report.status_figure import fig_controller_status
@@ -198,7 +198,7 @@ def _lead_lines(report: Report) -> list[str]:
 def lead_figures(ctx: Context) -> list:
     """(file name, title, builder) of the figures the kind of run leads with."""
     kind = ctx.kind.kind
-    after_fault = kind == 'regulation' and math.isfinite(first_fault_time(ctx.run))
+    after_fault = kind == 'regulation' and actuator_fault(ctx.run, ctx.kind)
     return LEAD_FIGURES.get('regulation_after_fault' if after_fault else kind, [])
 
 
@@ -225,6 +225,10 @@ def _metric_lines(report: Report) -> list[str]:
     for k, v in metrics.items():
         if kind in ('spin', 'pointing') and k.startswith(REST_TO_REST):
             left.append(f'`{k}` (rest to rest: not meaningful for a {kind} run)')
+        elif k.startswith('settling_q4_') and kind != 'regulation':
+            left.append(f'`{k}` (seed 000\'s 1 − |q4| to a fixed target: not meaningful for a {kind} run)')
+        elif k.startswith('settling_q4_') and not actuator_fault(report.run.data, report.ctx.kind):
+            left.append(f'`{k}` (seed 000\'s settling after a wheel fault: the fault here is not on an actuator)')
         elif k == 'peak_wheel_speed_rad_s' and not has_wheels(report.run.data.scenario):
             left.append(f'`{k}` (the spacecraft has no reaction wheels)')
         else:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import re
 
 import numpy as np
+from matplotlib.ticker import MaxNLocator
 
 from adcs_msgs_py import names as topics
 from adcs_sim.app.report.figures import LINE, Context, add_legend, mark_faults, new_figure, step_plot
@@ -124,8 +125,11 @@ def fig_controller_status(c: Context):
             t, v = series[key]
             style = dict(LINE['xyz'[i]]) if i < 3 else {'color': f'C{i}', 'linewidth': 1.4}
             step_plot(ax, t, v, **style, label=key.rsplit('/', 1)[-1] if len(keys) > 1 else None)
-        ax.set_ylabel(label.rsplit(' (', 1)[1].rstrip(')'), fontsize='small')
+        unit = label.rsplit(' (', 1)[1].rstrip(')')
+        ax.set_ylabel(unit, fontsize='small')
         ax.set_title(label.rsplit(' (', 1)[0], fontsize='small', loc='left')
+        if unit in ('index', 'count'):   # a stage 1 -> 2 has no tick at 1.25
+            ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     # the fault markers' legend on the first numeric panel (the timeline's legend names its values)
     mark_faults(axes[:len(axes) - len(panels)], c.events, legend=not panels)
     mark_faults(numeric_axes, c.events)
