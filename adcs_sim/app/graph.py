@@ -197,7 +197,15 @@ class Progress:
             self.sim_time = t
 
     def spin(self, seconds: float) -> None:
+        """Take at most one ``/clock`` message and return after ``seconds``: the bar moves at most
+        1/seconds times a second, and this process does not wake at every step of the lockstep loop
+        (its reader keeps only the latest tick, best effort: the ones in between are dropped by DDS,
+        never seen by Python)."""
+        deadline = time.monotonic() + seconds
         self.executor.spin_once(timeout_sec=seconds)
+        remaining = deadline - time.monotonic()
+        if remaining > 0:
+            time.sleep(remaining)
 
     def close(self) -> None:
         self.bar.close()
