@@ -15,7 +15,7 @@ QoS choices
   a recorder is expected (``startup.expect_recorder``, set by the runner), the publishers of every
   recorded per-step topic wait for all acknowledgements every :data:`ACK_INTERVAL` (50) steps: a
   reader is then never more than ~50 steps behind, well inside the writer's depth, and the wait
-  (one heartbeat/acknowledgement round, up to ~50 ms) is paid once per 50 steps instead of at
+  (one heartbeat/acknowledgement round, up to ~10 ms: fastdds_profile.xml) is paid once per 50 steps instead of at
   every step. Memory stays bounded (200 messages per topic). The nodes' own subscriptions keep
   depth :data:`SUB_DEPTH` (10, :func:`subscriber_qos`): a controller that falls behind in
   real-time mode must act on recent states, not work through a backlog of 200 stale ones.

@@ -68,6 +68,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from adcs_controllers.laws import underactuated_scalar as scalar
 from adcs_controllers.laws.base import SectionLaw
 from adcs_controllers.laws.inverse_optimal import error_state, inertia_inverse
 from adcs_core.attitude import cross, dot, gain_vector, matvec, quat_kinematics, transpose
@@ -451,8 +452,17 @@ class SnlcGsmnLaw(_BoundLaw):
         super().__init__(p)
         self.gains = tuple(p[n] for n in ('k1', 'g1', 'K1', 'k2', 'g2', 'K2', 'gamma', 'sigma'))
         self.epsilon = p['epsilon']
+        self._scalar = None   # (axis, underactuated_scalar.GsmnConstants or None): the one-state path
 
     def _control(self, t, q, w):
+        if self._scalar is None or self._scalar[0] != self.unactuated_axis:
+            fits = scalar.applies(self.gains, self.epsilon, self.a1, self.a2, self.eps_den, self.law_q_ref,
+                                  self.law_w_ref, self.law_inertia)
+            self._scalar = (self.unactuated_axis, scalar.GsmnConstants(
+                self.law_inertia, self.law_q_ref, self.law_w_ref, self.gains, self.epsilon, self.a1, self.a2,
+                self.eps_den) if fits else None)
+        if self._scalar[1] is not None and np.ndim(q) == 1 and np.ndim(w) == 1:   # one state: the same bits on floats
+            return scalar.gsmn_control(self._scalar[1], q, w, self.shortest_path, self.scale_by_inertia)
         return gsmn_torque(q, w, self.law_inertia, *self.gains, epsilon=self.epsilon, a1=self.a1,
                            a2=self.a2, eps_den=self.eps_den, scale_by_inertia=self.scale_by_inertia,
                            **self._ref())

@@ -27,6 +27,17 @@ STOP_TIMEOUT_S = 20.0
 PROGRESS_NODE = 'adcs_run_progress'   # the runner's own /clock subscriber (a node of the run)
 
 
+# A folder in the runner's environment: every node runs under cProfile, writing <folder>/<node>.prof
+# (benchmarks/showcase_graph.py --profile: where each process of the full graph spends its time).
+PROFILE_ENV = 'ADCS_SIM_PROFILE_DIR'
+
+
+def profiled(name: str) -> list[str]:
+    """``['-m', 'cProfile', '-o', <file>]`` when :data:`PROFILE_ENV` is set, else ``[]``."""
+    folder = os.environ.get(PROFILE_ENV)
+    return ['-m', 'cProfile', '-o', str(Path(folder) / f'{name}.prof')] if folder else []
+
+
 class Graph:
     """The node processes of one run, started and stopped in order.
 
@@ -60,7 +71,7 @@ class Graph:
         self.logs[name] = log
         self.commands[name] = (module, args)
         with open(log, 'wb') as f:
-            proc = subprocess.Popen([sys.executable, '-m', module, '--ros-args', *args],
+            proc = subprocess.Popen([sys.executable, *profiled(name), '-m', module, '--ros-args', *args],
                                     stdout=f, stderr=subprocess.STDOUT, env=self.env,
                                     stdin=subprocess.DEVNULL, start_new_session=True, pass_fds=self.keep_fds)
         self.procs[name] = proc
@@ -186,7 +197,15 @@ class Progress:
             self.sim_time = t
 
     def spin(self, seconds: float) -> None:
+        """Take at most one ``/clock`` message and return after ``seconds``: the bar moves at most
+        1/seconds times a second, and this process does not wake at every step of the lockstep loop
+        (its reader keeps only the latest tick, best effort: the ones in between are dropped by DDS,
+        never seen by Python)."""
+        deadline = time.monotonic() + seconds
         self.executor.spin_once(timeout_sec=seconds)
+        remaining = deadline - time.monotonic()
+        if remaining > 0:
+            time.sleep(remaining)
 
     def close(self) -> None:
         self.bar.close()

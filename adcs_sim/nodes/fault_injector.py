@@ -8,7 +8,8 @@ mode, key/values ``mode``, ``value``, ``time``, ``event``, ``events``). The node
 faults apply each array when their step time reaches its stamp (:mod:`adcs_core.faults`), so a
 fault stamped ``t_k`` holds over exactly ``[t_k, t_k+1]`` however fast the lockstep loop runs:
 publishing "when the time comes" would race the loop. The node then follows ``/clock`` only to
-log each event when it becomes due, and spins until it is stopped.
+log each event when it becomes due (and drops its ``/clock`` subscription once the last one is
+logged: no wake-up at every step for the rest of the run), and spins until it is stopped.
 
 With ``startup.expect_recorder`` (set by the runner) it publishes the schedule only once the
 recorder's subscription is matched, then waits until every matched reader acknowledged it. The
@@ -37,7 +38,9 @@ class FaultInjectorNode(AdcsNode):
         self.schedule = fault_schedule(self.params)
         self.pub_faults = self.publisher(topics.FAULTS)
         self._logged = 0  # snapshots already announced as due
-        self.sub_clock = self.subscription(topics.CLOCK, self._on_clock)
+        # /clock only until the last event is announced (then dropped: the lockstep loop runs on a
+        # machine shared by every node, and a process woken at every step costs each step CPU)
+        self.sub_clock = self.subscription(topics.CLOCK, self._on_clock) if len(self.schedule) > 1 else None
         if not self.params['startup.expect_recorder']:
             self.publish_schedule()
 
@@ -56,6 +59,9 @@ class FaultInjectorNode(AdcsNode):
             due_ns, snapshot = self.schedule[self._logged]
             faulty = {w: s.mode for w, s in snapshot.items() if s.mode not in FAULT_OK_MODES}
             self.get_logger().info(f't = {due_ns / cv.NS_PER_S:g} s: faults now {faulty or "none"}')
+        if self._logged + 1 == len(self.schedule) and self.sub_clock is not None:
+            self.destroy_subscription(self.sub_clock)   # every event announced: nothing left to follow
+            self.sub_clock = None
 
     def _recorder_matched(self) -> bool:
         """The recorder subscribes to ``faults`` and this writer is matched with every
