@@ -7,9 +7,12 @@ Issue 18's Monte Carlo benchmark, on ``config/campaigns/pd_slew_30deg.yaml`` (10
 ``adcs-montecarlo`` runs it, chunk by chunk (:func:`adcs_sim.app.campaign.run_chunk`: dispersions,
 batch simulation, metrics), in this process without Dask:
 
-(a) **kernel**: plants on the compiled kernel (:mod:`adcs_sim.truth.kernel`);
-(b) **numpy**: the same campaign with ``ADCS_PLANT_KERNEL=0`` semantics (``kernel.ENABLED =
-    False``: the previous numpy plant), checked to give the same rows bit for bit.
+(a) **fused**: the batch engine's fused compiled closed loop where it applies (PD family on wheels:
+    :mod:`adcs_sim.app.fused`, whole runs per compiled call), else as (b);
+(b) **kernel**: step by step in Python, plants on the compiled kernel (:mod:`adcs_sim.truth.kernel`),
+    ``ADCS_FUSED_LOOP=0`` semantics (``fused.ENABLED = False``);
+(c) **numpy**: the same campaign with ``ADCS_PLANT_KERNEL=0`` semantics as well (``kernel.ENABLED =
+    False``: the numpy plant), all three checked to give the same rows bit for bit.
 
 ``--basilisk``: the same slews in Basilisk 2.12.1 one after another (bsk installed into a throwaway
 venv under /tmp, :mod:`bsk_support`; hub + 3 wheels, RK4 at the scenario's step, simpleNav,
@@ -32,20 +35,21 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bsk_support import basilisk_python, run_child  # noqa: E402
 
+from adcs_sim.app import fused as fused_loop  # noqa: E402
 from adcs_sim.app.campaign import Campaign, run_chunk  # noqa: E402
 from adcs_sim.truth import kernel  # noqa: E402
 
 DEFAULT = ROOT / 'config' / 'campaigns' / 'pd_slew_30deg.yaml'
 
 
-def timed_campaign(campaign: Campaign, compiled: bool) -> tuple[float, list]:
-    kernel.ENABLED = compiled
+def timed_campaign(campaign: Campaign, compiled: bool, fused: bool = True) -> tuple[float, list]:
+    kernel.ENABLED, fused_loop.ENABLED = compiled, fused
     try:
         t0 = time.perf_counter()
         rows = [row for chunk in campaign.chunks() for row in run_chunk(campaign, chunk)]
         return time.perf_counter() - t0, rows
     finally:
-        kernel.ENABLED = True
+        kernel.ENABLED = fused_loop.ENABLED = True
 
 
 def basilisk_per_run(campaign: Campaign, sample: int) -> tuple[float | None, str]:
@@ -80,16 +84,20 @@ def main() -> int:
     parser.add_argument('--bsk-sample', type=int, default=5)
     args = parser.parse_args()
     campaign = Campaign.load(args.campaign, runs=args.runs)
-    timed_campaign(Campaign.load(args.campaign, runs=min(campaign.chunk_size, campaign.runs)), True)  # warm
+    warm = Campaign.load(args.campaign, runs=min(campaign.chunk_size, campaign.runs))
+    timed_campaign(warm, True)
+    timed_campaign(warm, True, fused=False)
     fast, rows = timed_campaign(campaign, True)
-    slow, rows_numpy = timed_campaign(campaign, False)
-    if repr(rows) != repr(rows_numpy):
-        print('MISMATCH: the kernel and numpy campaigns differ', file=sys.stderr)
+    step, rows_step = timed_campaign(campaign, True, fused=False)
+    slow, rows_numpy = timed_campaign(campaign, False, fused=False)
+    if not repr(rows) == repr(rows_step) == repr(rows_numpy):
+        print('MISMATCH: the fused, kernel and numpy campaigns differ', file=sys.stderr)
         return 1
     n = campaign.runs
     print(f'{args.campaign.name}: {n} runs in chunks of {campaign.chunk_size}, one process (same rows bit for bit)')
-    print(f'  (a) kernel: {fast:.2f} s = {n / fast:.1f} runs/s')
-    print(f'  (b) numpy:  {slow:.2f} s = {n / slow:.1f} runs/s   (b)/(a) time = {slow / fast:.2f}')
+    print(f'  (a) fused:  {fast:.2f} s = {n / fast:.1f} runs/s')
+    print(f'  (b) kernel: {step:.2f} s = {n / step:.1f} runs/s   (b)/(a) time = {step / fast:.2f}')
+    print(f'  (c) numpy:  {slow:.2f} s = {n / slow:.1f} runs/s   (c)/(a) time = {slow / fast:.2f}')
     if args.basilisk:
         per_run, why = basilisk_per_run(campaign, args.bsk_sample)
         if per_run is None:
