@@ -83,7 +83,9 @@ def main() -> int:
     parser.add_argument('--basilisk', action='store_true', help='also time a sample of bsk 2.12.1 runs')
     parser.add_argument('--bsk-sample', type=int, default=5)
     args = parser.parse_args()
+    t0 = time.perf_counter()
     campaign = Campaign.load(args.campaign, runs=args.runs)
+    load = time.perf_counter() - t0   # reading the files and validating every run's draw, once
     warm = Campaign.load(args.campaign, runs=min(campaign.chunk_size, campaign.runs))
     timed_campaign(warm, True)
     timed_campaign(warm, True, fused=False)
@@ -95,6 +97,7 @@ def main() -> int:
         return 1
     n = campaign.runs
     print(f'{args.campaign.name}: {n} runs in chunks of {campaign.chunk_size}, one process (same rows bit for bit)')
+    print(f'  Campaign.load (files, every draw validated once): {load:.2f} s; the chunks:')
     print(f'  (a) fused:  {fast:.2f} s = {n / fast:.1f} runs/s')
     print(f'  (b) kernel: {step:.2f} s = {n / step:.1f} runs/s   (b)/(a) time = {step / fast:.2f}')
     print(f'  (c) numpy:  {slow:.2f} s = {n / slow:.1f} runs/s   (c)/(a) time = {slow / fast:.2f}')

@@ -241,6 +241,7 @@ class Campaign:
     requirements: dict[str, dict[str, float]]
     dispersions: list[Dispersion]
     series_every: int = 0   # keep each run's error series every this many steps (0: none)
+    checked: bool = False   # every run's draw validated (check_runs): run_chunk need not repeat it
 
     @classmethod
     def load(cls, path, runs: int | None = None) -> 'Campaign':
@@ -379,11 +380,7 @@ class Campaign:
         """Validated sections of run ``index``; CampaignError naming the run and the key if the
         draw is impossible (e.g. a negative inertia). ``inputs`` as for :meth:`run_given`."""
         inputs = self.draw(index) if inputs is None else inputs
-        changes: dict[str, dict[str, Any]] = {}
-        for d, value in zip(self.dispersions, inputs.values()):  # what run_given writes, in its order
-            changes.setdefault(d.section, {})[d.key] = value
-            for section, key in d.links:
-                changes.setdefault(section, {})[key] = list(value) if isinstance(value, list) else value
+        changes = self._changes(inputs)
         out = {}
         for section in self.nominal:  # the nominal sections are validated (defaults): check the changes
             try:
@@ -392,10 +389,43 @@ class Campaign:
                 raise CampaignError(f'run {index}: drawn {exc} (inputs: {inputs})') from None
         return out
 
+    def _changes(self, inputs: dict[str, Any]) -> dict[str, dict[str, Any]]:
+        """``{section: {key: value}}`` a run's draws (and links) set, in :meth:`run_given`'s order."""
+        changes: dict[str, dict[str, Any]] = {}
+        for d, value in zip(self.dispersions, inputs.values()):
+            changes.setdefault(d.section, {})[d.key] = value
+            for section, key in d.links:
+                changes.setdefault(section, {})[key] = list(value) if isinstance(value, list) else value
+        return changes
+
     def check_runs(self) -> None:
-        """Validate every run's drawn parameters (before anything runs)."""
+        """Validate every run's drawn parameters (before anything runs); :attr:`checked` then."""
         for i, inputs in enumerate(self.draws(list(range(self.runs)))):
             self.run_sections(i, inputs)
+        self.checked = True
+
+    def batch_sections(self, indices: list[int], inputs: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+        """The sections of runs ``indices`` (their draws ``inputs``) stacked for the batch engine:
+        ``BatchSimulation.from_runs([run_sections(i) ...])``'s sections (:meth:`Schema.stack`: a value
+        equal in every run as it is, else an array over the runs). A :attr:`checked` campaign's draws
+        were validated at load (the draws are a pure function of the run index), so the sections
+        are assembled from the validated nominal values and the draws without validating each run
+        again (a draw is already in its validated form: floats, lists of floats, ints)."""
+        if not self.checked:
+            runs = [self.run_sections(i, d) for i, d in zip(indices, inputs)]
+            return {name: NODES[name].schema.stack([r[name] for r in runs]) for name in runs[0]
+                    if NODES[name].role != 'recorder'}
+        per_run = [self._changes(d) for d in inputs]
+        out = {}
+        for section in self.nominal:
+            if NODES[section].role == 'recorder':
+                continue
+            out[section] = values = dict(self.defaults[section])
+            for key in per_run[0].get(section, {}):
+                column = [changes[section][key] for changes in per_run]
+                first = column[0]
+                values[key] = first if all(v == first for v in column[1:]) else np.asarray(column)
+        return out
 
     def scenario_text(self, index: int) -> str:
         """A complete scenario file for run ``index`` alone: replay it with ``adcs-run``."""
@@ -428,7 +458,7 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
     A pure function of its arguments (what a Dask worker executes).
     """
     inputs = campaign.draws(indices)
-    result = BatchSimulation.from_runs([campaign.run_sections(i, d) for i, d in zip(indices, inputs)]).run()
+    result = BatchSimulation(campaign.batch_sections(indices, inputs), len(indices)).run()
     with np.errstate(all='ignore'):  # a diverged run's metrics overflow to inf: that is the result
         metrics = batch_run_metrics(result, campaign.tol_deg)  # each run's result.metrics(j, tol)
     rows = []
