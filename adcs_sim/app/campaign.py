@@ -143,6 +143,30 @@ class Dispersion:
         m = np.broadcast_to(np.asarray(self.args['max_deg'], dtype=float), (3,))
         return rng.uniform(-m, m)
 
+    def sampler(self, nominal: Any):
+        """``rng, index -> value``: :meth:`draw` (or, for ``euler213_uniform``, :meth:`euler_angles`)
+        with its arguments broadcast once instead of at every run's draw: the generator gets the
+        same arguments element by element, so it draws the same numbers in the same order."""
+        kind, a = self.distribution, self.args
+        if kind == 'euler213_uniform':
+            m = np.ascontiguousarray(np.broadcast_to(np.asarray(a['max_deg'], dtype=float), (3,)))
+            low = -m
+            return lambda rng, index: rng.uniform(low, m)
+        if kind not in ('normal', 'uniform'):
+            return lambda rng, index: self.draw(rng, nominal, index)
+        base = np.asarray(nominal, dtype=float)
+        full = lambda v: np.array(np.broadcast_to(np.asarray(v, dtype=float), base.shape))  # noqa: E731
+        if kind == 'normal':
+            first, second, method = full(a.get('mean', base)), full(a['std']), 'normal'
+        elif 'plus_minus' in a:
+            half = full(a['plus_minus'])
+            first, second, method = base - half, base + half, 'uniform'
+        else:
+            first, second, method = full(a['low']), full(a['high']), 'uniform'
+        if base.ndim:
+            return lambda rng, index: getattr(rng, method)(first, second).tolist()
+        return lambda rng, index: float(np.asarray(getattr(rng, method)(first, second), dtype=float))
+
 
 # --- reading a campaign file (Campaign.load) ---------------------------------------------------
 
@@ -349,15 +373,17 @@ class Campaign:
         into quaternions by one scipy call (each run's generator draws in the same order; scipy's
         conversion is row by row, so the quaternions are the same bits)."""
         out, pending = [], []
+        samplers = [(d.target, d.distribution == 'euler213_uniform', d.sampler(self._nominal_value(d.section, d.key)))
+                    for d in self.dispersions]
         for index in indices:
             rng = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(index,)))
             inputs = {}
-            for d in self.dispersions:
-                if d.distribution == 'euler213_uniform':
-                    pending.append((inputs, d.target, d.euler_angles(rng)))
-                    inputs[d.target] = None  # the place of the value, in file order
+            for target, euler, sample in samplers:
+                if euler:
+                    pending.append((inputs, target, sample(rng, index)))
+                    inputs[target] = None  # the place of the value, in file order
                 else:
-                    inputs[d.target] = d.draw(rng, self._nominal_value(d.section, d.key), index)
+                    inputs[target] = sample(rng, index)
             out.append(inputs)
         if pending:
             q = Rotation.from_euler(EULER_213, np.stack([a for _, _, a in pending]), degrees=True).as_quat()
