@@ -18,10 +18,31 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit, prange
 
-from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213, pointing_error
+from adcs_core.attitude import euler_213, pointing_error
 from adcs_sim.app.analysis import POINTING_BANDS_DEG, run_metrics, zoh_durations
 from adcs_sim.app.estimation import estimation_metrics, series_from_batch
+
+
+@njit(parallel=True, cache=True, error_model='numpy', nogil=True)
+def error_quaternions(q, q_ref, qe, vnorm):
+    """qe[r, k] = error_quaternion(q[r, k], q_ref[r]) and vnorm[r, k] = |qe[r, k, :3]| (q (R, K, 4),
+    q_ref (R, 4)): :func:`adcs_core.attitude.quat_multiply` of ``quat_conjugate(q_ref)`` and ``q``
+    (``(p4 q_v + q4 p_v) + p_v x q_v``, ``p4 q4 - ((p1 q1 + p2 q2) + p3 q3)``) and
+    :func:`numpy.linalg.norm`'s ``sqrt((x1² + x2²) + x3²)`` (numpy sums 3 terms in sequence), the
+    same operations in the same order as :func:`~adcs_core.attitude.eigenaxis_angle`'s numpy, compiled
+    without fastmath: the same bits, ~20x fewer passes over the (runs, samples) arrays."""
+    for r in prange(q.shape[0]):
+        p0, p1, p2, p3 = -q_ref[r, 0], -q_ref[r, 1], -q_ref[r, 2], q_ref[r, 3]
+        for k in range(q.shape[1]):
+            x0, x1, x2, x3 = q[r, k, 0], q[r, k, 1], q[r, k, 2], q[r, k, 3]
+            e0 = (p3 * x0 + x3 * p0) + (p1 * x2 - p2 * x1)
+            e1 = (p3 * x1 + x3 * p1) + (p2 * x0 - p0 * x2)
+            e2 = (p3 * x2 + x3 * p2) + (p0 * x1 - p1 * x0)
+            qe[r, k, 0], qe[r, k, 1], qe[r, k, 2] = e0, e1, e2
+            qe[r, k, 3] = p3 * x3 - ((p0 * x0 + p1 * x1) + p2 * x2)
+            vnorm[r, k] = np.sqrt((e0 * e0 + e1 * e1) + e2 * e2)
 
 
 def settling_times(t: np.ndarray, error: np.ndarray, tol: float) -> np.ndarray:
@@ -71,9 +92,10 @@ def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.
     K = result.t.size - 1
     t, t_u, t_end = result.t, result.t[:K], float(result.t[K])
     q = result.q[rows]
-    q_ref = result.q_ref[rows][:, None, :] if result.q_ref.ndim == 2 else result.q_ref
-    qe = error_quaternion(q, q_ref)
-    eigen = np.degrees(eigenaxis_angle(qe))
+    q_ref = result.q_ref[rows] if result.q_ref.ndim == 2 else np.broadcast_to(result.q_ref, (rows.size, 4))
+    qe, vnorm = np.empty(q.shape), np.empty(q.shape[:2])
+    error_quaternions(np.ascontiguousarray(q), np.ascontiguousarray(q_ref, dtype=float), qe, vnorm)
+    eigen = np.degrees(2.0 * np.arctan2(vnorm, np.abs(qe[..., 3])))   # eigenaxis_angle(qe)
     euler = np.abs(np.degrees(euler_213(qe)))
     u = result.u[rows]
     zoh = zoh_durations(t_u, t_end)
