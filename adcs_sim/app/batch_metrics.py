@@ -10,8 +10,8 @@ the last exit interpolated, the zero-order-hold integrals summed along each run'
 so each run gets the same numbers bit for bit (``tests/test_batch_metrics.py`` compares them).
 
 Runs it does not vectorise go through :func:`run_metrics` one by one: a run that ended early or
-failed (its series is shorter than the grid), and every run of a batch with a fault schedule
-(the fault metrics depend on the run's faults).
+failed (its series is shorter than the grid). A fault schedule is every run's (the batch engine
+applies it to all), so the fault metrics of the full runs are vectorised too.
 """
 from __future__ import annotations
 
@@ -117,6 +117,7 @@ def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.
         'peak_wheel_speed_rad_s': (np.abs(result.wheel_speed[take]).max(axis=(1, 2)) if result.wheel_names
                                    and result.wheel_speed.shape[-1] else np.full(rows.size, math.nan)),
     }
+    out.update(_fault_columns(result, t, qe, (u0, u1, u2), t_end))
     if result.pointing is not None:
         sigma, tau = result.pointing
         out.update(_pointing_columns(t, np.degrees(pointing_error(q, sigma, tau)), POINTING_BANDS_DEG))
@@ -124,12 +125,35 @@ def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.
 
 
 
+def _fault_columns(result, t: np.ndarray, qe: np.ndarray, u: tuple, t_end: float) -> dict[str, np.ndarray]:
+    """:func:`adcs_sim.app.analysis.fault_metrics` of full runs (the batch's fault schedule is every
+    run's): q4 settling after the first fault in each band and the torque integral after it."""
+    K = t.size - 1
+    times = [f[0] for f in result.faults if f[0] <= t[K] and f[1] >= 2]   # run_data's faults, level ERROR
+    if not times:
+        return {}
+    t0 = float(min(times))
+    after = t >= t0
+    out = {'first_fault_time_s': np.full(qe.shape[0], t0)}
+    for band in (0.02, 0.01):
+        out[f'settling_q4_{band:g}_after_fault_s'] = settling_times(t[after], 1.0 - np.abs(qe[:, after, 3]), band) - t0
+    t_u = t[:K]
+    late = t_u >= t0
+    u0, u1, u2 = u
+    norm = np.sqrt((u0 * u0 + u1 * u1) + u2 * u2)
+    # C order: each row summed as one run's 1-D array (pairwise); a masked column selection's
+    # product may come out in another order, which numpy would sum column by column
+    held = np.ascontiguousarray(norm[:, late] * zoh_durations(t_u[late], t_end))
+    out['integrated_torque_after_fault_Nms'] = np.sum(held, axis=-1)
+    return out
+
+
 def batch_run_metrics(result, tol_deg: float = 0.5) -> list[dict]:
     """``[result.metrics(j, tol_deg) for j in range(result.n_runs)]``, the same dicts (keys, order,
     values bit for bit), computed over the batch axis where it can (module docstring)."""
     K = result.t.size - 1
     full = (result.n_steps == K) & np.array([f is None for f in result.failure], dtype=bool)
-    if K < 1 or result.faults:
+    if K < 1:
         full[:] = False
     rows = np.flatnonzero(full)
     metrics: list[dict | None] = [None] * result.n_runs
