@@ -99,7 +99,9 @@ class FusedLoop:
     def __init__(self, sim, x0: np.ndarray) -> None:
         N, law, act, plant = sim.n_runs, sim.law, sim.actuation, sim.plant
         n = len(act.wheel_names)
-        as_rows = lambda v, shape: np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), (N,) + shape))  # noqa: E731
+
+        def as_rows(value, shape: tuple) -> np.ndarray:   # one row per run, contiguous
+            return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=float), (N,) + shape))
         self.law = np.stack([as_rows(law.kp, ()), as_rows(law.kd, ())], axis=1)
         self.inertia = as_rows(law.inertia, (3, 3)).reshape(N, 9)
         self.q_ref, self.w_ref = as_rows(law.q_ref, (4,)), as_rows(law.w_ref, (3,))
