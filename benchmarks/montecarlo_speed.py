@@ -18,11 +18,15 @@ batch simulation, metrics), in this process without Dask:
 venv under /tmp, :mod:`bsk_support`; hub + 3 wheels, RK4 at the scenario's step, simpleNav,
 attTrackingError, mrpFeedback as PD, rwMotorTorque at the control period), a timed sample of
 ``--bsk-sample`` runs scaled to the campaign's size, and ``ratio = Basilisk / ours``
-(issue target >= 100). Says so when Basilisk cannot be installed or run.
+(issue target >= 100). Says so when Basilisk cannot be installed or run. Wall and CPU time both
+(process CPU time, all threads: on a shared, loaded machine the wall times of two measurements taken
+a minute apart can differ several-fold, the CPU times much less); the Basilisk ratio also with
+``Campaign.load`` (reading the files and validating every run's draw, once per campaign) added to ours.
 """
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -42,17 +46,21 @@ from adcs_sim.truth import kernel  # noqa: E402
 DEFAULT = ROOT / 'config' / 'campaigns' / 'pd_slew_30deg.yaml'
 
 
+CPU = {}   # each path's process CPU time (all threads), s: a fairer figure than wall time on a loaded machine
+
+
 def timed_campaign(campaign: Campaign, compiled: bool, fused: bool = True) -> tuple[float, list]:
     kernel.ENABLED, fused_loop.ENABLED = compiled, fused
     try:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         rows = [row for chunk in campaign.chunks() for row in run_chunk(campaign, chunk)]
+        CPU[(compiled, fused)] = time.process_time() - c0
         return time.perf_counter() - t0, rows
     finally:
         kernel.ENABLED = fused_loop.ENABLED = True
 
 
-def basilisk_per_run(campaign: Campaign, sample: int) -> tuple[float | None, str]:
+def basilisk_per_run(campaign: Campaign, sample: int) -> tuple[dict | None, str]:
     python, why = basilisk_python()
     if python is None:
         return None, why
@@ -73,7 +81,7 @@ def basilisk_per_run(campaign: Campaign, sample: int) -> tuple[float | None, str
     if answer is None:
         return None, why
     print(f"Basilisk: {answer['runs']} slews timed, worst final |sigma| {answer['final_mrp_norm_max']:.2e}")
-    return answer['s_per_run'], ''
+    return answer, ''
 
 
 def main() -> int:
@@ -83,9 +91,10 @@ def main() -> int:
     parser.add_argument('--basilisk', action='store_true', help='also time a sample of bsk 2.12.1 runs')
     parser.add_argument('--bsk-sample', type=int, default=5)
     args = parser.parse_args()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     campaign = Campaign.load(args.campaign, runs=args.runs)
     load = time.perf_counter() - t0   # reading the files and validating every run's draw, once
+    load_cpu = time.process_time() - c0
     warm = Campaign.load(args.campaign, runs=min(campaign.chunk_size, campaign.runs))
     timed_campaign(warm, True)
     timed_campaign(warm, True, fused=False)
@@ -101,13 +110,18 @@ def main() -> int:
     print(f'  (a) fused:  {fast:.2f} s = {n / fast:.1f} runs/s')
     print(f'  (b) kernel: {step:.2f} s = {n / step:.1f} runs/s   (b)/(a) time = {step / fast:.2f}')
     print(f'  (c) numpy:  {slow:.2f} s = {n / slow:.1f} runs/s   (c)/(a) time = {slow / fast:.2f}')
+    print(f'  CPU time (all threads): (a) {CPU[True, True]:.2f} s  (b) {CPU[True, False]:.2f} s  '
+          f'(c) {CPU[False, False]:.2f} s; Campaign.load {load_cpu:.2f} s')
     if args.basilisk:
-        per_run, why = basilisk_per_run(campaign, args.bsk_sample)
-        if per_run is None:
+        answer, why = basilisk_per_run(campaign, args.bsk_sample)
+        if answer is None:
             print(f'Basilisk: not measured ({why})')
         else:
+            per_run, cpu = answer['s_per_run'], answer.get('cpu_s_per_run', math.nan)
             print(f'  Basilisk 2.12.1, one run after another: {per_run:.3f} s per run, {n} runs ~ '
                   f'{per_run * n:.1f} s   ratio Basilisk/(a) = {per_run * n / fast:.1f}  (target >= 100)')
+            print(f'  CPU time: Basilisk {cpu:.4f} s per run, {n} runs ~ {cpu * n:.1f} s   ratio Basilisk/(a) = '
+                  f'{cpu * n / CPU[True, True]:.1f}; with Campaign.load: {cpu * n / (CPU[True, True] + load_cpu):.1f}')
     return 0
 
 
