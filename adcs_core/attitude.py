@@ -143,6 +143,8 @@ def euler_213(q: np.ndarray) -> np.ndarray:
     q = np.asarray(q, dtype=float)
     flat = q.reshape(-1, 4)
     good = np.isfinite(flat).all(axis=1) & (np.abs(flat).sum(axis=1) > 0)
+    if good.all() and flat.shape[0]:   # scipy converts row by row: no masked copies, the same values
+        return scipy_rotation().from_quat(flat).as_euler(EULER_213).reshape(q.shape[:-1] + (3,))
     out = np.full((flat.shape[0], 3), np.nan)
     if good.any():
         out[good] = scipy_rotation().from_quat(flat[good]).as_euler(EULER_213)

@@ -65,3 +65,24 @@ def test_batch_metrics_equal_run_metrics_for_pointing_and_faults(tmp_path):
     same_metrics(batch_of(pointing, [{'dynamics': {'initial.attitude': v}} for v in q]).run(), tol=1.0)
     faulty = make_scenario(tmp_path, {'dynamics': {'duration': 520.0}}, base='uosat12_gsmn.yaml')  # rw_z fails at 500 s
     same_metrics(batch_of(faulty, [{}, {'dynamics': {'initial.attitude': q[2]}}]).run())
+
+
+def test_the_compiled_error_quaternions_are_numpys():
+    """error_quaternions (batch_metrics' compiled kernel) against error_quaternion and the norm of
+    its vector part (numpy) on (runs, samples) arrays: one target or one per run, random and
+    awkward values (NaN, inf, signed zeros), the same bits."""
+    from adcs_core.attitude import error_quaternion, quat_normalize
+    from adcs_sim.app.batch_metrics import error_quaternions
+    rng = np.random.default_rng(11)
+    q = rng.normal(size=(7, 301, 4)) * np.array([1.0, 1e-3, 1e3, 1.0])
+    q[1, 5] = [np.nan, 0.0, 0.0, 1.0]
+    q[2, 9] = [np.inf, 0.0, -0.0, 1.0]
+    q[3, 4] = [-0.0, 0.0, -0.0, -1.0]
+    for q_ref in (np.broadcast_to([0.0, 0.0, 0.0, 1.0], (7, 4)), quat_normalize(rng.normal(size=(7, 4)))):
+        qe, vnorm = np.empty(q.shape), np.empty(q.shape[:2])
+        error_quaternions(q, np.ascontiguousarray(q_ref), qe, vnorm)
+        with np.errstate(all='ignore'):
+            ref = error_quaternion(q, q_ref[:, None, :])
+            ref_norm = np.linalg.norm(ref[..., :3], axis=-1)
+        assert repr(qe.tolist()) == repr(ref.tolist())
+        assert repr(vnorm.tolist()) == repr(ref_norm.tolist())

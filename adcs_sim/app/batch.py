@@ -47,6 +47,7 @@ from adcs_core.attitude import quat_norm, quat_normalize
 from adcs_core.faults import FAULT_ERROR_MODES, split_snapshot
 from adcs_msgs_py.measurements import Estimate, Measurements, Reading, received_unit_vector
 from adcs_msgs_py.params import ParameterError
+from adcs_sim.app import fused
 from adcs_sim.app.analysis import RunData, run_metrics
 from adcs_sim.app.estimation import estimation_metrics, series_from_batch
 from adcs_sim.app.registry import NODES
@@ -362,6 +363,8 @@ class BatchSimulation:
         x = np.broadcast_to(initial_state(plant, self.dynamics), (N, plant.n_states)).copy()
         hist = self._history(x, K)
         hist['sensors'] = {}
+        if (loop := fused.plan(self, x, progress, observe)) is not None:
+            return self._run_fused(loop, x, hist, K)
         self.sensors, self._measured = build_sensors(self.dynamics, self._sensor_seeds), None
         failure: list = [None] * N
         fault_applied = -1
@@ -388,8 +391,7 @@ class BatchSimulation:
                     x_new = plant.step(t, x, commands, period, self.max_step)
                 finite = np.isfinite(x_new).all(axis=-1) & np.isfinite(u).all(axis=-1)
                 for i in np.flatnonzero(active & ~finite):
-                    failure[i] = (f'the plant state is no longer finite at t = {t + period:g} s (non-finite '
-                                  f'{nonfinite_cause(plant, x_new[i], u[i])} after the step from t = {t:g} s)')
+                    failure[i] = self._failure(k, x_new[i], u[i])
                 x = x_new if active.all() else np.where(active[:, None], x_new, x)
                 self._record(hist, k, x, u, active)
                 done_steps += active
@@ -400,6 +402,21 @@ class BatchSimulation:
                 k_end = int(done_steps.max())
                 self._apply_faults(k_end * self.period_ns, fault_applied)
                 self._sense(hist, k_end, x, done_steps == k_end)
+        return self._result(hist, K, done_steps, failure)
+
+    def _failure(self, k: int, x_new: np.ndarray, u: np.ndarray) -> str:
+        """Why a run stopped at control step ``k``: its state after the step or its torque is not finite."""
+        t, period = (k * self.period_ns) / NS_PER_S, self.period_ns / NS_PER_S
+        return (f'the plant state is no longer finite at t = {t + period:g} s (non-finite '
+                f'{nonfinite_cause(self.plant, x_new, u)} after the step from t = {t:g} s)')
+
+    def _run_fused(self, loop: 'fused.FusedLoop', x: np.ndarray, hist: dict, K: int) -> BatchResult:
+        """:meth:`run` on the fused compiled loop (:mod:`adcs_sim.app.fused`): the same rows."""
+        self.K = K
+        done_steps, failed, x_end = loop.run(self, x, hist)
+        failure: list = [None] * self.n_runs
+        for i in np.flatnonzero(failed):
+            failure[i] = self._failure(int(done_steps[i]) - 1, x_end[i], hist['u'][i, done_steps[i] - 1])
         return self._result(hist, K, done_steps, failure)
 
     def _result(self, hist: dict, K: int, done_steps: np.ndarray, failure: list) -> BatchResult:

@@ -10,18 +10,39 @@ the last exit interpolated, the zero-order-hold integrals summed along each run'
 so each run gets the same numbers bit for bit (``tests/test_batch_metrics.py`` compares them).
 
 Runs it does not vectorise go through :func:`run_metrics` one by one: a run that ended early or
-failed (its series is shorter than the grid), and every run of a batch with a fault schedule
-(the fault metrics depend on the run's faults).
+failed (its series is shorter than the grid). A fault schedule is every run's (the batch engine
+applies it to all), so the fault metrics of the full runs are vectorised too.
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
+from numba import njit, prange
 
-from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213, pointing_error
+from adcs_core.attitude import euler_213, pointing_error
 from adcs_sim.app.analysis import POINTING_BANDS_DEG, run_metrics, zoh_durations
 from adcs_sim.app.estimation import estimation_metrics, series_from_batch
+
+
+@njit(parallel=True, cache=True, error_model='numpy', nogil=True)
+def error_quaternions(q, q_ref, qe, vnorm):
+    """qe[r, k] = error_quaternion(q[r, k], q_ref[r]) and vnorm[r, k] = |qe[r, k, :3]| (q (R, K, 4),
+    q_ref (R, 4)): :func:`adcs_core.attitude.quat_multiply` of ``quat_conjugate(q_ref)`` and ``q``
+    (``(p4 q_v + q4 p_v) + p_v x q_v``, ``p4 q4 - ((p1 q1 + p2 q2) + p3 q3)``) and
+    :func:`numpy.linalg.norm`'s ``sqrt((x1² + x2²) + x3²)`` (numpy sums 3 terms in sequence), the
+    same operations in the same order as :func:`~adcs_core.attitude.eigenaxis_angle`'s numpy, compiled
+    without fastmath: the same bits, ~20x fewer passes over the (runs, samples) arrays."""
+    for r in prange(q.shape[0]):
+        p0, p1, p2, p3 = -q_ref[r, 0], -q_ref[r, 1], -q_ref[r, 2], q_ref[r, 3]
+        for k in range(q.shape[1]):
+            x0, x1, x2, x3 = q[r, k, 0], q[r, k, 1], q[r, k, 2], q[r, k, 3]
+            e0 = (p3 * x0 + x3 * p0) + (p1 * x2 - p2 * x1)
+            e1 = (p3 * x1 + x3 * p1) + (p2 * x0 - p0 * x2)
+            e2 = (p3 * x2 + x3 * p2) + (p0 * x1 - p1 * x0)
+            qe[r, k, 0], qe[r, k, 1], qe[r, k, 2] = e0, e1, e2
+            qe[r, k, 3] = p3 * x3 - ((p0 * x0 + p1 * x1) + p2 * x2)
+            vnorm[r, k] = np.sqrt((e0 * e0 + e1 * e1) + e2 * e2)
 
 
 def settling_times(t: np.ndarray, error: np.ndarray, tol: float) -> np.ndarray:
@@ -70,26 +91,33 @@ def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.
     (a list-valued metric: an array (runs, n)), in :func:`run_metrics`' order."""
     K = result.t.size - 1
     t, t_u, t_end = result.t, result.t[:K], float(result.t[K])
-    q = result.q[rows]
-    q_ref = result.q_ref[rows][:, None, :] if result.q_ref.ndim == 2 else result.q_ref
-    qe = error_quaternion(q, q_ref)
-    eigen = np.degrees(eigenaxis_angle(qe))
+    take = slice(None) if rows.size == result.n_runs else rows   # every run: views, not copies
+    q = result.q[take]
+    q_ref = result.q_ref[take] if result.q_ref.ndim == 2 else np.broadcast_to(result.q_ref, (rows.size, 4))
+    qe, vnorm = np.empty(q.shape), np.empty(q.shape[:2])
+    error_quaternions(np.ascontiguousarray(q), np.ascontiguousarray(q_ref, dtype=float), qe, vnorm)
+    eigen = np.degrees(2.0 * np.arctan2(vnorm, np.abs(qe[..., 3])))   # eigenaxis_angle(qe)
     euler = np.abs(np.degrees(euler_213(qe)))
-    u = result.u[rows]
+    u = result.u[take]
+    u0, u1, u2 = u[..., 0], u[..., 1], u[..., 2]
     zoh = zoh_durations(t_u, t_end)
+    # The reductions over the 3 components written out: numpy reduces a length-3 axis in sequence
+    # ((a0 + a1) + a2; max is exact) but 20-50x slower than these element-wise passes.
     out = {
         'duration_s': np.full(rows.size, t_end),
         f'settling_eigenaxis_{tol_deg:g}deg_s': settling_times(t, eigen, tol_deg),
-        f'settling_euler213_{tol_deg:g}deg_s': settling_times(t, euler.max(axis=2), tol_deg),
+        f'settling_euler213_{tol_deg:g}deg_s': settling_times(
+            t, np.maximum(np.maximum(euler[..., 0], euler[..., 1]), euler[..., 2]), tol_deg),   # euler.max(axis=2)
         'settling_euler213_per_axis_s': np.stack([settling_times(t, euler[:, :, i], tol_deg)
                                                   for i in range(3)], axis=1),
         'final_eigenaxis_error_deg': eigen[:, -1],
-        'integrated_torque_Nms': np.sum(np.linalg.norm(u, axis=-1) * zoh, axis=-1),
-        'control_energy_N2m2s': np.sum(np.sum(u ** 2, axis=-1) * zoh, axis=-1),
-        'peak_torque_Nm': np.abs(u).max(axis=1),
-        'peak_wheel_speed_rad_s': (np.abs(result.wheel_speed[rows]).max(axis=(1, 2)) if result.wheel_names
+        'integrated_torque_Nms': np.sum(np.sqrt((u0 * u0 + u1 * u1) + u2 * u2) * zoh, axis=-1),   # norm(u, axis=-1)
+        'control_energy_N2m2s': np.sum(((u0 ** 2 + u1 ** 2) + u2 ** 2) * zoh, axis=-1),
+        'peak_torque_Nm': np.stack([np.abs(c).max(axis=1) for c in (u0, u1, u2)], axis=1),   # |u|.max(axis=1)
+        'peak_wheel_speed_rad_s': (np.abs(result.wheel_speed[take]).max(axis=(1, 2)) if result.wheel_names
                                    and result.wheel_speed.shape[-1] else np.full(rows.size, math.nan)),
     }
+    out.update(_fault_columns(result, t, qe, (u0, u1, u2), t_end))
     if result.pointing is not None:
         sigma, tau = result.pointing
         out.update(_pointing_columns(t, np.degrees(pointing_error(q, sigma, tau)), POINTING_BANDS_DEG))
@@ -97,12 +125,35 @@ def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.
 
 
 
+def _fault_columns(result, t: np.ndarray, qe: np.ndarray, u: tuple, t_end: float) -> dict[str, np.ndarray]:
+    """:func:`adcs_sim.app.analysis.fault_metrics` of full runs (the batch's fault schedule is every
+    run's): q4 settling after the first fault in each band and the torque integral after it."""
+    K = t.size - 1
+    times = [f[0] for f in result.faults if f[0] <= t[K] and f[1] >= 2]   # run_data's faults, level ERROR
+    if not times:
+        return {}
+    t0 = float(min(times))
+    after = t >= t0
+    out = {'first_fault_time_s': np.full(qe.shape[0], t0)}
+    for band in (0.02, 0.01):
+        out[f'settling_q4_{band:g}_after_fault_s'] = settling_times(t[after], 1.0 - np.abs(qe[:, after, 3]), band) - t0
+    t_u = t[:K]
+    late = t_u >= t0
+    u0, u1, u2 = u
+    norm = np.sqrt((u0 * u0 + u1 * u1) + u2 * u2)
+    # C order: each row summed as one run's 1-D array (pairwise); a masked column selection's
+    # product may come out in another order, which numpy would sum column by column
+    held = np.ascontiguousarray(norm[:, late] * zoh_durations(t_u[late], t_end))
+    out['integrated_torque_after_fault_Nms'] = np.sum(held, axis=-1)
+    return out
+
+
 def batch_run_metrics(result, tol_deg: float = 0.5) -> list[dict]:
     """``[result.metrics(j, tol_deg) for j in range(result.n_runs)]``, the same dicts (keys, order,
     values bit for bit), computed over the batch axis where it can (module docstring)."""
     K = result.t.size - 1
     full = (result.n_steps == K) & np.array([f is None for f in result.failure], dtype=bool)
-    if K < 1 or result.faults:
+    if K < 1:
         full[:] = False
     rows = np.flatnonzero(full)
     metrics: list[dict | None] = [None] * result.n_runs

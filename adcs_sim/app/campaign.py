@@ -143,6 +143,30 @@ class Dispersion:
         m = np.broadcast_to(np.asarray(self.args['max_deg'], dtype=float), (3,))
         return rng.uniform(-m, m)
 
+    def sampler(self, nominal: Any):
+        """``rng, index -> value``: :meth:`draw` (or, for ``euler213_uniform``, :meth:`euler_angles`)
+        with its arguments broadcast once instead of at every run's draw: the generator gets the
+        same arguments element by element, so it draws the same numbers in the same order."""
+        kind, a = self.distribution, self.args
+        if kind == 'euler213_uniform':
+            m = np.ascontiguousarray(np.broadcast_to(np.asarray(a['max_deg'], dtype=float), (3,)))
+            low = -m
+            return lambda rng, index: rng.uniform(low, m)
+        if kind not in ('normal', 'uniform'):
+            return lambda rng, index: self.draw(rng, nominal, index)
+        base = np.asarray(nominal, dtype=float)
+        full = lambda v: np.array(np.broadcast_to(np.asarray(v, dtype=float), base.shape))  # noqa: E731
+        if kind == 'normal':
+            first, second, method = full(a.get('mean', base)), full(a['std']), 'normal'
+        elif 'plus_minus' in a:
+            half = full(a['plus_minus'])
+            first, second, method = base - half, base + half, 'uniform'
+        else:
+            first, second, method = full(a['low']), full(a['high']), 'uniform'
+        if base.ndim:
+            return lambda rng, index: getattr(rng, method)(first, second).tolist()
+        return lambda rng, index: float(np.asarray(getattr(rng, method)(first, second), dtype=float))
+
 
 # --- reading a campaign file (Campaign.load) ---------------------------------------------------
 
@@ -241,6 +265,7 @@ class Campaign:
     requirements: dict[str, dict[str, float]]
     dispersions: list[Dispersion]
     series_every: int = 0   # keep each run's error series every this many steps (0: none)
+    checked: bool = False   # every run's draw validated (check_runs): run_chunk need not repeat it
 
     @classmethod
     def load(cls, path, runs: int | None = None) -> 'Campaign':
@@ -348,15 +373,17 @@ class Campaign:
         into quaternions by one scipy call (each run's generator draws in the same order; scipy's
         conversion is row by row, so the quaternions are the same bits)."""
         out, pending = [], []
+        samplers = [(d.target, d.distribution == 'euler213_uniform', d.sampler(self._nominal_value(d.section, d.key)))
+                    for d in self.dispersions]
         for index in indices:
             rng = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(index,)))
             inputs = {}
-            for d in self.dispersions:
-                if d.distribution == 'euler213_uniform':
-                    pending.append((inputs, d.target, d.euler_angles(rng)))
-                    inputs[d.target] = None  # the place of the value, in file order
+            for target, euler, sample in samplers:
+                if euler:
+                    pending.append((inputs, target, sample(rng, index)))
+                    inputs[target] = None  # the place of the value, in file order
                 else:
-                    inputs[d.target] = d.draw(rng, self._nominal_value(d.section, d.key), index)
+                    inputs[target] = sample(rng, index)
             out.append(inputs)
         if pending:
             q = Rotation.from_euler(EULER_213, np.stack([a for _, _, a in pending]), degrees=True).as_quat()
@@ -379,11 +406,7 @@ class Campaign:
         """Validated sections of run ``index``; CampaignError naming the run and the key if the
         draw is impossible (e.g. a negative inertia). ``inputs`` as for :meth:`run_given`."""
         inputs = self.draw(index) if inputs is None else inputs
-        changes: dict[str, dict[str, Any]] = {}
-        for d, value in zip(self.dispersions, inputs.values()):  # what run_given writes, in its order
-            changes.setdefault(d.section, {})[d.key] = value
-            for section, key in d.links:
-                changes.setdefault(section, {})[key] = list(value) if isinstance(value, list) else value
+        changes = self._changes(inputs)
         out = {}
         for section in self.nominal:  # the nominal sections are validated (defaults): check the changes
             try:
@@ -392,10 +415,43 @@ class Campaign:
                 raise CampaignError(f'run {index}: drawn {exc} (inputs: {inputs})') from None
         return out
 
+    def _changes(self, inputs: dict[str, Any]) -> dict[str, dict[str, Any]]:
+        """``{section: {key: value}}`` a run's draws (and links) set, in :meth:`run_given`'s order."""
+        changes: dict[str, dict[str, Any]] = {}
+        for d, value in zip(self.dispersions, inputs.values()):
+            changes.setdefault(d.section, {})[d.key] = value
+            for section, key in d.links:
+                changes.setdefault(section, {})[key] = list(value) if isinstance(value, list) else value
+        return changes
+
     def check_runs(self) -> None:
-        """Validate every run's drawn parameters (before anything runs)."""
+        """Validate every run's drawn parameters (before anything runs); :attr:`checked` then."""
         for i, inputs in enumerate(self.draws(list(range(self.runs)))):
             self.run_sections(i, inputs)
+        self.checked = True
+
+    def batch_sections(self, indices: list[int], inputs: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+        """The sections of runs ``indices`` (their draws ``inputs``) stacked for the batch engine:
+        ``BatchSimulation.from_runs([run_sections(i) ...])``'s sections (:meth:`Schema.stack`: a value
+        equal in every run as it is, else an array over the runs). A :attr:`checked` campaign's draws
+        were validated at load (the draws are a pure function of the run index), so the sections
+        are assembled from the validated nominal values and the draws without validating each run
+        again (a draw is already in its validated form: floats, lists of floats, ints)."""
+        if not self.checked:
+            runs = [self.run_sections(i, d) for i, d in zip(indices, inputs)]
+            return {name: NODES[name].schema.stack([r[name] for r in runs]) for name in runs[0]
+                    if NODES[name].role != 'recorder'}
+        per_run = [self._changes(d) for d in inputs]
+        out = {}
+        for section in self.nominal:
+            if NODES[section].role == 'recorder':
+                continue
+            out[section] = values = dict(self.defaults[section])
+            for key in per_run[0].get(section, {}):
+                column = [changes[section][key] for changes in per_run]
+                first = column[0]
+                values[key] = first if all(v == first for v in column[1:]) else np.asarray(column)
+        return out
 
     def scenario_text(self, index: int) -> str:
         """A complete scenario file for run ``index`` alone: replay it with ``adcs-run``."""
@@ -428,7 +484,7 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
     A pure function of its arguments (what a Dask worker executes).
     """
     inputs = campaign.draws(indices)
-    result = BatchSimulation.from_runs([campaign.run_sections(i, d) for i, d in zip(indices, inputs)]).run()
+    result = BatchSimulation(campaign.batch_sections(indices, inputs), len(indices)).run()
     with np.errstate(all='ignore'):  # a diverged run's metrics overflow to inf: that is the result
         metrics = batch_run_metrics(result, campaign.tol_deg)  # each run's result.metrics(j, tol)
     rows = []

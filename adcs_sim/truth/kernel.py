@@ -83,6 +83,7 @@ def _sign(a):
 # Work buffer of one run (no array views in the loop: each would cost reference counting):
 # H, tau, actuator torque, actuator momentum, cross products, then the gravity gradient's temporaries.
 _H, _TAU, _TA, _HM, _CW, _GT, _GC, _GJC, _GV, _WORK = 0, 3, 6, 9, 12, 15, 18, 21, 24, 27
+WORK_SIZE = _WORK  # the length of a run's work buffer (callers of rk4_period, control_torque_row)
 
 
 @njit(**_INNER)
@@ -237,12 +238,37 @@ def _derivative(t, x, k, stage, p, c, kinds, soff, poff, coff, counts, axes, bia
                 k[stage, s + j] = aux[a, j]
 
 
+@njit(**_INNER)
+def rk4_period(xr, k, xs, times, h, p, c, kinds, soff, poff, coff, counts, axes, bias, stuck, avail, flags,
+               env, env_on, pos, gg_factor, gg_on, thr, wk, aux):
+    """Plant.step of one run's state xr (updated in place): len(times) RK4 steps of h, stage times
+    times[i] = (t_i, t_i + h/2, t_i + h), quaternion renormalised after each (k (4, n_states), xs
+    (n_states,): work arrays). Also the fused closed loop's (:mod:`adcs_sim.app.fused`)."""
+    n_states = xr.size
+    half, sixth, third = 0.5 * h, h / 6.0, h / 3.0
+    for i in range(times.shape[0]):
+        for stage in range(4):
+            ts = 0 if stage == 0 else (1 if stage < 3 else 2)
+            if stage == 0:
+                for e in range(n_states):
+                    xs[e] = xr[e]
+            else:
+                step = half if stage < 3 else h
+                for e in range(n_states):
+                    xs[e] = xr[e] + step * k[stage - 1, e]
+            _derivative(times[i, ts], xs, k, stage, p, c, kinds, soff, poff, coff, counts, axes, bias,
+                        stuck, avail, flags, env, env_on, pos, i, ts, gg_factor, gg_on, thr, wk, aux)
+        for e in range(n_states):
+            xr[e] = (xr[e] + sixth * (k[0, e] + k[3, e])) + third * (k[1, e] + k[2, e])
+        norm = np.sqrt(((xr[0] * xr[0] + xr[1] * xr[1]) + xr[2] * xr[2]) + xr[3] * xr[3])
+        for e in range(4):
+            xr[e] = xr[e] / norm
+
+
 def _rk4_runs(x, out, times, h, params, cmds, kinds, soff, poff, coff, counts, axes, bias, stuck, avail,
               flags, env, env_on, pos, gg_factor, gg_on, thr):
-    """Plant.step for every run r (rows of x): len(times) RK4 steps of h, stage times
-    times[i] = (t_i, t_i + h/2, t_i + h), quaternion renormalised after each."""
+    """Plant.step for every run r (rows of x): :func:`rk4_period` of each."""
     n_runs, n_states = x.shape
-    half, sixth, third = 0.5 * h, h / 6.0, h / 3.0
     width = max(3, counts.max()) if counts.size else 3
     for r in prange(n_runs):
         p, c = params[r], cmds[r]
@@ -251,25 +277,21 @@ def _rk4_runs(x, out, times, h, params, cmds, kinds, soff, poff, coff, counts, a
         xs = np.empty(n_states)
         wk = np.empty(_WORK)
         aux = np.empty((max(1, kinds.size), width))
-        for i in range(times.shape[0]):
-            for stage in range(4):
-                ts = 0 if stage == 0 else (1 if stage < 3 else 2)
-                if stage == 0:
-                    for e in range(n_states):
-                        xs[e] = xr[e]
-                else:
-                    step = half if stage < 3 else h
-                    for e in range(n_states):
-                        xs[e] = xr[e] + step * k[stage - 1, e]
-                _derivative(times[i, ts], xs, k, stage, p, c, kinds, soff, poff, coff, counts, axes, bias,
-                            stuck, avail, flags, env, env_on, pos, i, ts, gg_factor, gg_on, thr, wk, aux)
-            for e in range(n_states):
-                xr[e] = (xr[e] + sixth * (k[0, e] + k[3, e])) + third * (k[1, e] + k[2, e])
-            norm = np.sqrt(((xr[0] * xr[0] + xr[1] * xr[1]) + xr[2] * xr[2]) + xr[3] * xr[3])
-            for e in range(4):
-                xr[e] = xr[e] / norm
+        rk4_period(xr, k, xs, times, h, p, c, kinds, soff, poff, coff, counts, axes, bias, stuck, avail, flags,
+                   env, env_on, pos, gg_factor, gg_on, thr, wk, aux)
         for e in range(n_states):
             out[r, e] = xr[e]
+
+
+@njit(**_INNER)
+def control_torque_row(t, x, p, c, kinds, soff, poff, coff, counts, axes, bias, stuck, avail, flags, thr, wk, aux,
+                       out, oo):
+    """Plant.control_torque of one run into out[oo:oo+3] (the sum from 0.0 in the plant's order)."""
+    for i in range(_WORK):
+        wk[i] = 0.0
+    _actuators(t, x, p, c, kinds, soff, poff, coff, counts, axes, bias, stuck, avail, flags, thr, wk, aux)
+    for i in range(3):
+        out[oo + i] = wk[_TAU + i]
 
 
 @njit(**_JIT)
@@ -280,12 +302,8 @@ def torque_runs(x, out, t, params, cmds, kinds, soff, poff, coff, counts, axes, 
     wk = np.zeros(_WORK)
     aux = np.empty((max(1, kinds.size), width))
     for r in range(x.shape[0]):
-        for i in range(_WORK):
-            wk[i] = 0.0
-        _actuators(t, x[r], params[r], cmds[r], kinds, soff, poff, coff, counts, axes, bias, stuck, avail, flags,
-                   thr, wk, aux)
-        for i in range(3):
-            out[r, i] = wk[_TAU + i]
+        control_torque_row(t, x[r], params[r], cmds[r], kinds, soff, poff, coff, counts, axes, bias, stuck, avail,
+                           flags, thr, wk, aux, out[r], 0)
 
 
 # The RK4 loop is compiled once, as a parallel (prange) loop, and run on one thread or on all of
