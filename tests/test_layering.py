@@ -208,3 +208,14 @@ def test_node_processes_do_not_import_what_they_only_need_at_first_use():
             f'print(sorted(m for m in sys.modules if m in {HEAVY_AT_FIRST_USE!r}))')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, cwd=ROOT, check=True)
     assert out.stdout.strip() == '[]', f'imported at start: {out.stdout.strip()}'
+
+
+def test_validating_a_scenario_does_not_import_numba():
+    """``adcs-run`` validates the scenario before it starts any node: that needs the schemas, not the
+    compiled plant kernel, so numba (0.4-0.7 s) is imported by the first plant built, not by the runner
+    (issue #18, start-up: adcs_sim/truth/kernel_kinds.py)."""
+    code = ('import sys; import adcs_sim.app.runner; from adcs_sim.app.scenario_files import validate_scenario; '
+            'validate_scenario("config/uosat12_gsmn.yaml"); print("numba" in sys.modules); '
+            'from adcs_sim.truth.plant import Plant; import numpy; Plant(numpy.eye(3)); print("numba" in sys.modules)')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, cwd=ROOT, check=True)
+    assert out.stdout.split() == ['False', 'True']

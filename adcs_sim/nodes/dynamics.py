@@ -96,7 +96,7 @@ class DynamicsNode(AdcsNode):
     def __init__(self, context) -> None:
         super().__init__(context)
         p = self.params
-        self.plant = build_plant(p)
+        self.plant = build_plant(p, warm=False)   # warmed in run(), once the endpoints exist
         self.x = initial_state(self.plant, p)
         self.commands = self.plant.zero_commands()
         self.period_ns, self.n_steps = step_timing(p)
@@ -361,6 +361,7 @@ class DynamicsNode(AdcsNode):
         self.wait_for_publishers(required, timeout)
 
     def run(self, executor) -> None:
+        self.plant.warm()   # loads the compiled kernel while discovery matches the endpoints
         self.wait_for_graph()
         if self.params['startup.expect_faults']:
             self.wait_for_faults(executor)

@@ -42,7 +42,8 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-WHEELS, TORQUERS, THRUSTERS = 0, 1, 2
+from adcs_sim.truth.kernel_kinds import THRUSTERS, TORQUERS, WHEELS
+
 # ADCS_PLANT_KERNEL=0 builds plants without the kernel (numpy path; same numbers, for comparison).
 ENABLED = os.environ.get('ADCS_PLANT_KERNEL', '1') != '0'
 _JIT = dict(cache=True, error_model='numpy', nogil=True)

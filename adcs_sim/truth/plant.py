@@ -46,7 +46,7 @@ from adcs_core.attitude import cross, matvec, quat_kinematics, rotate_to_inertia
 from adcs_core.faults import FAULT_ERROR_MODES, FAULT_OK_MODES
 from adcs_core.inertia import check_inertias
 from adcs_core.orbit import CircularOrbit
-from adcs_sim.truth import kernel
+from adcs_sim.truth.kernel_kinds import TORQUERS, WHEELS
 
 # --- actuators -------------------------------------------------------------------------------
 
@@ -133,7 +133,7 @@ class ReactionWheels(Actuator):
     initial_speed: np.ndarray | None = None
     name: str = 'wheels'
     available: np.ndarray = field(init=False)
-    kernel_kind = kernel.WHEELS
+    kernel_kind = WHEELS
 
     def __post_init__(self) -> None:
         n = len(self.names)
@@ -255,7 +255,7 @@ class Torquers(Actuator):
 
     max_torque: np.ndarray = field(default_factory=lambda: np.full(3, np.inf))
     name: str = 'torquers'
-    kernel_kind = kernel.TORQUERS
+    kernel_kind = TORQUERS
 
     def __post_init__(self) -> None:
         limit = np.asarray(self.max_torque, dtype=float)
@@ -302,7 +302,7 @@ class Plant:
     """
 
     def __init__(self, inertia, actuators: list[Actuator] = (), disturbance: Disturbance | None = None,
-                 orbit: CircularOrbit | None = None, gravity_gradient: bool = False) -> None:
+                 orbit: CircularOrbit | None = None, gravity_gradient: bool = False, warm: bool = True) -> None:
         self.inertia = np.asarray(inertia, dtype=float)
         _check_inertias(self.inertia, 'inertia')
         self.actuators = list(actuators)
@@ -327,8 +327,16 @@ class Plant:
         self._actuator_slices = [(a, self.slices[a.name]) for a in self.actuators]
         self._constraint_key = self._constraints()
         self._body_inv = self.inertia_struct_inv
+        from adcs_sim.truth import kernel   # numba: loaded with the first plant, not by every importer
         self.kernel = kernel.KernelPlan.of(self)  # None: stepped by step_numpy
-        if self.kernel is not None:  # load the compiled code now (start-up), not in the first step
+        if warm:
+            self.warm()
+
+    def warm(self) -> None:
+        """Load the compiled kernel's machine code now (compiling it on a cold cache), not in the
+        first step. The constructor does it unless given ``warm=False`` (the dynamics node then calls
+        it once its endpoints exist, so discovery runs meanwhile)."""
+        if self.kernel is not None:
             self.kernel.warm(self)
 
     def _constraints(self) -> tuple[int, ...]:

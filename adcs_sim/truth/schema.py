@@ -196,8 +196,8 @@ def build_truth_environment(v: dict) -> Environment | None:
     return build_environment(v) if v['environment.enabled'] else None
 
 
-def build_plant(v: dict) -> Plant:
-    """Plant from validated ``dynamics`` parameters."""
+def build_plant(v: dict, warm: bool = True) -> Plant:
+    """Plant from validated ``dynamics`` parameters (``warm``: as :class:`Plant`'s)."""
     actuators = []
     names = v['wheels.names']
     if names:
@@ -226,7 +226,7 @@ def build_plant(v: dict) -> Plant:
                               arg_latitude0=math.radians(v['orbit.arg_latitude_deg']))
     disturbance = Disturbance(v['disturbance.constant'], v['disturbance.amplitude'],
                               v['disturbance.frequency'], v['disturbance.phase'])
-    return Plant(inertia_matrix(v['inertia']), actuators, disturbance, orbit, v['gravity_gradient'])
+    return Plant(inertia_matrix(v['inertia']), actuators, disturbance, orbit, v['gravity_gradient'], warm=warm)
 
 
 def initial_state(plant: Plant, v: dict) -> np.ndarray:

@@ -46,7 +46,7 @@ from typing import NamedTuple
 import numpy as np
 
 from adcs_core.attitude import cross, matvec
-from adcs_sim.truth import kernel
+from adcs_sim.truth.kernel_kinds import THRUSTERS
 from adcs_sim.truth.plant import Actuator, Plant
 
 __all__ = ['ThrusterCommand', 'Thrusters', 'step_pulsed']
@@ -75,7 +75,7 @@ class Thrusters(Actuator):
     name: str = 'thrusters'
     torque_matrix: np.ndarray = field(init=False)   # (3, n): columns r_i x d_i
     force_matrix: np.ndarray = field(init=False)    # (3, n): columns d_i
-    kernel_kind = kernel.THRUSTERS
+    kernel_kind = THRUSTERS
 
     def __post_init__(self) -> None:
         n = len(self.names)
