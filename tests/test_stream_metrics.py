@@ -20,7 +20,6 @@ from hypothesis import strategies as st
 from rosbags.rosbag2 import StoragePlugin
 from test_any_bag import (
     DIAG,
-    N,
     ODOM,
     QOS,
     REFERENCE,
