@@ -19,6 +19,13 @@ Then it times, best of ``--repeat`` (default 1) each:
 
 and prints both, their ratio (analysis / raw; the target is <= 2) and the analysis' throughput.
 
+With ``--memory``, instead: the peak memory of ``adcs-run``'s end-of-run analysis on that bag,
+each path in a fresh process that first imports what ``adcs-run`` imports (its resident set then is
+the baseline): **in-memory** (``RunData.from_bag`` + ``run_metrics``, the path before issue #18
+item 5, kept as the reference) and **streamed** (:func:`adcs_sim.app.stream_metrics.analyse_bag`,
+what ``adcs-run`` does now), alternated ``--repeat`` times; peak RSS (``ru_maxrss``), its growth
+over the baseline, wall time, and whether the two gave the same metrics (bit for bit).
+
 Not a test (it takes minutes: most of it is writing the bag and the rosbags pass). Options:
 ``--hours``, ``--rate`` (Hz), ``--keep DIR`` (write the bag there and keep it), ``--bag DIR``
 (time an existing bag instead of writing one; then the synthetic checks are skipped).
@@ -26,7 +33,10 @@ Not a test (it takes minutes: most of it is writing the bag and the rosbags pass
 from __future__ import annotations
 
 import argparse
+import json
 import math
+import resource
+import subprocess
 import shutil
 import sys
 import tempfile
@@ -181,14 +191,84 @@ def time_rosbags(bag: Path):
     return time.perf_counter() - t0, n
 
 
+def _maxrss_mib() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def measure_one(kind: str, bag: Path) -> None:
+    """(In a fresh process) one end-of-run analysis of ``bag``: prints a JSON line."""
+    import adcs_sim.app.runner  # noqa: F401  (what adcs-run has imported when it analyses)
+    from adcs_sim.app.analysis import jsonable_metrics
+    from adcs_sim.app.stream_metrics import analyse_bag
+    base = _maxrss_mib()
+    t0 = time.perf_counter()
+    if kind == 'in-memory':
+        run = RunData.from_bag(bag)
+        metrics, intrusions = run_metrics(run), run.intrusions
+    else:
+        result = analyse_bag(bag)
+        assert result.streamed, result.reason
+        metrics, intrusions = result.metrics, result.intrusions
+    dt = time.perf_counter() - t0
+    print(json.dumps({'kind': kind, 'base_mib': base, 'peak_mib': _maxrss_mib(), 'seconds': dt,
+                      'intrusions': intrusions, 'metrics': jsonable_metrics(metrics)}))
+
+
+def compare_memory(bag: Path, repeat: int) -> None:
+    """Both paths, alternated, each in its own process; prints peak RSS, growth and time."""
+    rows = {'in-memory': [], 'streamed': []}
+    for _ in range(repeat):
+        for kind in rows:
+            out = subprocess.run([sys.executable, __file__, '--measure', kind, '--bag', str(bag)],
+                                 capture_output=True, text=True, check=True).stdout
+            rows[kind].append(json.loads(out.strip().splitlines()[-1]))
+    best = {}
+    for kind, runs in rows.items():
+        b = best[kind] = {**min(runs, key=lambda r: r['peak_mib']), 'seconds': min(r['seconds'] for r in runs)}
+        print(f'{kind:<10} peak RSS {b["peak_mib"]:7.1f} MiB  (baseline after imports {b["base_mib"]:6.1f}, '
+              f'growth {b["peak_mib"] - b["base_mib"]:7.1f})  {b["seconds"]:6.2f} s')
+    a, b = best['in-memory'], best['streamed']
+    grow = (a['peak_mib'] - a['base_mib']) / max(b['peak_mib'] - b['base_mib'], 1e-9)
+    print(f'ratio in-memory / streamed (best of {repeat}): peak {a["peak_mib"] / b["peak_mib"]:.2f}, '
+          f'growth {grow:.1f}; time {a["seconds"] / b["seconds"]:.2f}')
+    a = rows['in-memory'][0]
+    same = all(json.dumps(r['metrics']) == json.dumps(a['metrics']) and r['intrusions'] == a['intrusions']
+               for runs in rows.values() for r in runs)
+    print(f'metrics and intruders equal (bit for bit, key order): {same}')
+
+
+def check_synthetic(run, metrics: dict, truth: tuple, n_raw: int, rate: float) -> None:
+    """Assert that the analysis read the synthetic series back and found its settling time."""
+    t, q, w, u, speed = truth
+    assert np.allclose(run.t, t, rtol=0, atol=1e-9)  # stamps are integer ns
+    assert np.array_equal(run.q, q) and np.array_equal(run.w, w)
+    assert np.array_equal(run.u, u[:-1]) and np.array_equal(run.wheel_speed, speed)
+    assert n_raw == run.message_count and len(run.controller_status) == len(t)
+    assert run.controller_status[-1][2]['u_z'] == repr(float(u[-1, 2]))
+    expected = TAU * math.log(30.0 / 0.5)   # eigenaxis error 30 deg * exp(-t / TAU) = 0.5 deg
+    got = metrics['settling_eigenaxis_0.5deg_s']
+    period = 1.0 / rate
+    if expected < t[-1]:
+        assert 0 <= got - expected <= period ** 2 / (8 * TAU) + 1e-6, (got, expected)
+    else:
+        assert got == math.inf, got
+    print(f'checked: RunData equals the synthetic series; settling {got:.4f} s '
+          f'(exact {expected:.4f} s)')
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--memory', action='store_true', help='peak memory: in-memory vs streamed analysis')
+    parser.add_argument('--measure', choices=('in-memory', 'streamed'), help=argparse.SUPPRESS)
     parser.add_argument('--hours', type=float, default=24.0)
     parser.add_argument('--rate', type=float, default=10.0, help='control rate, Hz')
     parser.add_argument('--repeat', type=int, default=1)
     parser.add_argument('--keep', type=Path, default=None, help='write the bag here and keep it')
     parser.add_argument('--bag', type=Path, default=None, help='time an existing bag')
     args = parser.parse_args(argv)
+    if args.measure:
+        measure_one(args.measure, args.bag)
+        return 0
     tmp = None
     truth = None
     try:
@@ -205,6 +285,9 @@ def main(argv=None) -> int:
             size = sum(f.stat().st_size for f in bag.iterdir())
             print(f'bag: {bag} ({args.hours:g} h at {args.rate:g} Hz: {len(truth[0])} state messages, '
                   f'{written} messages, {size / 1e6:.0f} MB; written in {time.perf_counter() - t0:.0f} s)')
+        if args.memory:
+            compare_memory(bag, args.repeat)
+            return 0
         analysis, raw = [], []
         for _ in range(args.repeat):
             dt, run, metrics = time_analysis(bag)
@@ -212,21 +295,7 @@ def main(argv=None) -> int:
             dt_raw, n_raw = time_rosbags(bag)
             raw.append(dt_raw)
         if truth is not None:
-            t, q, w, u, speed = truth
-            assert np.allclose(run.t, t, rtol=0, atol=1e-9)  # stamps are integer ns
-            assert np.array_equal(run.q, q) and np.array_equal(run.w, w)
-            assert np.array_equal(run.u, u[:-1]) and np.array_equal(run.wheel_speed, speed)
-            assert n_raw == run.message_count and len(run.controller_status) == len(t)
-            assert run.controller_status[-1][2]['u_z'] == repr(float(u[-1, 2]))
-            expected = TAU * math.log(30.0 / 0.5)   # eigenaxis error 30 deg * exp(-t / TAU) = 0.5 deg
-            got = metrics['settling_eigenaxis_0.5deg_s']
-            period = 1.0 / args.rate
-            if expected < t[-1]:
-                assert 0 <= got - expected <= period ** 2 / (8 * TAU) + 1e-6, (got, expected)
-            else:
-                assert got == math.inf, got
-            print(f'checked: RunData equals the synthetic series; settling {got:.4f} s '
-                  f'(exact {expected:.4f} s)')
+            check_synthetic(run, metrics, truth, n_raw, args.rate)
         a, r = min(analysis), min(raw)
         print(f'messages: {run.message_count} ({run.t.size} state)')
         print(f'analysis (RunData.from_bag + run_metrics): {a:8.2f} s   '

@@ -4,7 +4,9 @@ Default: seed 004's PD scenario (config/microsat_pd_slew.yaml) at 10 Hz for 24 s
 (864 000 steps, every message recorded). The script samples each process of the run once a
 second from /proc (VmRSS now, VmHWM = peak resident set so far) and prints, per node, the peak
 RSS and the RSS at a quarter, half and the end of the run: bounded memory means the later
-samples do not keep growing with the number of steps. Not a test (it takes tens of minutes).
+samples do not keep growing with the number of steps. Then adcs-run's largest sampled RSS while
+the nodes ran and after they stopped (its end-of-run analysis, issue #18 item 5: streamed, so it
+no longer grows with the run). Not a test (it takes tens of minutes).
 
     .venv/bin/python benchmarks/long_run_memory.py [--hours 24] [--rate-hz 10] [--out DIR]
 """
@@ -41,6 +43,19 @@ def children(pid: int) -> dict[int, str]:
         if module:
             kids[int(child)] = module.rsplit('.', 1)[-1]
     return kids
+
+
+def phase_peaks(samples: dict) -> str | None:
+    """adcs-run's largest sampled RSS while the nodes ran and after the last of them was gone (its
+    end-of-run analysis: metrics, metrics.json), from the once-a-second samples."""
+    nodes_end = max((rows[-1][0] for name, rows in samples.items() if name != 'adcs-run'), default=None)
+    runner = samples.get('adcs-run', [])
+    during = [r[1] for r in runner if nodes_end is None or r[0] <= nodes_end]
+    after = [r[1] for r in runner if nodes_end is not None and r[0] > nodes_end]
+    if not during or not after:
+        return None
+    return (f'adcs-run RSS: max {max(during):.1f} MiB while the nodes ran, max {max(after):.1f} MiB '
+            f'after them ({len(after)} samples of its end-of-run analysis)')
 
 
 def main(argv=None) -> int:
@@ -93,6 +108,9 @@ def main(argv=None) -> int:
         peak = max(r[2] for r in rows)
         report[name] = {'peak_rss_mib': peak, 'rss_25': at(0.25), 'rss_50': at(0.5), 'rss_end': rows[-1][1]}
         print(f'{name:<16} {peak:12.1f} {at(0.25):9.1f} {at(0.5):7.1f} {rows[-1][1]:7.1f}')
+    phases = phase_peaks(samples)
+    if phases:
+        print(phases)
     metrics = out / 'metrics.json'
     if metrics.exists():
         m = json.loads(metrics.read_text())

@@ -108,17 +108,8 @@ class RunData:
 
     @classmethod
     def _from_bag(cls, path, namespace: str | None = None) -> 'RunData':
-        fixed = None if namespace is None else ('/' + namespace.strip('/') + '/').replace('//', '/')
-
-        def select(topic: str, type_name: str) -> bool:
-            if type_name == DIAGNOSTIC_ARRAY and _is_intrusions(topic):
-                return True
-            if fixed is not None:
-                return topic.startswith(fixed) and READ_TYPES.get(topic[len(fixed):]) == type_name
-            return any(READ_TYPES[rel] == type_name and (topic == '/' + rel or topic.endswith('/' + rel))
-                       for rel in READ_TYPES)
-
-        reader = ColumnReader(path, select)
+        fixed = namespace_prefix(namespace)
+        reader = ColumnReader(path, topic_selector(fixed, READ_TYPES))
         columns, diagnostics, status_records = _read(reader)
         counts = {name: n for name, n in reader.topic_counts.items() if n}
         ns = fixed if fixed is not None else _namespace(counts, reader.topics)
@@ -156,6 +147,24 @@ class RunData:
             run.q_ref = target_attitude(run.scenario)
             run.pointing = pointing_request(run.scenario)
         return run
+
+
+def namespace_prefix(namespace: str | None) -> str | None:
+    """'/sat1/' of a namespace given as 'sat1', '/sat1' ... ; None: not given."""
+    return None if namespace is None else ('/' + namespace.strip('/') + '/').replace('//', '/')
+
+
+def topic_selector(fixed: str | None, read_types: dict):
+    """The ColumnReader selection of the topics of ``read_types`` ({relative name: type}) under
+    the prefix ``fixed`` (None: under any prefix), and of every ``intrusions`` topic."""
+    def select(topic: str, type_name: str) -> bool:
+        if type_name == DIAGNOSTIC_ARRAY and _is_intrusions(topic):
+            return True
+        if fixed is not None:
+            return topic.startswith(fixed) and read_types.get(topic[len(fixed):]) == type_name
+        return any(read_types[rel] == type_name and (topic == '/' + rel or topic.endswith('/' + rel))
+                   for rel in read_types)
+    return select
 
 
 def _read(reader: ColumnReader) -> tuple[dict, dict, dict]:

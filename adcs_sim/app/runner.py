@@ -11,7 +11,8 @@
    recorder says it is ready.
 4. Shows a progress bar in simulated time (from ``/clock``) until the dynamics node finishes.
 5. Stops the controllers, then the recorder (which closes the bag), and prints the metrics
-   (:mod:`adcs_sim.app.analysis`), also written to ``<out>/metrics.json``.
+   (:mod:`adcs_sim.app.analysis`, computed while the bag is read:
+   :func:`~adcs_sim.app.stream_metrics.analyse_bag`), also written to ``<out>/metrics.json``.
 
 A node that fails at start stops the whole graph; the runner exits non-zero with that node's
 error and removes the output folder (no partial bag claims to be a run). A node that dies
@@ -38,18 +39,12 @@ from pathlib import Path
 from adcs_msgs_py import names
 from adcs_msgs_py.node import EXIT_INTRUSION, INTRUSION_LOG
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app.analysis import (
-    RunData,
-    bag_intrusions,
-    format_metrics,
-    jsonable_metrics,
-    run_metrics,
-    target_attitude,
-)
+from adcs_sim.app.analysis import bag_intrusions, format_metrics, jsonable_metrics, target_attitude
 from adcs_sim.app.graph import PROGRESS_NODE, Graph, Progress, graph_env, lease_domain, recorded_state
 from adcs_sim.app.parameters import explain
 from adcs_sim.app.registry import NODES
 from adcs_sim.app.scenario_files import DEFAULT_SCENARIO, RunError, config_dirs, resolve_scenario, validate_scenario
+from adcs_sim.app.stream_metrics import analyse_bag
 from adcs_sim.nodes.recorder import READY_LINE
 
 __all__ = ['DEFAULT_SCENARIO', 'RunError', 'config_dirs', 'resolve_scenario', 'validate_scenario',
@@ -256,8 +251,9 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
     try:
         _supervise(run, _start_graph(run, progress))
         _stop_graph(run)
-        data = RunData.from_bag(run.bag_dir)   # read once: the intruders and the metrics
-        compromised = _compromised(data.intrusions, run.bag_dir)
+        # Read once, streaming: the intruders and the metrics (memory independent of the run's length)
+        analysed = analyse_bag(run.bag_dir, tol_deg)
+        compromised = _compromised(analysed.intrusions, run.bag_dir)
         if compromised is not None:
             raise compromised
     except KeyboardInterrupt:
@@ -285,7 +281,7 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
         lease.release()
         for s, h in old_handlers.items():
             signal.signal(s, h)
-    metrics = run_metrics(data, tol_deg)
+    metrics = analysed.metrics
     (out / 'metrics.json').write_text(json.dumps(jsonable_metrics(metrics), indent=2))
     return metrics
 
