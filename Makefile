@@ -24,10 +24,14 @@ test: $(VENV)/.installed
 	$(PY) -m pytest -q -n 2 --dist loadfile tests
 
 # BENCH_FLAGS=--basilisk adds the Basilisk comparisons (bsk installed into a throwaway venv in /tmp).
+# Not here (tens of minutes): benchmarks/long_run_memory.py, the real 24 h graph run.
 bench: $(VENV)/.installed
 	$(PY) benchmarks/plant_step.py $(BENCH_FLAGS)
 	$(PY) benchmarks/montecarlo_speed.py $(BENCH_FLAGS)
+	$(PY) benchmarks/showcase_graph.py --pd
 	$(PY) benchmarks/lockstep_vs_pingpong.py
+	$(PY) benchmarks/analysis_speed.py --memory
+	$(PY) benchmarks/recorder_executor.py
 	$(PY) benchmarks/batch_vs_loop.py
 	$(PY) benchmarks/pointing_montecarlo.py
 	$(PY) benchmarks/law_step.py
