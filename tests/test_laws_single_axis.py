@@ -354,11 +354,11 @@ def monte_carlo():
 
 def test_monte_carlo_all_converge_and_papers_comparison(monte_carlo):
     """Section 5 / Table 1 (40 random initial attitudes, 1500 s): every run of both controllers
-    ends below 0.01° and stays; B is faster to 1° (mean first entry and staying), A faster to 0.01°.
-    Against Table 1 (controller B, 603 ± 98, 831 ± 100, 1060 ± 101 s): ours converges about twice
-    as fast (docs/seed003_readings.md: the linearised tail decays at 0.0133 /s, the paper's at
-    ln 10 / 229 s = 0.0101 /s). Asserted band: our mean B times between 0.3 and 1.0 of the paper's
-    (a factor-2 re-implementation gap, not a match)."""
+    ends below 0.01° and stays; B is faster to 1° (mean first entry and staying), A faster to 0.01°;
+    and, the paper's observation, B's spread does not grow with the precision (the tail is
+    deterministic): the standard deviations of the times to stay below 0.1° and 0.01° agree within
+    three standard errors of a sample standard deviation of n runs, 3 s / sqrt(n - 1) (s / sqrt(2 (n - 1))
+    for each, the two taken as independent: conservative, they come from the same runs)."""
     A, B = monte_carlo['A'], monte_carlo['B']
     for r in (A, B):
         for thr in PAPER_TABLE1_B:
@@ -366,11 +366,23 @@ def test_monte_carlo_all_converge_and_papers_comparison(monte_carlo):
             assert np.all(np.isfinite(first)) and np.all(np.isfinite(stay)), thr
     assert np.mean(B[1.0][0]) < np.mean(A[1.0][0]) and np.mean(B[1.0][1]) < np.mean(A[1.0][1])
     assert np.mean(A[0.01][0]) < np.mean(B[0.01][0]) and np.mean(A[0.01][1]) < np.mean(B[0.01][1])
-    for thr, (mean, _) in PAPER_TABLE1_B.items():
-        assert 0.3 * mean < np.mean(B[thr][0]) < 1.0 * mean, (thr, np.mean(B[thr][0]))
-    # the paper's observation: the spread does not grow with the precision (tail is deterministic)
-    spreads = [np.std(B[thr][1]) for thr in (0.1, 0.01)]
-    assert abs(spreads[1] - spreads[0]) < 0.5 * spreads[0]
+    n = len(B[0.1][1])
+    spreads = [np.std(B[thr][1], ddof=1) for thr in (0.1, 0.01)]
+    assert abs(spreads[1] - spreads[0]) < 3.0 / np.sqrt(n - 1) * spreads[0], spreads
+
+
+def test_disagreement_controller_b_reaches_table1_bands_faster_than_the_paper(monte_carlo):
+    """Against Table 1 (controller B, 1000 runs: 603 ± 98, 831 ± 100, 1060 ± 101 s) ours converges
+    about twice as fast (docs/seed003_readings.md R7: the linearised tail decays at 0.0133 /s, the
+    paper's at ln 10 / 229 s = 0.0101 /s; no reading found closes the transient's gap). Asserted: our
+    mean first entry is below the paper's by more than three standard errors of the difference of the
+    two sample means (the paper's std / sqrt(1000) and ours / sqrt(n)), i.e. not a sampling accident
+    of our 40 runs."""
+    B = monte_carlo['B']
+    for thr, (mean, std) in PAPER_TABLE1_B.items():
+        ours = np.asarray(B[thr][0])
+        se = np.hypot(std / np.sqrt(1000), np.std(ours, ddof=1) / np.sqrt(len(ours)))
+        assert np.mean(ours) < mean - 3.0 * se, (thr, np.mean(ours), mean, se)
 
 
 def test_controller_b_tail_decay_matches_its_linearisation(monte_carlo):
