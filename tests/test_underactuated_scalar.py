@@ -58,10 +58,14 @@ rate = st.floats(-0.2, 0.2, allow_nan=False, width=64)
 @given(st.tuples(unit, unit, unit, unit).filter(lambda v: np.linalg.norm(v) > 1e-3),
        st.tuples(rate, rate, rate), st.sampled_from('xyz'))
 def test_float_path_equals_numpy_fuzzed(v, w, axis):
-    q = np.asarray(v) / np.linalg.norm(v)
+    _same_on_axis(v, w, axis)
+
+
+def _same_on_axis(v, w, axis) -> None:
+    """The showcase's law with ``axis`` unactuated, at the normalised ``v`` and the rate ``w``."""
     law = _law()
     law.set_unactuated_axis(axis)
-    assert_same(law, q, w)
+    assert_same(law, np.asarray(v) / np.linalg.norm(v), w)
 
 
 @pytest.mark.parametrize('q, w', [
@@ -75,10 +79,7 @@ def test_float_path_equals_numpy_fuzzed(v, w, axis):
 ])
 @pytest.mark.parametrize('axis', ['x', 'y', 'z'])
 def test_float_path_equals_numpy_edges(q, w, axis):
-    q = np.asarray(q) / np.linalg.norm(q)
-    law = _law()
-    law.set_unactuated_axis(axis)
-    assert_same(law, q, w)
+    _same_on_axis(q, w, axis)
 
 
 @pytest.mark.parametrize('over', [
