@@ -551,20 +551,20 @@ def test_bad_construction_raises():
 
 
 def test_a_batch_of_inertias_is_checked_as_one_stack_with_the_per_run_messages():
-    """Plant checks a batch's inertias as one stack (plant._check_inertias) and falls back to the
-    per-run loop for the message: accepts what check_inertias accepts, refuses with its very words."""
-    from adcs_core.inertia import check_inertias
-    from adcs_sim.truth.plant import _check_inertias
+    """check_inertias checks a batch (the plant's, a campaign's) as one stack and falls back to the
+    per-matrix loop for the message: accepts what check_inertia accepts, refuses with its very words."""
+    from adcs_core.inertia import check_inertia, check_inertias
     rng = np.random.default_rng(8)
     good = np.array([12.0, 14.0, 10.0])[:, None] * np.eye(3) + rng.normal(0, 0.01, (50, 1, 1)) * np.eye(3)
-    _check_inertias(good, 'inertia')
     check_inertias(good, 'inertia')
+    Plant(good)
+    assert all(check_inertia(J) is None for J in good)
     assert (np.linalg.eigvalsh(good) == np.stack([np.linalg.eigvalsh(J) for J in good])).all()
     for bad_value, where in ((-1.0, (7, 0, 0)), (np.nan, (3, 1, 1)), (0.5, (9, 0, 1)), (30.0, (4, 2, 2))):
         bad = good.copy()
         bad[where] = bad_value
         with pytest.raises(ValueError) as ours:
-            _check_inertias(bad, 'inertia')
-        with pytest.raises(ValueError) as theirs:
             check_inertias(bad, 'inertia')
-        assert str(ours.value) == str(theirs.value) and f'run {where[0]}' in str(ours.value)
+        assert str(ours.value) == f'run {where[0]}: {check_inertia(bad[where[0]], "inertia")}'
+        with pytest.raises(ValueError, match=f'run {where[0]}: '):
+            Plant(bad)

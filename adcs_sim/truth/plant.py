@@ -304,7 +304,7 @@ class Plant:
     def __init__(self, inertia, actuators: list[Actuator] = (), disturbance: Disturbance | None = None,
                  orbit: CircularOrbit | None = None, gravity_gradient: bool = False, warm: bool = True) -> None:
         self.inertia = np.asarray(inertia, dtype=float)
-        _check_inertias(self.inertia, 'inertia')
+        check_inertias(self.inertia, 'inertia')
         self.actuators = list(actuators)
         names = [a.name for a in self.actuators]
         if len(set(names)) != len(names):
@@ -316,7 +316,7 @@ class Plant:
         self.gravity_gradient = gravity_gradient
         spin = sum((a.spin_inertia_matrix() for a in self.actuators), np.zeros((3, 3)))
         self.inertia_struct = self.inertia - spin
-        _check_inertias(self.inertia_struct, 'inertia minus wheel spin inertia')
+        check_inertias(self.inertia_struct, 'inertia minus wheel spin inertia')
         self.inertia_struct_inv = np.linalg.inv(self.inertia_struct)
         self.slices: dict[str, slice] = {}
         start = 7
@@ -470,24 +470,6 @@ class Plant:
             q = x[..., :4]
             q /= np.sqrt((q * q).sum(axis=-1, keepdims=True))
         return x
-
-
-def _check_inertias(J: np.ndarray, what: str) -> None:
-    """:func:`adcs_core.inertia.check_inertias` of ``J``; a batch (..., 3, 3) is first checked as one
-    stack (the same tests as :func:`~adcs_core.inertia.check_inertia`'s, each matrix's eigenvalues
-    from the same LAPACK call), and only when one fails does the per-matrix loop run, for its message."""
-    if J.ndim > 2 and J.shape[-2:] == (3, 3) and J.size:
-        with np.errstate(all='ignore'):
-            finite = bool(np.isfinite(J).all())
-            if finite:
-                tol = 1e-12 * np.maximum(1.0, np.abs(J).max(axis=(-2, -1)))
-                symmetric = bool((np.abs(J - np.swapaxes(J, -1, -2)) <= tol[..., None, None]).all())
-                if symmetric:
-                    eig = np.linalg.eigvalsh(J)
-                    a, b, c = eig[..., 0], eig[..., 1], eig[..., 2]
-                    if not (eig[..., 0] <= 0).any() and not (a + b < c * (1 - 1e-12)).any():
-                        return
-    check_inertias(J, what)
 
 
 def _per_wheel(value, default: float, n: int) -> np.ndarray:
