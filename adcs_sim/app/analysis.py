@@ -82,10 +82,7 @@ def settling_time(t: np.ndarray, error: np.ndarray, tol: float) -> float:
     i = outside[-1]
     if i == e.size - 1:
         return math.inf
-    e0, e1 = e[i], e[i + 1]
-    if not math.isfinite(e0):
-        return float(t[i + 1])
-    return float(t[i] + (e0 - tol) / (e0 - e1) * (t[i + 1] - t[i]))
+    return band_crossing(t[i], e[i], t[i + 1], e[i + 1], tol)
 
 
 def first_entry_time(t: np.ndarray, error: np.ndarray, tol: float) -> float:
@@ -99,10 +96,15 @@ def first_entry_time(t: np.ndarray, error: np.ndarray, tol: float) -> float:
     i = inside[0]
     if i == 0:
         return float(t[0])
-    e0, e1 = e[i - 1], e[i]
+    return band_crossing(t[i - 1], e[i - 1], t[i], e[i], tol)
+
+
+def band_crossing(t0, e0, t1, e1, tol: float) -> float:
+    """When the error crosses ``tol`` between the samples ``(t0, e0)`` and ``(t1, e1)``, linearly
+    interpolated; ``t1`` when ``e0`` is not finite (settling and first-entry times, streamed or not)."""
     if not math.isfinite(e0):
-        return float(t[i])
-    return float(t[i - 1] + (e0 - tol) / (e0 - e1) * (t[i] - t[i - 1]))
+        return float(t1)
+    return float(t0 + (e0 - tol) / (e0 - e1) * (t1 - t0))
 
 
 def zoh_durations(t: np.ndarray, t_end: float) -> np.ndarray:

@@ -38,6 +38,7 @@ from adcs_sim.app.analysis import (
     POINTING_BANDS_DEG,
     RunData,
     attitude_errors,
+    band_crossing,
     first_fault_time,
     missed_step_gaps,
     pointing_error_deg,
@@ -109,20 +110,14 @@ class BandTrack:
             return float(self.t0)
         if self.after_out is None:
             return math.inf
-        (t0, e0), (t1, e1) = self.last_out, self.after_out
-        if not math.isfinite(e0):
-            return float(t1)
-        return float(t0 + (e0 - self.tol) / (e0 - e1) * (t1 - t0))
+        return band_crossing(*self.last_out, *self.after_out, self.tol)
 
     def first_entry(self) -> float:
         if self.first_in is None:
             return math.inf
         if self.before_in is None:
             return float(self.t0)
-        (t0, e0), (t1, e1) = self.before_in, self.first_in
-        if not math.isfinite(e0):
-            return float(t1)
-        return float(t0 + (e0 - self.tol) / (e0 - e1) * (t1 - t0))
+        return band_crossing(*self.before_in, *self.first_in, self.tol)
 
 
 class _Ordered:
