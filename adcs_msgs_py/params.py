@@ -183,21 +183,21 @@ class Schema:
         """
         if not runs:
             raise ValueError('no runs to stack')
-        out: dict[str, Any] = {}
-        for name, first in runs[0].items():
-            values = [r[name] for r in runs]
-            if all(v == first for v in values[1:]):
-                out[name] = first
-            elif name in self.by_name and self.by_name[name].batch:
-                try:
-                    out[name] = np.asarray(values)
-                except ValueError:
-                    raise ParameterError(name, 'has a different length in some runs of the batch',
-                                         self.node) from None
-            else:
-                raise ParameterError(name, 'differs between the runs of one batch, which the batch '
-                                     'engine does not support for this parameter', self.node)
-        return out
+        return {name: self.stack_values(name, [r[name] for r in runs]) for name in runs[0]}
+
+    def stack_values(self, name: str, values: list) -> Any:
+        """One parameter's validated values in N runs, stacked as :meth:`stack` does."""
+        first = values[0]
+        if all(v == first for v in values[1:]):
+            return first
+        if name in self.by_name and self.by_name[name].batch:
+            try:
+                return np.asarray(values)
+            except ValueError:
+                raise ParameterError(name, 'has a different length in some runs of the batch',
+                                     self.node) from None
+        raise ParameterError(name, 'differs between the runs of one batch, which the batch '
+                             'engine does not support for this parameter', self.node)
 
     def describe(self) -> str:
         """Markdown table of the parameters (used by ``--help`` and the docs)."""

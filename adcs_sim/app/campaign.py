@@ -119,41 +119,26 @@ class Dispersion:
 
     def draw(self, rng: np.random.Generator, nominal: Any, index: int) -> Any:
         """One value for run ``index``, in the nominal value's form (float, int or list)."""
-        kind, a = self.distribution, self.args
-        if kind == 'run_index':
-            return int(a.get('offset', 0)) + index
-        if kind == 'so3_uniform':
-            return Rotation.random(random_state=rng).as_quat().tolist()
-        if kind == 'euler213_uniform':
-            return Rotation.from_euler(EULER_213, self.euler_angles(rng), degrees=True).as_quat().tolist()
-        base = np.asarray(nominal, dtype=float)
-        if kind == 'normal':
-            mean = np.asarray(a.get('mean', base), dtype=float)
-            value = rng.normal(np.broadcast_to(mean, base.shape), np.broadcast_to(a['std'], base.shape))
-        elif 'plus_minus' in a:
-            half = np.broadcast_to(np.asarray(a['plus_minus'], dtype=float), base.shape)
-            value = rng.uniform(base - half, base + half)
-        else:
-            value = rng.uniform(np.broadcast_to(a['low'], base.shape), np.broadcast_to(a['high'], base.shape))
-        value = np.asarray(value, dtype=float)
-        return value.tolist() if value.ndim else float(value)
-
-    def euler_angles(self, rng: np.random.Generator) -> np.ndarray:
-        """The 2-1-3 angles (deg) of an ``euler213_uniform`` draw (what :meth:`draw` converts)."""
-        m = np.broadcast_to(np.asarray(self.args['max_deg'], dtype=float), (3,))
-        return rng.uniform(-m, m)
+        value = self.sampler(nominal)(rng, index)
+        if self.distribution == 'euler213_uniform':   # the sampler's 2-1-3 angles (deg), as a quaternion
+            return Rotation.from_euler(EULER_213, value, degrees=True).as_quat().tolist()
+        return value
 
     def sampler(self, nominal: Any):
-        """``rng, index -> value``: :meth:`draw` (or, for ``euler213_uniform``, :meth:`euler_angles`)
-        with its arguments broadcast once instead of at every run's draw: the generator gets the
-        same arguments element by element, so it draws the same numbers in the same order."""
+        """``rng, index -> value``: the draw of run ``index`` (for ``euler213_uniform``: the 2-1-3 angles
+        in degrees, which :meth:`draw` and :meth:`Campaign.draws` turn into quaternions) with its
+        arguments broadcast once, not at every run's draw (:meth:`Campaign.draws` makes one per
+        dispersion)."""
         kind, a = self.distribution, self.args
         if kind == 'euler213_uniform':
             m = np.ascontiguousarray(np.broadcast_to(np.asarray(a['max_deg'], dtype=float), (3,)))
             low = -m
             return lambda rng, index: rng.uniform(low, m)
-        if kind not in ('normal', 'uniform'):
-            return lambda rng, index: self.draw(rng, nominal, index)
+        if kind == 'run_index':
+            offset = int(a.get('offset', 0))
+            return lambda rng, index: offset + index
+        if kind == 'so3_uniform':
+            return lambda rng, index: Rotation.random(random_state=rng).as_quat().tolist()
         base = np.asarray(nominal, dtype=float)
         full = lambda v: np.array(np.broadcast_to(np.asarray(v, dtype=float), base.shape))  # noqa: E731
         if kind == 'normal':
@@ -448,9 +433,7 @@ class Campaign:
                 continue
             out[section] = values = dict(self.defaults[section])
             for key in per_run[0].get(section, {}):
-                column = [changes[section][key] for changes in per_run]
-                first = column[0]
-                values[key] = first if all(v == first for v in column[1:]) else np.asarray(column)
+                values[key] = NODES[section].schema.stack_values(key, [changes[section][key] for changes in per_run])
         return out
 
     def scenario_text(self, index: int) -> str:
