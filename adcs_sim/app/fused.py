@@ -96,7 +96,8 @@ def closed_loop(x0, n_steps, t_k, times, h, law, inertia, q_ref, w_ref, shortest
 class FusedLoop:
     """A batch's arguments of :func:`closed_loop` (built by :func:`plan`)."""
 
-    def __init__(self, sim, x0: np.ndarray) -> None:
+    def __init__(self, sim, plant_args: tuple) -> None:
+        """``plant_args``: the kernel's packed plant arguments (``KernelPlan._inputs(...)[1]``)."""
         N, law, act, plant = sim.n_runs, sim.law, sim.actuation, sim.plant
         n = len(act.wheel_names)
 
@@ -108,7 +109,7 @@ class FusedLoop:
         self.alloc = np.ascontiguousarray(act.allocation, dtype=float)
         self.limit = as_rows(act.limit, (n,))
         self.mode = CLIP if act.saturation == 'clip' else SCALE
-        _, self.plant_args = plant.kernel._inputs(plant, x0, plant.zero_commands())
+        self.plant_args = plant_args
         wheel_index = [a.name for a in plant.kernel.actuators].index(sim.wheels.name)
         self.cw = int(self.plant_args[5][wheel_index])
         self.sw = plant.slices[sim.wheels.name].start
@@ -149,6 +150,7 @@ def plan(sim, x0: np.ndarray, progress=None, observe=None) -> FusedLoop | None:
     if list(act.wheel_names) != list(sim.wheels.names) or np.ndim(act.allocation) != 2 \
             or np.ndim(sim.law.inertia) not in (2, 3) or act.saturation not in ('clip', 'scale'):
         return None
-    if WHEELS not in plant.kernel.kinds or plant.kernel._inputs(plant, x0, plant.zero_commands()) is None:
+    inputs = plant.kernel._inputs(plant, x0, plant.zero_commands()) if WHEELS in plant.kernel.kinds else None
+    if inputs is None:
         return None
-    return FusedLoop(sim, x0)
+    return FusedLoop(sim, inputs[1])
