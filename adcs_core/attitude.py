@@ -151,11 +151,16 @@ def euler_213(q: np.ndarray) -> np.ndarray:
     q = np.asarray(q, dtype=float)
     if q.shape == (4,):
         return np.array(_euler_213_one(*q.tolist()))
+    if q.size <= 4 * SMALL_BATCH:   # a few rows: not worth importing numba (0.4-0.7 s) for
+        return np.array([_euler_213_one(*row) for row in q.reshape(-1, 4).tolist()]).reshape(q.shape[:-1] + (3,))
     from adcs_core.euler_kernel import euler_213_rows   # numba: imported at the first batch
     flat = np.ascontiguousarray(q.reshape(-1, 4))
     out = np.empty((flat.shape[0], 3))
     euler_213_rows(flat, out)
     return out.reshape(q.shape[:-1] + (3,))
+
+
+SMALL_BATCH = 16   # euler_213 converts up to this many quaternions in Python
 
 
 def _libm_hypot(a: float, b: float) -> float:

@@ -1,6 +1,6 @@
 """adcs_core.attitude.euler_213 equals scipy's ``Rotation.from_quat(q).as_euler('YXZ')`` bit for bit.
 
-Both of its paths (one quaternion in Python, a batch in the compiled
+Both of its paths (a few quaternions in Python, a batch in the compiled
 :func:`adcs_core.euler_kernel.euler_213_rows`) against scipy, compared as int64 bit patterns (so
 -0.0 against 0.0 and NaN payloads would show): derandomised, bounded hypothesis examples of unit
 and non-unit quaternions (scipy normalises them), both signs of each, attitudes within 1e-12..1e-3
@@ -38,8 +38,12 @@ def bits(a) -> list:
 
 
 def check(rows: np.ndarray) -> None:
-    """Both paths against scipy, row by row and as one batch."""
+    """Both paths against scipy: the compiled kernel of the rows, euler_213 of them (Python up to
+    SMALL_BATCH rows, else the kernel) and of each row (Python)."""
     want = scipy_euler(rows)
+    kernel = np.empty((len(rows), 3))
+    euler_213_rows(np.ascontiguousarray(rows), kernel)
+    assert bits(kernel) == bits(want)
     assert bits(euler_213(rows)) == bits(want)
     for q, w in zip(rows, want):
         assert bits(euler_213(q)) == bits(w), q.tolist()
@@ -79,6 +83,7 @@ def test_refused_rows_are_nan_and_shapes_are_kept():
     q = np.array([[0, 0, 0, 1], [np.nan, 0, 0, 1], [0, np.inf, 0, 1], [0, 0, 0, 0], [1e-200, 0, 0, 0]])
     out = euler_213(q)
     assert np.isnan(out[1:]).all() and bits(out[:1]) == bits(scipy_euler(q[:1]))
+    assert bits(euler_213(np.tile(q, (10, 1)))) == bits(np.tile(out, (10, 1)))   # the kernel's
     for row in q[1:]:
         assert np.isnan(euler_213(row)).all()
     stack = np.tile(q[:1], (2, 3, 1))
