@@ -5,8 +5,9 @@ the inertial frame, i.e. ``R(q)`` maps body vectors to inertial ones. This is nu
 papers' ``[q1 q2 q3 q4]`` (seeds 000, 001, 004) and ``scipy.spatial.transform.Rotation.from_quat``.
 Every function takes a leading batch axis (``q`` of shape ``(..., 4)``).
 
-Conversions to matrices and Euler angles use :mod:`scipy.spatial.transform`; only what the papers
-define (kinematics, error quaternion, eigenaxis angle) is written here.
+Matrix-to-quaternion conversions use :mod:`scipy.spatial.transform`; what the papers define
+(kinematics, error quaternion, eigenaxis angle) is written here, and the 2-1-3 Euler angles as
+scipy computes them, bit for bit (:func:`euler_213`, without scipy's import and call overhead).
 
 Rotation matrices (seed 001 works on them): ``R`` (..., 3, 3) maps body vectors to inertial ones
 (:func:`rotation_from_quaternion` of the scalar-last quaternion), ``dR/dt = R ω×``; the attitude
@@ -14,6 +15,8 @@ error is ``R̃ = R_dᵀ R`` and its eigenaxis angle ``θ = acos((tr R̃ - 1)/2)`
 through :func:`matmul` (built on :func:`matvec`): a run in a batch gives the same bits as alone.
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -139,16 +142,60 @@ def eigenaxis_angle(q: np.ndarray) -> np.ndarray:
 
 def euler_213(q: np.ndarray) -> np.ndarray:
     """2-1-3 Euler angles (rad) of ``q``, in sequence order (about y, then x, then z); NaN for a
-    non-finite or zero quaternion (a diverged run's last sample)."""
+    non-finite or zero quaternion (a diverged run's last sample).
+
+    scipy's ``Rotation.from_quat(q).as_euler('YXZ')`` bit for bit without scipy: one quaternion in
+    Python (:func:`_euler_213_one`, the dynamics node's viewer topic converts one a step), more in
+    the compiled :func:`adcs_core.euler_kernel.euler_213_rows` (the operations and why they are
+    scipy's bits: that module's docstring; ``tests/test_euler.py``)."""
     q = np.asarray(q, dtype=float)
-    flat = q.reshape(-1, 4)
-    good = np.isfinite(flat).all(axis=1) & (np.abs(flat).sum(axis=1) > 0)
-    if good.all() and flat.shape[0]:   # scipy converts row by row: no masked copies, the same values
-        return scipy_rotation().from_quat(flat).as_euler(EULER_213).reshape(q.shape[:-1] + (3,))
-    out = np.full((flat.shape[0], 3), np.nan)
-    if good.any():
-        out[good] = scipy_rotation().from_quat(flat[good]).as_euler(EULER_213)
+    if q.shape == (4,):
+        return np.array(_euler_213_one(*q.tolist()))
+    if q.size <= 4 * SMALL_BATCH:   # a few rows: not worth importing numba (0.4-0.7 s) for
+        return np.array([_euler_213_one(*row) for row in q.reshape(-1, 4).tolist()]).reshape(q.shape[:-1] + (3,))
+    from adcs_core.euler_kernel import euler_213_rows   # numba: imported at the first batch
+    flat = np.ascontiguousarray(q.reshape(-1, 4))
+    out = np.empty((flat.shape[0], 3))
+    euler_213_rows(flat, out)
     return out.reshape(q.shape[:-1] + (3,))
+
+
+SMALL_BATCH = 16   # euler_213 converts up to this many quaternions in Python
+
+
+def _libm_hypot(a: float, b: float) -> float:
+    """The C library's ``hypot`` (numpy's float64 ``hypot`` loop calls it; Python's ``math.hypot``
+    is CPython's own algorithm and differs in the last bit for ~0.5 % of arguments)."""
+    return float(np.hypot(a, b))
+
+
+def _euler_213_one(x: float, y: float, z: float, w: float) -> tuple[float, float, float]:
+    """:func:`adcs_core.euler_kernel.euler_213_row` of one quaternion in Python floats (the same
+    operations: ``math.atan2`` calls the C library's ``atan2`` for finite arguments)."""
+    finite = math.isfinite(x) and math.isfinite(y) and math.isfinite(z) and math.isfinite(w)
+    n = math.sqrt((x * x + y * y + z * z) + w * w) if finite else 0.0
+    if n == 0.0:   # non-finite, zero, or a norm that underflows: scipy refuses it
+        return math.nan, math.nan, math.nan
+    x, y, z, w = x / n, y / n, z / n, w / n
+    a, b, c, d = w - x, z + y, x + w, y - z
+    theta = 2 * math.atan2(_libm_hypot(c, d), _libm_hypot(a, b))
+    half_sum, half_diff = math.atan2(b, a), math.atan2(d, c)
+    if abs(theta) <= 1e-7:
+        first, third = 2 * half_sum, 0.0
+    elif abs(theta - math.pi) <= 1e-7:
+        first, third = 2 * half_diff, 0.0
+    else:
+        first, third = half_sum + half_diff, half_sum - half_diff
+    return _wrap_pi(first), _wrap_pi(theta - math.pi / 2), _wrap_pi(third)
+
+
+def _wrap_pi(angle: float) -> float:
+    """scipy's wrap of an Euler angle: one +-2 pi into [-pi, pi]."""
+    if angle < -math.pi:
+        return angle + 2 * math.pi
+    if angle > math.pi:
+        return angle - 2 * math.pi
+    return angle
 
 
 def rotate_to_body(q: np.ndarray, v_inertial: np.ndarray) -> np.ndarray:

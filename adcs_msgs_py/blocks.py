@@ -10,17 +10,44 @@ import numpy as np
 from adcs_core.environment.frames import parse_epoch
 from adcs_core.environment.options import IGRF_YEARS, MAGNETIC_MODELS, ORBIT_KINDS, SHADOW_MODELS
 from adcs_core.environment.tle import parse_tle, tle_line_problem
-from adcs_core.inertia import check_inertia, inertia_matrix
+from adcs_core.inertia import check_inertia, check_inertias, inertia_matrix
 from adcs_msgs_py.names import parse_publishers
-from adcs_msgs_py.params import Param, ParameterError, all_non_negative, all_positive, non_negative, positive
+from adcs_msgs_py.params import (
+    Param,
+    ParameterError,
+    all_non_negative,
+    all_positive,
+    non_negative,
+    positive,
+    vectorised,
+)
 
 UNIT_TOLERANCE = 1e-3  # an initial quaternion further than this from unit norm is refused
 
 
+def _physical_inertias(values: np.ndarray) -> bool:
+    """Whether :func:`_check_inertia_values` passes each row of ``values`` (runs, 3 or 9)."""
+    try:
+        check_inertias(inertia_matrix(values), 'inertia')
+    except ValueError:
+        return False
+    return True
+
+
+@vectorised(_physical_inertias)
 def _check_inertia_values(values) -> str | None:
     return check_inertia(inertia_matrix(values), 'inertia')
 
 
+def _unit_quaternions(q: np.ndarray) -> bool:
+    """:func:`check_unit_quaternion` of each row of ``q`` (runs, n): its sum of squares in its order."""
+    total = q[:, 0] * q[:, 0]
+    for j in range(1, q.shape[1]):
+        total = total + q[:, j] * q[:, j]
+    return not np.any(np.abs(np.sqrt(total) - 1.0) > UNIT_TOLERANCE)
+
+
+@vectorised(_unit_quaternions)
 def check_unit_quaternion(values) -> str | None:
     norm = math.sqrt(sum(v * v for v in values))
     if abs(norm - 1.0) > UNIT_TOLERANCE:
@@ -40,7 +67,8 @@ def wheel_params(with_physics: bool) -> list[Param]:
         Param('wheels.axes', 'double_array', default=[],
               doc='spin axes in body axes, 3 per wheel, flattened (need not be unit)'),
         Param('wheels.max_torque', 'double_array', default=[],
-              doc='motor torque limit per wheel (N m, > 0; .inf for none)', check=all_positive, finite=False, batch=True),
+              doc='motor torque limit per wheel (N m, > 0; .inf for none)', check=all_positive, finite=False,
+              batch=True, cross='length'),
     ]
     if with_physics:
         params += [
@@ -48,15 +76,19 @@ def wheel_params(with_physics: bool) -> list[Param]:
                   doc='spin inertia per wheel (kg m^2, > 0); included in `inertia`', check=all_positive, batch=True),
             Param('wheels.max_speed', 'double_array', default=[],
                   doc='speed limit per wheel (rad/s, > 0; .inf for none)', check=all_positive,
-                  finite=False, batch=True),
+                  finite=False, batch=True, cross='length'),
             Param('wheels.viscous_friction', 'double_array', default=[],
-                  doc='viscous friction per wheel (N m s/rad, >= 0; default 0)', check=all_non_negative, batch=True),
+                  doc='viscous friction per wheel (N m s/rad, >= 0; default 0)', check=all_non_negative, batch=True,
+                  cross='length'),
             Param('wheels.coulomb_friction', 'double_array', default=[],
-                  doc='Coulomb friction per wheel (N m, >= 0; default 0)', check=all_non_negative, batch=True),
+                  doc='Coulomb friction per wheel (N m, >= 0; default 0)', check=all_non_negative, batch=True,
+                  cross='length'),
             Param('wheels.speed_loop_gain', 'double_array', default=[],
-                  doc='speed-mode loop bandwidth per wheel (1/s, > 0; default 1)', check=all_positive, batch=True),
+                  doc='speed-mode loop bandwidth per wheel (1/s, > 0; default 1)', check=all_positive, batch=True,
+                  cross='length'),
             Param('wheels.initial_speed', 'double_array', default=[],
-                  doc='initial speed per wheel relative to the body (rad/s; default 0)', batch=True),
+                  doc='initial speed per wheel relative to the body (rad/s; default 0)', batch=True,
+                  cross='length'),
         ]
     return params
 

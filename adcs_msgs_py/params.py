@@ -23,6 +23,9 @@ REQUIRED = object()
 # ROS parameter kinds (what a params-file value may be).
 KINDS = ('double', 'int', 'bool', 'string', 'double_array', 'int_array', 'string_array')
 
+# How a schema's whole-section check may read a parameter (Param.cross).
+CROSS_READS = ('value', 'length', 'none')
+
 # Parameters every rclpy node has; never "unknown".
 BUILTIN_PARAMETERS = frozenset({'use_sim_time', 'start_type_description_service'})
 
@@ -60,10 +63,15 @@ class Param:
     choices: tuple[str, ...] | None = None
     finite: bool = True
     batch: bool = False  # may differ between the runs of one batch (a Monte Carlo dispersion)
+    # How the schema's whole-section check reads it: 'value', 'length' (its length only), 'none'
+    # (not at all). Lets a campaign validate its runs' draws at once (Schema.validate_stacked).
+    cross: str = 'value'
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise ValueError(f'{self.name}: unknown kind {self.kind}')
+        if self.cross not in CROSS_READS:
+            raise ValueError(f'{self.name}: unknown cross {self.cross}')
 
     def coerce(self, value: Any) -> Any:
         """Check the type of ``value`` and return it in canonical form; raise on mismatch.
@@ -107,6 +115,32 @@ class Param:
                 raise ValueError(problem)
         return value
 
+    def coerce_many(self, values: np.ndarray) -> bool:
+        """Whether :meth:`coerce` accepts every row of ``values`` (runs, ...): float64 rows of a
+        ``double`` (array) or int64 of an ``int`` (Python floats, lists of floats and ints each), the
+        NaN / inf rule, the length, and the check over the rows at once (its vectorised form
+        :func:`vectorised` attached). False when it cannot tell (choices, a check without a
+        vectorised form, another kind): then validate row by row, for the error naming the run."""
+        values = np.asarray(values)
+        kind = self.kind
+        if kind in ('double', 'double_array'):
+            if values.dtype != np.float64 or values.ndim != (1 if kind == 'double' else 2) or np.isnan(values).any():
+                return False
+            if self.finite and np.isinf(values).any():
+                return False
+            if kind == 'double_array' and self.length is not None:
+                allowed = self.length if isinstance(self.length, tuple) else (self.length,)
+                if values.shape[1] not in allowed:
+                    return False
+        elif kind != 'int' or values.dtype != np.int64 or values.ndim != 1:
+            return False
+        if self.choices is not None:
+            return False
+        if self.check is None:
+            return True
+        many = getattr(self.check, 'many', None)
+        return many is not None and bool(many(values))
+
 
 @dataclass
 class Schema:
@@ -116,6 +150,9 @@ class Schema:
     params: list[Param]
     cross_check: Callable[[dict], None] | None = None
     doc: str = ''
+    # (section, {name: values of the runs (runs, ...)}) -> whether every run passes cross_check, for
+    # parameters it reads by value (Param.cross); None: such parameters are validated run by run
+    batch_cross_check: Callable[[dict, dict], bool] | None = None
     by_name: dict[str, Param] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -164,6 +201,27 @@ class Schema:
                 raise ParameterError(name, str(exc), self.node) from None
         return self._cross_checked(out)
 
+    def validate_stacked(self, validated: Mapping[str, Any], stacked: Mapping[str, np.ndarray],
+                         first: Mapping[str, Any]) -> bool:
+        """Whether :meth:`revalidate` accepts every run's ``changes`` at once: ``stacked`` holds the
+        changed values of all the runs (one row per run), ``first`` the first run's changes as
+        given. True only when proven: each value coerced over the rows (:meth:`Param.coerce_many`),
+        the first run revalidated in full, and the whole-section check of the others follows from
+        the first's (a parameter it does not read, or whose length only it reads: the rows have
+        one length) or from :attr:`batch_cross_check` (a parameter it reads by value). False: the
+        caller revalidates run by run, which raises the error naming the run and the key."""
+        params = [self.by_name.get(name) for name in stacked]
+        if any(p is None or not p.coerce_many(stacked[p.name]) for p in params):
+            return False
+        try:
+            section = self.revalidate(validated, first)
+        except ParameterError:
+            return False
+        if self.cross_check is None:
+            return True
+        by_value = {p.name: stacked[p.name] for p in params if p.cross == 'value'}
+        return not by_value or (self.batch_cross_check is not None and self.batch_cross_check(section, by_value))
+
     def _cross_checked(self, out: dict[str, Any]) -> dict[str, Any]:
         """``out`` after the whole-section check (a ParameterError of it named in this section)."""
         if self.cross_check is not None:
@@ -210,19 +268,32 @@ class Schema:
 
 # --- reusable checks --------------------------------------------------------------------------
 
+def vectorised(many: Callable[[np.ndarray], bool]):
+    """Attach to a check its form over many values at once: ``many(values)`` (one row per value,
+    NaN already refused) is True only if the check passes every row (:meth:`Param.coerce_many`)."""
+    def attach(check):
+        check.many = many
+        return check
+    return attach
+
+
+@vectorised(lambda a: np.all(a > 0))
 def positive(v) -> str | None:
     return None if v > 0 else f'must be > 0, got {v!r}'
 
 
+@vectorised(lambda a: np.all(a >= 0))
 def non_negative(v) -> str | None:
     return None if v >= 0 else f'must be >= 0, got {v!r}'
 
 
+@vectorised(lambda a: np.all(a > 0))
 def all_positive(vs) -> str | None:
     bad = [v for v in vs if not v > 0]
     return None if not bad else f'every value must be > 0, got {vs!r}'
 
 
+@vectorised(lambda a: not np.any(a < 0))
 def all_non_negative(vs) -> str | None:
     bad = [v for v in vs if v < 0]
     return None if not bad else f'every value must be >= 0, got {vs!r}'

@@ -2,6 +2,8 @@
 distribution (the 2-1-3 Euler draws are converted to quaternions in one call)."""
 from __future__ import annotations
 
+import numpy as np
+from scipy.spatial.transform import Rotation
 from test_campaign import write_campaign
 
 from adcs_sim.app.campaign import Campaign, run_chunk
@@ -23,6 +25,46 @@ def test_draws_equal_draw_run_by_run(tmp_path):
         'dynamics.initial.attitude': {'distribution': 'so3_uniform'}, **{k: v for k, v in DISPERSIONS.items()
                                                                         if k != 'dynamics.initial.attitude'}}))
     assert repr(so3.draws(list(range(5)))) == repr([so3.draw(i) for i in range(5)])
+
+
+def numpy_draw(campaign: Campaign, index: int) -> dict:
+    """Run ``index``'s draws with numpy's and scipy's own samplers (``rng.uniform(low, high)``,
+    ``rng.normal(mean, std)``, ``Rotation.random``, ``from_euler`` of one run): what the campaign
+    drew before it drew the raw deviates and scaled all the runs at once."""
+    rng = np.random.default_rng(np.random.SeedSequence(campaign.seed, spawn_key=(index,)))
+    out = {}
+    for d in campaign.dispersions:
+        a, base = d.args, np.asarray(campaign.defaults[d.section][d.key], dtype=float)
+        full = lambda v: np.array(np.broadcast_to(np.asarray(v, dtype=float), base.shape))  # noqa: E731
+        if d.distribution == 'so3_uniform':
+            value = Rotation.random(random_state=rng).as_quat().tolist()
+        elif d.distribution == 'euler213_uniform':
+            m = np.broadcast_to(np.asarray(a['max_deg'], dtype=float), (3,))
+            value = Rotation.from_euler('YXZ', rng.uniform(-m, m), degrees=True).as_quat().tolist()
+        elif d.distribution == 'run_index':
+            value = int(a.get('offset', 0)) + index
+        elif d.distribution == 'normal':
+            value = rng.normal(full(a.get('mean', base)), full(a['std']))
+        elif 'plus_minus' in a:
+            value = rng.uniform(base - full(a['plus_minus']), base + full(a['plus_minus']))
+        else:
+            value = rng.uniform(full(a['low']), full(a['high']))
+        out[d.target] = value.tolist() if isinstance(value, np.ndarray) and value.ndim else (
+            float(value) if isinstance(value, (float, np.ndarray)) else value)
+    return out
+
+
+def test_draws_equal_numpys_samplers_run_by_run(tmp_path):
+    """The raw deviates scaled over all the runs give the bits of numpy's uniform / normal calls of
+    each run (scalar and per-element arguments, plus_minus, a drawn mean, several max_deg) and of
+    scipy's Rotation.random (normals, then normalised)."""
+    dispersions = {**DISPERSIONS, 'dynamics.inertia': {'distribution': 'normal', 'std': 0.4, 'mean': [11, 12, 9.5]},
+                   'dynamics.wheels.max_torque': {'distribution': 'uniform', 'plus_minus': [0.001, 0.002, 0.0005]},
+                   'pd_controller.kp': {'distribution': 'normal', 'std': 0.0001}}
+    so3 = {**DISPERSIONS, 'dynamics.initial.attitude': {'distribution': 'so3_uniform'}}
+    for disp in (DISPERSIONS, dispersions, so3):
+        campaign = Campaign.load(write_campaign(tmp_path, runs=40, dispersions=disp))
+        assert repr(campaign.draws(list(range(40)))) == repr([numpy_draw(campaign, i) for i in range(40)])
 
 
 def _same_sections(a: dict, b: dict) -> None:

@@ -160,10 +160,13 @@ def batch_run_metrics(result, tol_deg: float = 0.5) -> list[dict]:
     if rows.size:
         with np.errstate(all='ignore'):
             columns = _full_run_columns(result, rows, tol_deg)
+        # each column as Python floats (a row of a 2-D one: a list) in one call, not one per run
+        lists = [(key, values.tolist() if values.ndim == 2 else np.asarray(values, dtype=float).tolist())
+                 for key, values in columns.items()]
         for r, j in enumerate(rows.tolist()):
             m = {}
-            for key, values in columns.items():
-                m[key] = values[r].tolist() if values.ndim == 2 else float(values[r])
+            for key, values in lists:
+                m[key] = values[r]
                 if key == 'peak_wheel_speed_rad_s':
                     m['missed_steps'] = 0  # BatchResult.run_data's: the batch engine misses none
             metrics[j] = m

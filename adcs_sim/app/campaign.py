@@ -119,38 +119,62 @@ class Dispersion:
 
     def draw(self, rng: np.random.Generator, nominal: Any, index: int) -> Any:
         """One value for run ``index``, in the nominal value's form (float, int or list)."""
-        value = self.sampler(nominal)(rng, index)
-        if self.distribution == 'euler213_uniform':   # the sampler's 2-1-3 angles (deg), as a quaternion
-            return Rotation.from_euler(EULER_213, value, degrees=True).as_quat().tolist()
-        return value
+        raw, values = self.sampler(nominal)
+        return values(np.array([raw(rng, index)])).tolist()[0]
 
     def sampler(self, nominal: Any):
-        """``rng, index -> value``: the draw of run ``index`` (for ``euler213_uniform``: the 2-1-3 angles
-        in degrees, which :meth:`draw` and :meth:`Campaign.draws` turn into quaternions) with its
-        arguments broadcast once, not at every run's draw (:meth:`Campaign.draws` makes one per
-        dispersion)."""
+        """``(raw, values)``, the arguments broadcast once (:meth:`Campaign.draws` makes one per
+        dispersion): ``raw(rng, index)`` is what run ``index``'s generator draws for this dispersion
+        (deviates uniform on [0, 1), standard normals, an SO(3) quaternion, the index), and
+        ``values(raws)`` turns the raws of many runs, stacked (runs, ...), into their values at
+        once (an array, one row per run; for ``euler213_uniform`` the quaternions of the 2-1-3
+        angles, in degrees, by one scipy call, which converts row by row).
+
+        The same numbers as numpy's ``rng.uniform(low, high)`` and ``rng.normal(mean, std)`` run by
+        run: numpy draws those as ``low + (high - low) * u`` and ``mean + std * z`` from the same
+        deviates (``random_uniform`` / ``random_normal`` of its distributions code, the range
+        ``high - low`` computed first), here one multiply and one add over all the runs
+        (``tests/test_campaign_draws.py`` compares them with numpy's calls)."""
         kind, a = self.distribution, self.args
-        if kind == 'euler213_uniform':
-            m = np.ascontiguousarray(np.broadcast_to(np.asarray(a['max_deg'], dtype=float), (3,)))
-            low = -m
-            return lambda rng, index: rng.uniform(low, m)
         if kind == 'run_index':
             offset = int(a.get('offset', 0))
-            return lambda rng, index: offset + index
-        if kind == 'so3_uniform':
-            return lambda rng, index: Rotation.random(random_state=rng).as_quat().tolist()
+            return (lambda rng, index: offset + index), np.asarray
+        if kind == 'so3_uniform':   # Rotation.random: 4 normals, then from_quat's normalisation
+            return (lambda rng, index: rng.normal(size=(4,))), _unit_rows
+        if kind == 'euler213_uniform':
+            high = np.ascontiguousarray(np.broadcast_to(np.asarray(a['max_deg'], dtype=float), (3,)))
+            low = -high
+            angles = _uniform(low, high)
+            return (lambda rng, index: rng.random(3)), \
+                lambda raws: Rotation.from_euler(EULER_213, angles(raws), degrees=True).as_quat()
         base = np.asarray(nominal, dtype=float)
         full = lambda v: np.array(np.broadcast_to(np.asarray(v, dtype=float), base.shape))  # noqa: E731
+        shape = base.shape or None
         if kind == 'normal':
-            first, second, method = full(a.get('mean', base)), full(a['std']), 'normal'
-        elif 'plus_minus' in a:
+            mean, std = full(a.get('mean', base)), full(a['std'])
+            return (lambda rng, index: rng.standard_normal(shape)), lambda raws: mean + std * raws
+        if 'plus_minus' in a:
             half = full(a['plus_minus'])
-            first, second, method = base - half, base + half, 'uniform'
+            values = _uniform(base - half, base + half)
         else:
-            first, second, method = full(a['low']), full(a['high']), 'uniform'
-        if base.ndim:
-            return lambda rng, index: getattr(rng, method)(first, second).tolist()
-        return lambda rng, index: float(np.asarray(getattr(rng, method)(first, second), dtype=float))
+            values = _uniform(full(a['low']), full(a['high']))
+        return (lambda rng, index: rng.random(shape)), values
+
+
+def _unit_rows(q: np.ndarray) -> np.ndarray:
+    """Each row of ``q`` (runs, 4) divided by its norm as scipy's ``Rotation`` normalises a
+    quaternion (``_normalize4``: ``sqrt((x x + y y + z z) + w w)``)."""
+    norm = np.sqrt((q[:, 0] * q[:, 0] + q[:, 1] * q[:, 1] + q[:, 2] * q[:, 2]) + q[:, 3] * q[:, 3])
+    return q / norm[:, None]
+
+
+def _uniform(low: np.ndarray, high: np.ndarray):
+    """``u -> low + (high - low) u``: numpy's ``Generator.uniform`` of deviates ``u`` (which refuses
+    a range that overflows)."""
+    span = high - low
+    if not np.all(np.isfinite(span)):
+        raise OverflowError('Range exceeds valid bounds')
+    return lambda raws: low + span * raws
 
 
 # --- reading a campaign file (Campaign.load) ---------------------------------------------------
@@ -354,27 +378,27 @@ class Campaign:
                 for d in self.dispersions}
 
     def draws(self, indices: list[int]) -> list[dict[str, Any]]:
-        """``[self.draw(i) for i in indices]``, with the 2-1-3 Euler draws of all the runs turned
-        into quaternions by one scipy call (each run's generator draws in the same order; scipy's
-        conversion is row by row, so the quaternions are the same bits)."""
-        out, pending = [], []
-        samplers = [(d.target, d.distribution == 'euler213_uniform', d.sampler(self._nominal_value(d.section, d.key)))
-                    for d in self.dispersions]
+        """``[self.draw(i) for i in indices]`` (:meth:`draw_columns`, one row per run)."""
+        columns = [c.tolist() for c in self.draw_columns(indices)]
+        if not columns:
+            return [{} for _ in indices]
+        targets = [d.target for d in self.dispersions]
+        return [dict(zip(targets, row)) for row in zip(*columns)]
+
+    def draw_columns(self, indices: list[int]) -> list[np.ndarray]:
+        """Each dispersion's values of runs ``indices`` (an array, one row per run): each run's
+        generator draws its raw numbers in the same order as :meth:`draw`, then each dispersion
+        turns the raws of all the runs into values at once (:meth:`Dispersion.sampler`: the same
+        bits as drawing run by run)."""
+        samplers = [d.sampler(self._nominal_value(d.section, d.key)) for d in self.dispersions]
+        raws: list[list] = [[] for _ in samplers]
         for index in indices:
             rng = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(index,)))
-            inputs = {}
-            for target, euler, sample in samplers:
-                if euler:
-                    pending.append((inputs, target, sample(rng, index)))
-                    inputs[target] = None  # the place of the value, in file order
-                else:
-                    inputs[target] = sample(rng, index)
-            out.append(inputs)
-        if pending:
-            q = Rotation.from_euler(EULER_213, np.stack([a for _, _, a in pending]), degrees=True).as_quat()
-            for (inputs, target, _), row in zip(pending, q.tolist()):
-                inputs[target] = row
-        return out
+            for (raw, _), out in zip(samplers, raws):
+                out.append(raw(rng, index))
+        if not indices:
+            return [np.zeros(0) for _ in samplers]
+        return [values(np.array(r)) for (_, values), r in zip(samplers, raws)]
 
     def run_given(self, index: int, inputs: dict[str, Any] | None = None) -> dict[str, dict[str, Any]]:
         """The scenario of run ``index`` as written parameters: nominal + draws (+ links).
@@ -392,13 +416,16 @@ class Campaign:
         draw is impossible (e.g. a negative inertia). ``inputs`` as for :meth:`run_given`."""
         inputs = self.draw(index) if inputs is None else inputs
         changes = self._changes(inputs)
-        out = {}
-        for section in self.nominal:  # the nominal sections are validated (defaults): check the changes
-            try:
-                out[section] = NODES[section].schema.revalidate(self.defaults[section], changes.get(section, {}))
-            except ParameterError as exc:
-                raise CampaignError(f'run {index}: drawn {exc} (inputs: {inputs})') from None
-        return out
+        # the nominal sections are validated (defaults): check the changes
+        return {section: self._revalidate(index, inputs, section, changes.get(section, {}))
+                for section in self.nominal}
+
+    def _revalidate(self, index: int, inputs: dict, section: str, changes: dict) -> dict[str, Any]:
+        """Run ``index``'s ``section`` with its ``changes``; CampaignError naming the run and the key."""
+        try:
+            return NODES[section].schema.revalidate(self.defaults[section], changes)
+        except ParameterError as exc:
+            raise CampaignError(f'run {index}: drawn {exc} (inputs: {inputs})') from None
 
     def _changes(self, inputs: dict[str, Any]) -> dict[str, dict[str, Any]]:
         """``{section: {key: value}}`` a run's draws (and links) set, in :meth:`run_given`'s order."""
@@ -410,9 +437,24 @@ class Campaign:
         return changes
 
     def check_runs(self) -> None:
-        """Validate every run's drawn parameters (before anything runs); :attr:`checked` then."""
-        for i, inputs in enumerate(self.draws(list(range(self.runs)))):
-            self.run_sections(i, inputs)
+        """Validate every run's drawn parameters (before anything runs); :attr:`checked` then.
+
+        A section whose changed values the schema validates over all the runs at once
+        (:meth:`Schema.validate_stacked`: it proves that each run passes) is not validated run by
+        run; the others are, run after run, so that an impossible draw raises the same error
+        (:meth:`run_sections`': the first bad run, its section and key) either way."""
+        columns = self.draw_columns(list(range(self.runs)))
+        targets = [d.target for d in self.dispersions]
+        first = self._changes(dict(zip(targets, [c[0].tolist() for c in columns])))
+        stacked = self._changes(dict(zip(targets, columns)))
+        pending = [s for s in self.nominal if s in stacked and not NODES[s].schema.validate_stacked(
+            self.defaults[s], stacked[s], first[s])]
+        if pending:
+            for i, row in enumerate(zip(*[c.tolist() for c in columns])):
+                inputs = dict(zip(targets, row))
+                changes = self._changes(inputs)
+                for section in pending:
+                    self._revalidate(i, inputs, section, changes.get(section, {}))
         self.checked = True
 
     def batch_sections(self, indices: list[int], inputs: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:

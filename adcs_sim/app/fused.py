@@ -49,7 +49,8 @@ def closed_loop(x0, n_steps, t_k, times, h, law, inertia, q_ref, w_ref, shortest
     """Every run r from x0[r] for n_steps[r] control steps (or to its first non-finite step):
     step i at t_k[i], RK4 stage times times[i] of step h. ``law[r]`` = (kp, kd); the wheel
     commands go to cmds[r][cw:], their speed-mode flags (0: torque mode) after them. Records into
-    hq, hw, hu, hs (wheel speeds: the state at sw); x_end, done, failed per run."""
+    hq, hw, hu, hs (wheel speeds: the state at sw), NaN after the run's last step (they need not be
+    filled before); x_end, done, failed per run."""
     n_runs, n_states = x0.shape
     width = max(3, counts.max())
     n_wheels = alloc.shape[0]
@@ -91,6 +92,15 @@ def closed_loop(x0, n_steps, t_k, times, h, law, inertia, q_ref, w_ref, shortest
         done[r], failed[r] = steps, bad
         for e in range(n_states):
             x_end[r, e] = xr[e]
+        for i in range(steps, hu.shape[1]):   # no sample after the run's end (the history is np.empty)
+            for e in range(3):
+                hu[r, i, e] = np.nan
+            for e in range(4):
+                hq[r, i + 1, e] = np.nan
+            for e in range(3):
+                hw[r, i + 1, e] = np.nan
+            for j in range(hs.shape[2]):
+                hs[r, i + 1, j] = np.nan
 
 
 class FusedLoop:

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from adcs_core.environment.environment import Environment, build_environment
-from adcs_core.inertia import check_inertia, inertia_matrix
+from adcs_core.inertia import check_inertia, check_inertias, inertia_matrix
 from adcs_core.orbit import CircularOrbit
 from adcs_msgs_py import names as topics
 from adcs_msgs_py.blocks import (
@@ -61,11 +61,7 @@ def _dynamics_cross_check(v: dict) -> None:
                              '(the initial rate is then computed from the momentum)')
     n = len(v['wheels.names'])
     if n:
-        J = inertia_matrix(v['inertia'])
-        axes = np.asarray(v['wheels.axes'], dtype=float).reshape(n, 3)
-        axes /= np.linalg.norm(axes, axis=1, keepdims=True)
-        spin = np.einsum('i,ij,ik->jk', np.asarray(v['wheels.spin_inertia']), axes, axes)
-        problem = check_inertia(J - spin, 'inertia minus the wheels\' spin inertia')
+        problem = check_inertia(inertia_matrix(v['inertia']) - _wheel_spin_inertia(v), _BODY_INERTIA)
         if problem:
             raise ParameterError('wheels.spin_inertia', problem + ' (`inertia` must include the wheels)')
     if v['integrator.max_step'] > v['control_period']:
@@ -93,6 +89,35 @@ def _dynamics_cross_check(v: dict) -> None:
     check_sensors(v)
 
 
+_BODY_INERTIA = 'inertia minus the wheels\' spin inertia'
+
+
+def _wheel_spin_inertia(v: dict) -> np.ndarray:
+    """The wheels' spin inertia about the body axes, sum_i Js_i a_i a_i^T (3, 3), a_i the unit axes."""
+    axes = np.asarray(v['wheels.axes'], dtype=float).reshape(len(v['wheels.names']), 3)
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    return np.einsum('i,ij,ik->jk', np.asarray(v['wheels.spin_inertia']), axes, axes)
+
+
+def _dynamics_batch_check(v: dict, stacked: dict) -> bool:
+    """Whether every run passes :func:`_dynamics_cross_check` when the values of ``stacked``
+    (parameters it reads by value, one row per run) vary and the others are those of ``v`` (the
+    first run's section, which passed it): its tests of those values over the rows at once, the
+    same operations (Schema.validate_stacked). False for a parameter it has no such test for."""
+    if not set(stacked) <= {'inertia', 'duration', 'initial.rate'}:
+        return False
+    if 'duration' in stacked and np.any(stacked['duration'] < v['control_period']):
+        return False
+    if 'initial.rate' in stacked and len(v['initial.momentum']) and np.any(stacked['initial.rate'] != 0.0):
+        return False
+    if 'inertia' in stacked and len(v['wheels.names']):
+        try:
+            check_inertias(inertia_matrix(stacked['inertia']) - _wheel_spin_inertia(v), _BODY_INERTIA)
+        except ValueError:
+            return False
+    return True
+
+
 def command_topics(v: dict) -> list[str]:
     """The command topics the dynamics node waits for each step (``auto`` / ``none`` resolved)."""
     commands = v['lockstep.commands']
@@ -117,7 +142,8 @@ def _fraction(v) -> str | None:
 DYNAMICS_SCHEMA = Schema('dynamics', [
     inertia_param('total inertia incl. wheel spin inertia (kg m^2): 3 principal moments or 9 entries'),
     Param('initial.attitude', 'double_array', default=[0.0, 0.0, 0.0, 1.0], length=4,
-          check=check_unit_quaternion, doc='initial quaternion [x, y, z, w], body in inertial', batch=True),
+          check=check_unit_quaternion, doc='initial quaternion [x, y, z, w], body in inertial', batch=True,
+          cross='none'),
     Param('initial.rate', 'double_array', default=[0.0, 0.0, 0.0], length=3,
           doc='initial body rate (rad/s, body axes)', batch=True),
     Param('initial.momentum', 'double_array', default=[],
@@ -128,12 +154,11 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
     *wheel_params(with_physics=True),
     Param('torquers.enabled', 'bool', default=False, doc='ideal external torquers (torque_cmd)'),
     Param('torquers.max_torque', 'double_array', default=[math.inf] * 3, length=3, check=all_positive,
-          finite=False, doc='per-axis torquer limit (N m; .inf for none)', batch=True),
+          finite=False, doc='per-axis torquer limit (N m; .inf for none)', batch=True, cross='none'),
     *thruster_params(with_physics=True),
-    Param('disturbance.constant', 'double_array', default=[0.0] * 3, length=3, doc='N m, body axes', batch=True),
-    Param('disturbance.amplitude', 'double_array', default=[0.0] * 3, length=3, doc='N m, body axes', batch=True),
-    Param('disturbance.frequency', 'double_array', default=[0.0] * 3, length=3, doc='rad/s', batch=True),
-    Param('disturbance.phase', 'double_array', default=[0.0] * 3, length=3, doc='rad', batch=True),
+    *[Param(f'disturbance.{name}', 'double_array', default=[0.0] * 3, length=3, doc=doc, batch=True, cross='none')
+      for name, doc in (('constant', 'N m, body axes'), ('amplitude', 'N m, body axes'), ('frequency', 'rad/s'),
+                        ('phase', 'rad'))],
     Param('gravity_gradient', 'bool', default=False, doc='gravity-gradient torque on the orbit'),
     Param('orbit.altitude', 'double', default=0.0, check=non_negative, doc='circular orbit altitude (m)'),
     Param('orbit.inclination_deg', 'double', default=0.0, doc='deg'),
@@ -160,7 +185,7 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
           doc='fraction of lockstep steps whose commands are lost (missed steps; adcs_sim/truth/link_faults.py)'),
     Param('link_faults.delay', 'double', default=0.0, check=_fraction,
           doc='fraction of lockstep steps whose commands come after the deadline (missed, then stale)'),
-    Param('noise.seed', 'int', default=0, doc='seed of the measurement noise generator', batch=True),
+    Param('noise.seed', 'int', default=0, doc='seed of the measurement noise generator', batch=True, cross='none'),
     Param('noise.attitude_std', 'double', default=0.0, check=non_negative,
           doc='star-tracker noise, rad (1 sigma per axis, small-angle rotation)'),
     Param('noise.rate_std', 'double', default=0.0, check=non_negative, doc='gyro noise, rad/s (1 sigma)'),
@@ -187,7 +212,8 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
               'the recorder included (-1: the recorder, if expected; the runner sets it when an estimator listens)'),
     *startup_params(),
     expect_faults_param(),
-], cross_check=_dynamics_cross_check, doc='plant, simulated clock and lockstep loop')
+], cross_check=_dynamics_cross_check, batch_cross_check=_dynamics_batch_check,
+    doc='plant, simulated clock and lockstep loop')
 
 
 def build_truth_environment(v: dict) -> Environment | None:
