@@ -75,8 +75,10 @@ class Graph:
             proc = subprocess.Popen([sys.executable, *node_command(name, module), '--ros-args', *args],
                                     stdout=f, stderr=subprocess.STDOUT, env=self.env,
                                     stdin=subprocess.DEVNULL, start_new_session=True, pass_fds=self.keep_fds)
+        old_fd = self._pidfds.pop(name, None)   # a restarted node's: its old process's
+        if old_fd is not None:
+            os.close(old_fd)
         self.procs[name] = proc
-        self._pidfds.pop(name, None)
         return proc
 
     def wait_exit(self, timeout: float) -> None:
