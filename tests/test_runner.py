@@ -42,8 +42,11 @@ def test_runner_interrupted_mid_run_leaves_readable_bag_and_no_orphans(tmp_path,
     try:
         bag = out / 'bag'
         deadline = time.monotonic() + 120
-        # Wait until the run is really under way: state messages are on disk (recorder flushed).
-        while not (bag.exists() and any(t == '/state' for t, *_ in read_raw(bag))):
+        # Wait until the run is really under way: two states are on disk (recorder flushed), so the
+        # controller has answered a step (the first state alone can be flushed 0.5 s before the
+        # first step completes, under load: the dynamics' first publications; the graph then stops
+        # within ~0.2 s of the signal, too soon for a second state).
+        while not (bag.exists() and sum(t == '/state' for t, *_ in read_raw(bag)) >= 2):
             assert time.monotonic() < deadline, 'run did not start'
             try:  # re-check the file when the runner exits or after 0.1 s, whichever first
                 proc.wait(timeout=0.1)

@@ -97,7 +97,7 @@ def test_signal_at_any_phase_leaves_no_orphan_and_a_complete_bag(tmp_path, phase
             reached = run.wait_for('dynamics finished', lambda: run.node_pids('adcs_sim.nodes.dynamics')
                                    and not any(map(alive, run.node_pids('adcs_sim.nodes.dynamics'))))
         else:                       # mid-run Ctrl-C, then a second signal while the graph is stopping
-            reached = run.wait_for('run under way', lambda: _state_recorded(run.bag))
+            reached = run.wait_for('run under way', lambda: _state_recorded(run.bag, 2))   # (as below)
         assert reached, f'runner exited before {phase}: {run.finish()}'
         run.proc.send_signal(sig)
         if phase == 'twice':

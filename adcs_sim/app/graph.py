@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -10,18 +11,13 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
-from rosgraph_msgs.msg import Clock
-from tqdm import tqdm
-
 from adcs_msgs_py.node import RUNNER_PID_ENV, network_hygiene_defaults
 from adcs_sim.app.domains import DomainLease
 from adcs_sim.app.scenario_files import RunError
-from adcs_sim.bag.reader import read_raw
+
+# rclpy's executor and message modules, tqdm and the bag reader are imported where they are used
+# (Progress, recorded_state): `adcs-run` without a progress bar (not a terminal, tests,
+# benchmarks) never creates a participant of its own, and starts its nodes sooner.
 
 STOP_TIMEOUT_S = 20.0
 PROGRESS_NODE = 'adcs_run_progress'   # the runner's own /clock subscriber (a node of the run)
@@ -32,10 +28,14 @@ PROGRESS_NODE = 'adcs_run_progress'   # the runner's own /clock subscriber (a no
 PROFILE_ENV = 'ADCS_SIM_PROFILE_DIR'
 
 
-def profiled(name: str) -> list[str]:
-    """``['-m', 'cProfile', '-o', <file>]`` when :data:`PROFILE_ENV` is set, else ``[]``."""
+def node_command(name: str, module: str) -> list[str]:
+    """The interpreter arguments that run node ``module``: ``-m adcs_sim.app.launch <module>``
+    (:mod:`adcs_sim.app.launch`: the process ends as soon as the node has shut down), or under
+    cProfile (``-m cProfile -o <file> -m <module>``) when :data:`PROFILE_ENV` is set."""
     folder = os.environ.get(PROFILE_ENV)
-    return ['-m', 'cProfile', '-o', str(Path(folder) / f'{name}.prof')] if folder else []
+    if folder:
+        return ['-m', 'cProfile', '-o', str(Path(folder) / f'{name}.prof'), '-m', module]
+    return ['-m', 'adcs_sim.app.launch', module]
 
 
 class Graph:
@@ -53,6 +53,7 @@ class Graph:
         self.commands: dict[str, tuple[str, list[str]]] = {}   # name -> (module, args), for restarts
         self.signals: list[int] = []   # SIGINT / SIGTERM received by the runner
         self.stopping = False          # shutdown under way: a signal no longer interrupts it
+        self._pidfds: dict[str, int] = {}
 
     def on_signal(self, signum, frame) -> None:  # noqa: ARG002
         """The runner's SIGINT/SIGTERM handler: only records the signal. The run loop notices it
@@ -71,11 +72,48 @@ class Graph:
         self.logs[name] = log
         self.commands[name] = (module, args)
         with open(log, 'wb') as f:
-            proc = subprocess.Popen([sys.executable, *profiled(name), '-m', module, '--ros-args', *args],
+            proc = subprocess.Popen([sys.executable, *node_command(name, module), '--ros-args', *args],
                                     stdout=f, stderr=subprocess.STDOUT, env=self.env,
                                     stdin=subprocess.DEVNULL, start_new_session=True, pass_fds=self.keep_fds)
+        old_fd = self._pidfds.pop(name, None)   # a restarted node's: its old process's
+        if old_fd is not None:
+            os.close(old_fd)
         self.procs[name] = proc
         return proc
+
+    def wait_exit(self, timeout: float) -> None:
+        """Return as soon as a process of the graph exits (its pidfd becomes readable), or after
+        ``timeout`` s: no polling. A signal to the runner does not cut the wait short (its handler
+        only records it, :meth:`on_signal`); the caller's next :meth:`check` acts on it."""
+        fds = [fd for fd in (self._pidfd(n) for n in self.procs) if fd is not None]
+        if len(fds) < sum(p.returncode is None for p in self.procs.values()):
+            time.sleep(timeout)   # no pidfd for a live process (kernel < 5.3): a plain wait
+            return
+        if fds:
+            select.select(fds, [], [], timeout)
+        else:
+            time.sleep(timeout)
+
+    def _pidfd(self, name: str) -> int | None:
+        """A pidfd of process ``name`` while it has not been reaped, else None."""
+        proc = self.procs[name]
+        if proc.returncode is not None:
+            fd = self._pidfds.pop(name, None)
+            if fd is not None:
+                os.close(fd)
+            return None
+        if name not in self._pidfds:
+            try:
+                self._pidfds[name] = os.pidfd_open(proc.pid)
+            except (AttributeError, OSError):   # no pidfd_open here, or already reaped
+                return None
+        return self._pidfds[name]
+
+    def close(self) -> None:
+        """Close the pidfds (the processes are stopped: :meth:`stop_all`)."""
+        for fd in self._pidfds.values():
+            os.close(fd)
+        self._pidfds.clear()
 
     def log_tail(self, name: str, lines: int = 15) -> str:
         try:
@@ -122,26 +160,43 @@ class Graph:
 
     def stop(self, name: str, timeout: float = STOP_TIMEOUT_S) -> int | None:
         """SIGINT, then SIGKILL after ``timeout``; returns the exit status."""
-        proc = self.procs.get(name)
-        if proc is None:
-            return None
-        if proc.poll() is None:
-            try:
-                os.killpg(proc.pid, signal.SIGINT)
-            except ProcessLookupError:
-                pass
-            try:
-                proc.wait(timeout)
-            except subprocess.TimeoutExpired:
+        return self.stop_together([name], timeout).get(name)
+
+    def stop_together(self, names, timeout: float = STOP_TIMEOUT_S) -> dict[str, int]:
+        """SIGINT to every one of ``names`` at once, then SIGKILL to those still running after
+        ``timeout``; returns their exit statuses (the nodes shut down side by side, not one
+        after the other)."""
+        procs = {n: self.procs[n] for n in names if n in self.procs}
+        for proc in procs.values():
+            if proc.poll() is None:
+                try:
+                    os.killpg(proc.pid, signal.SIGINT)
+                except ProcessLookupError:
+                    pass
+        deadline = time.monotonic() + timeout
+        for name, proc in procs.items():
+            if not self._wait_one(name, deadline):
                 os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait()
-        return proc.returncode
+        return {n: p.returncode for n, p in procs.items()}
+
+    def _wait_one(self, name: str, deadline: float) -> bool:
+        """Wait until process ``name`` exits (its pidfd; Popen.wait's own timeout polls), at most
+        until ``deadline`` (monotonic); whether it exited (reaped)."""
+        proc = self.procs[name]
+        fd = self._pidfd(name)
+        if fd is not None:
+            select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
+        try:
+            proc.wait(max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            return False
+        self._pidfd(name)   # closes it
+        return True
 
     def stop_all(self, recorder_last: str | None = 'recorder') -> None:
         self.stopping = True
-        for name in list(self.procs):
-            if name != recorder_last:
-                self.stop(name)
+        self.stop_together([n for n in self.procs if n != recorder_last])
         if recorder_last in self.procs:
             self.stop(recorder_last)
 
@@ -176,6 +231,13 @@ class Progress:
     run's: the run's domain and discovery range (``env``), not the shell's."""
 
     def __init__(self, duration: float, enabled: bool, env: dict) -> None:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+        from rclpy.signals import SignalHandlerOptions
+        from rosgraph_msgs.msg import Clock
+        from tqdm import tqdm
         self.context = Context()
         with run_environment(env):
             rclpy.init(context=self.context, domain_id=int(env['ROS_DOMAIN_ID']),
@@ -196,18 +258,20 @@ class Progress:
             self.bar.update(t - self.sim_time)
             self.sim_time = t
 
-    def spin(self, seconds: float) -> None:
+    def spin(self, seconds: float, wait=time.sleep) -> None:
         """Take at most one ``/clock`` message and return after ``seconds``: the bar moves at most
         1/seconds times a second, and this process does not wake at every step of the lockstep loop
         (its reader keeps only the latest tick, best effort: the ones in between are dropped by DDS,
-        never seen by Python)."""
+        never seen by Python). ``wait(remaining)`` passes the rest of the time (the runner's:
+        :meth:`Graph.wait_exit`, which returns early when a node exits)."""
         deadline = time.monotonic() + seconds
         self.executor.spin_once(timeout_sec=seconds)
         remaining = deadline - time.monotonic()
         if remaining > 0:
-            time.sleep(remaining)
+            wait(remaining)
 
     def close(self) -> None:
+        import rclpy
         self.bar.close()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
@@ -222,6 +286,7 @@ def graph_env(lease: DomainLease, allow_network: bool = False) -> dict:
 
 def recorded_state(bag_dir: Path) -> bool:
     """Whether the bag (complete, or as flushed so far) holds at least one state message."""
+    from adcs_sim.bag.reader import read_raw
     try:
         return any(topic.endswith('/state') for topic, *_ in read_raw(bag_dir))
     except (OSError, ValueError):

@@ -32,6 +32,7 @@ import json
 import shutil
 import signal
 import sys
+import threading
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
@@ -39,13 +40,15 @@ from pathlib import Path
 from adcs_msgs_py import names
 from adcs_msgs_py.node import EXIT_INTRUSION, INTRUSION_LOG
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app.analysis import bag_intrusions, format_metrics, jsonable_metrics, target_attitude
 from adcs_sim.app.graph import PROGRESS_NODE, Graph, Progress, graph_env, lease_domain, recorded_state
-from adcs_sim.app.parameters import explain
 from adcs_sim.app.registry import NODES
 from adcs_sim.app.scenario_files import DEFAULT_SCENARIO, RunError, config_dirs, resolve_scenario, validate_scenario
-from adcs_sim.app.stream_metrics import analyse_bag
-from adcs_sim.nodes.recorder import READY_LINE
+
+# Imported when first needed, not before the nodes start (the import of the analysis modules,
+# ~0.7 s on the 2-core machine, was on the critical path of every run's start-up):
+# adcs_sim.app.analysis, adcs_sim.app.stream_metrics (the metrics, read from the bag at the end;
+# imported while the graph shuts down: warm_analysis), adcs_sim.app.run_data (the target),
+# adcs_sim.app.parameters (--explain), adcs_sim.nodes.recorder (its ready line).
 
 __all__ = ['DEFAULT_SCENARIO', 'RunError', 'config_dirs', 'resolve_scenario', 'validate_scenario',
            'graph_env', 'lease_domain', 'run_scenario', 'main']
@@ -85,6 +88,12 @@ def _compromised(found: list[str], bag_dir: Path) -> RunError | None:
                     + f'; bag kept in {bag_dir} (topic {names.INTRUSIONS})')
 
 
+def _bag_intrusions(bag_dir: Path) -> list[str]:
+    """:func:`adcs_sim.app.analysis.bag_intrusions` (imported on the way out of a failed run)."""
+    from adcs_sim.app.analysis import bag_intrusions
+    return bag_intrusions(bag_dir)
+
+
 def _await_recorded_intrusion(run: _Run) -> None:
     """A node stopped the run on an intruder (exit EXIT_INTRUSION): give the recorder, still
     running, up to INTRUSION_RECORD_S to record it (its periodic sweep logs INTRUSION_LOG as it
@@ -106,6 +115,7 @@ def run_target(validated: dict) -> list[float]:
     """The target of the dynamics node's error topics and target markers: the offline analysis'
     (:func:`~adcs_sim.app.analysis.target_attitude`: a controller section's ``target.attitude``),
     so that ``error/*`` in the bag are the errors ``adcs-analyze`` computes."""
+    from adcs_sim.app.run_data import target_attitude
     sections = {name: {'ros__parameters': {'target': {'attitude': list(values['target.attitude'])}}}
                 for name, values in validated.items() if name != 'dynamics' and 'target.attitude' in values}
     return [float(v) for v in target_attitude(sections)]
@@ -141,7 +151,7 @@ class _Run:
     others: list[str] = field(default_factory=list)   # nodes other than the recorder and dynamics
     started: bool = False      # a state was published (the bag holds recorded data)
     restarts_done: int = 0
-    progress: Progress | None = None
+    progress: Progress | None = None   # the /clock progress bar (a terminal): the runner's participant
 
 
 def _start_graph(run: _Run, show_progress: bool):
@@ -158,6 +168,7 @@ def _start_graph(run: _Run, show_progress: bool):
     common = ['--params-file', str(run.scenario), *publishers_arg(validated)]
     graph.start('recorder', NODES['recorder'].module,
                 [*common, '-p', f'output:={run.bag_dir}', '-p', f'scenario_file:={run.scenario}'])
+    from adcs_sim.nodes.recorder import READY_LINE   # (its imports overlap the nodes' start)
     run.others = [s for s in validated if s not in ('recorder', 'dynamics')]
     handshake = startup_counts(validated)
     # With a fault injector, the nodes that act on faults first collect its whole schedule.
@@ -178,20 +189,43 @@ def _start_graph(run: _Run, show_progress: bool):
     graph.check()
     dynamics = graph.start('dynamics', NODES['dynamics'].module, dyn_args)
     graph.wait_for_line('recorder', READY_LINE, READY_TIMEOUT_S)
-    run.progress = Progress(validated['dynamics']['duration'], show_progress, graph.env)
+    if show_progress:   # only then a participant of the runner's own, on /clock
+        run.progress = Progress(validated['dynamics']['duration'], show_progress, graph.env)
     return dynamics
+
+
+def warm_analysis() -> threading.Thread:
+    """Import the end-of-run analysis (the bag reader, the metrics, and scipy's ``Rotation`` their
+    Euler angles use: 0.5-2 s of imports on the 2-core machine) in a thread, while the graph shuts
+    down: the runner only waits then (for the nodes' exits; the recorder's drain is mostly a quiet
+    period), so the imports are off the critical path. (Imported while the nodes ran, they took CPU
+    from the lockstep loop's first steps instead.) A failed import is raised again where the
+    module is used."""
+    def imports() -> None:
+        try:
+            import adcs_sim.app.stream_metrics  # noqa: F401
+            from adcs_core.attitude import scipy_rotation
+            scipy_rotation()
+        except Exception:  # noqa: BLE001, S110 - raised again by the import in run_scenario
+            pass
+    thread = threading.Thread(target=imports, name='warm-analysis', daemon=True)
+    thread.start()
+    return thread
 
 
 def _supervise(run: _Run, dynamics) -> None:
     """Follow the run until the dynamics node exits: restart a dead controller (``--restart``) or
-    stop with a RunError naming the node that died and how."""
+    stop with a RunError naming the node that died and how. Woken by any node's exit (pidfd) or
+    every 0.2 s (the progress bar, a signal)."""
     graph, prog = run.graph, run.progress
     watched = ['recorder', *run.others]
     while dynamics.poll() is None:
         graph.check()
-        prog.spin(0.2)
-        if prog.sim_time > 0:
-            run.started = True
+        if prog is not None:
+            prog.spin(0.2, graph.wait_exit)
+            run.started = run.started or prog.sim_time > 0
+        else:
+            graph.wait_exit(0.2)
         dead = graph.failed(watched)
         if not dead:
             continue
@@ -199,7 +233,8 @@ def _supervise(run: _Run, dynamics) -> None:
         run.started = run.started or recorded_state(run.bag_dir)   # /clock may not have reached us yet
         if run.started and NODES[name].role == 'controller' and run.restarts_done < run.restarts:
             run.restarts_done += 1
-            print(f'adcs-run: {graph.describe_exit(name)} at t = {prog.sim_time:g} s; '
+            at = f' at t = {prog.sim_time:g} s' if prog is not None else ''
+            print(f'adcs-run: {graph.describe_exit(name)}{at}; '
                   f'restarting it ({run.restarts_done} of {run.restarts})', file=sys.stderr, flush=True)
             graph.restart(name, run.restarts_done)
             continue
@@ -207,7 +242,8 @@ def _supervise(run: _Run, dynamics) -> None:
                        f'graph stopped{f", bag kept in {run.bag_dir}" if run.started else ""}:\n'
                        f'{graph.log_tail(name)}')
     if dynamics.returncode != 0:
-        run.started = run.started or (run.bag_dir / 'metadata.yaml').exists() or prog.sim_time > 0
+        run.started = (run.started or (run.bag_dir / 'metadata.yaml').exists()
+                       or (prog.sim_time > 0 if prog is not None else recorded_state(run.bag_dir)))
         raise RunError(f'{graph.describe_exit("dynamics")}:\n{graph.log_tail("dynamics")}')
     run.started = True
 
@@ -215,17 +251,32 @@ def _supervise(run: _Run, dynamics) -> None:
 def _stop_graph(run: _Run) -> None:
     """The run completed: stop the other nodes, then the recorder (which closes the bag)."""
     graph = run.graph
-    run.progress.close()
-    run.progress = None
+    if run.progress is not None:
+        run.progress.close()
+        run.progress = None
     graph.stopping = True   # from here a signal cannot cut the shutdown short
-    for name in run.others:
-        graph.stop(name)
+    graph.stop_together(run.others)
     code = graph.stop('recorder')
     if code != 0:
         raise RunError(f'{graph.describe_exit("recorder")}:\n{graph.log_tail("recorder")}')
     if graph.signals:
         raise RunError(f'interrupted by {signal.Signals(graph.signals[0]).name} during shutdown; '
                        f'the run had completed, bag kept in {run.bag_dir}')
+
+
+def _finish(run: _Run, tol_deg: float):
+    """The run completed: stop the graph (the end-of-run analysis imported meanwhile: warm_analysis),
+    then read the bag once, streaming: the intruders and the metrics (memory independent of the
+    run's length). Raises the RunError of a compromised run."""
+    warming = warm_analysis()
+    _stop_graph(run)
+    warming.join()
+    from adcs_sim.app.stream_metrics import analyse_bag
+    analysed = analyse_bag(run.bag_dir, tol_deg)
+    compromised = _compromised(analysed.intrusions, run.bag_dir)
+    if compromised is not None:
+        raise compromised
+    return analysed
 
 
 def run_scenario(scenario: Path, out: Path, duration: float | None = None, progress: bool = True,
@@ -250,25 +301,20 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
     old_handlers = {s: signal.signal(s, graph.on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         _supervise(run, _start_graph(run, progress))
-        _stop_graph(run)
-        # Read once, streaming: the intruders and the metrics (memory independent of the run's length)
-        analysed = analyse_bag(run.bag_dir, tol_deg)
-        compromised = _compromised(analysed.intrusions, run.bag_dir)
-        if compromised is not None:
-            raise compromised
+        analysed = _finish(run, tol_deg)
     except KeyboardInterrupt:
         graph.stop_all()
         run.started = run.started or recorded_state(run.bag_dir)   # /clock may not have reached us yet
         sig = signal.Signals(graph.signals[0]).name if graph.signals else 'SIGINT'
         kept = f'bag kept in {run.bag_dir}' if run.bag_dir.exists() else 'no bag was recorded yet'
         interrupted = f'interrupted by {sig} ({"during" if run.started else "before"} the run); {kept}'
-        compromised = _compromised(bag_intrusions(run.bag_dir), run.bag_dir)   # say both
+        compromised = _compromised(_bag_intrusions(run.bag_dir), run.bag_dir)   # say both
         raise RunError(interrupted if compromised is None else f'{interrupted}; {compromised}') from None
     except BaseException as exc:
         if isinstance(exc, RunError):
             _await_recorded_intrusion(run)
         graph.stop_all()
-        compromised = _compromised(bag_intrusions(run.bag_dir), run.bag_dir) if isinstance(exc, RunError) else None
+        compromised = _compromised(_bag_intrusions(run.bag_dir), run.bag_dir) if isinstance(exc, RunError) else None
         if compromised is not None and compromised is not exc:
             raise compromised from exc   # a node that stopped on the intrusion: name the intruder
         if not (run.started or recorded_state(run.bag_dir)):   # never delete recorded data
@@ -278,9 +324,11 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
         if run.progress is not None:
             run.progress.close()
         graph.stop_all()
+        graph.close()
         lease.release()
         for s, h in old_handlers.items():
             signal.signal(s, h)
+    from adcs_sim.app.analysis import jsonable_metrics
     metrics = analysed.metrics
     (out / 'metrics.json').write_text(json.dumps(jsonable_metrics(metrics), indent=2))
     return metrics
@@ -314,6 +362,7 @@ def main(argv=None) -> int:
     try:
         scenario = resolve_scenario(args.scenario)
         if args.explain:
+            from adcs_sim.app.parameters import explain
             print(explain(scenario, args.duration))
             return 0
         out = args.out or Path('runs') / f'{scenario.stem}-{datetime.now():%Y%m%d-%H%M%S}'
@@ -323,6 +372,7 @@ def main(argv=None) -> int:
     except (ParameterError, RunError) as exc:
         print(f'adcs-run: error: {exc}', file=sys.stderr)
         return 1 if isinstance(exc, RunError) else 2
+    from adcs_sim.app.analysis import format_metrics
     print(f'bag: {out / "bag"}')
     print('metrics:')
     print(format_metrics(metrics))

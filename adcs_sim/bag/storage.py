@@ -11,8 +11,10 @@ import re
 from pathlib import Path
 
 import yaml
-from rosbags.highlevel import AnyReader
-from rosbags.typesys import Stores, get_typestore
+
+# rosbags' type store and AnyReader are imported when first used (typestore(), any_reader): the
+# highlevel reader alone took ~0.1-0.5 s to import, in every process that writes or reads a bag
+# (the recorder node, adcs-run), most of which never read a non-MCAP bag.
 
 MCAP_MAGIC = b'\x89MCAP0\r\n'
 SQLITE_MAGIC = b'SQLite format 3\x00'
@@ -23,6 +25,7 @@ def typestore():
     """The rosbags type store for ROS 2 Jazzy (message definitions and CDR (de)serialisation)."""
     global _TYPESTORE
     if _TYPESTORE is None:
+        from rosbags.typesys import Stores, get_typestore
         _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
     return _TYPESTORE
 
@@ -92,6 +95,7 @@ class any_reader:
         self.reader = None
 
     def __enter__(self):
+        from rosbags.highlevel import AnyReader
         try:
             self.reader = AnyReader([Path(self.folder)], default_typestore=typestore())
             self.reader.open()

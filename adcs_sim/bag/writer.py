@@ -9,6 +9,14 @@ open chunk and flushes the file, so after a SIGKILL everything before the last f
 with :func:`adcs_sim.bag.reader.read_messages` (which reads a file with no summary as well).
 ``metadata.yaml`` is written on :meth:`BagWriter.close`.
 
+Memory: what the writer keeps does not grow with the recording. The mcap ``Writer`` keeps one
+``ChunkIndex`` object per chunk written (a dataclass holding a dict of one offset per channel,
+~2 KiB each with 20 channels) for the summary it writes at ``finish()``: a long recording, flushed
+every half second, grew by tens of MiB that way (issue 18: the recorder 93 -> 124 MiB over a
+230 MB bag). :class:`SpilledChunkIndexes` takes that list's place: each index is serialised, as the
+summary will hold it, into an unlinked temporary file when its chunk is written, and copied back
+into the summary at the end (same bytes, same order).
+
 Log times are **simulated time**: for message types whose serialisation starts with a stamp
 (``std_msgs/Header`` or ``builtin_interfaces/Time`` first, as every topic of the graph) the stamp
 is read straight from the CDR bytes (no deserialisation); other types get the latest ``/clock``.
@@ -18,11 +26,13 @@ from __future__ import annotations
 
 import os
 import struct
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import yaml
+from mcap.data_stream import RecordBuilder
 from mcap.writer import CompressionType, Writer
 
 from adcs_sim.bag.storage import typestore
@@ -76,6 +86,63 @@ def qos_dicts(qos) -> list[dict[str, Any]]:
     }]
 
 
+class SpilledChunkIndexes:
+    """Stands in for the mcap ``Writer``'s private list of chunk indexes (``append`` while writing,
+    iterated once by ``finish()``): each ``ChunkIndex`` is serialised at ``append`` into an unlinked
+    temporary file (nothing left behind, even after a kill), so the writer's memory stays flat
+    however many chunks a recording has. Iterating yields the stored records in blocks of at most
+    ``block`` bytes, each with the ``write(builder)`` the summary calls: the summary gets the same
+    bytes, in the same order, as from the list of objects."""
+
+    def __init__(self, block: int = 1 << 20) -> None:
+        self._file = tempfile.TemporaryFile(prefix='adcs_chunk_index_')
+        self._builder = RecordBuilder()
+        self._block = block
+        self.count = 0
+
+    def append(self, index) -> None:
+        index.write(self._builder)
+        self._file.write(self._builder.end())
+        self.count += 1
+
+    def __len__(self) -> int:
+        return self.count
+
+    def __iter__(self):
+        self._file.flush()
+        self._file.seek(0)
+        while block := self._file.read(self._block):
+            yield _RawRecords(block)
+        self._file.seek(0, os.SEEK_END)
+
+    def close(self) -> None:
+        self._file.close()
+
+
+@dataclass
+class _RawRecords:
+    """Records already serialised, written as they are into an mcap RecordBuilder."""
+
+    data: bytes
+
+    def write(self, builder: RecordBuilder) -> None:
+        builder.write(self.data)
+
+
+# The mcap Writer's (1.6) private list of chunk indexes, that SpilledChunkIndexes replaces.
+_CHUNK_INDEXES_ATTR = '_Writer__chunk_indices'
+
+
+def spill_chunk_indexes(writer: Writer) -> SpilledChunkIndexes | None:
+    """Put a :class:`SpilledChunkIndexes` in place of ``writer``'s list of chunk indexes, before its
+    first chunk. None (the writer keeps its list) if this mcap version has no such empty list."""
+    if getattr(writer, _CHUNK_INDEXES_ATTR, None) != []:
+        return None
+    spilled = SpilledChunkIndexes()
+    setattr(writer, _CHUNK_INDEXES_ATTR, spilled)
+    return spilled
+
+
 @dataclass
 class _Topic:
     channel_id: int
@@ -106,6 +173,7 @@ class BagWriter:
         # of a closed file is covered, so a reader detects any flipped bit.
         self._writer = Writer(self._file, chunk_size=self.chunk_size, compression=CompressionType.ZSTD,
                               enable_data_crcs=True)
+        self._chunk_indexes = spill_chunk_indexes(self._writer)
         self._writer.start(profile='ros2', library='adcs_sim')
         self._schemas: dict[str, int] = {}
         self.topics: dict[str, _Topic] = {}
@@ -162,6 +230,8 @@ class BagWriter:
         self._writer.add_metadata('rosbag2', {'serialized_metadata': yaml.safe_dump(info, sort_keys=False)})
         self._writer.finish()
         self._file.close()
+        if self._chunk_indexes is not None:
+            self._chunk_indexes.close()
         tmp = self.path / 'metadata.yaml.tmp'
         tmp.write_text(yaml.safe_dump({'rosbag2_bagfile_information': info}, sort_keys=False))
         os.replace(tmp, self.path / 'metadata.yaml')
