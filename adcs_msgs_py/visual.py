@@ -39,6 +39,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213, quat_multiply
 from adcs_core.orbit import CircularOrbit, orbit_frame_attitude, orbit_rate
+from adcs_msgs_py.cdr import TransformCodec, VectorCodec
 from adcs_msgs_py.conversions import BODY_FRAME, INERTIAL_FRAME, NS_PER_S, stamp_from_ns
 
 ORBIT_FRAME = 'orbit'
@@ -101,6 +102,10 @@ class VisualMessages:
         if orbit is not None:   # q_io(t) = q_io(0) (x) the rotation by w_io^o t about the orbit normal
             self._orbit0 = orbit_frame_attitude(orbit, 0.0)
             self._orbit_rate = orbit_rate(orbit)[1]
+        # The per-step messages' CDR bytes (adcs_msgs_py.cdr): what the dynamics node publishes.
+        self._body_cdr = TransformCodec(INERTIAL_FRAME, BODY_FRAME)
+        self._orbit_cdr = TransformCodec(INERTIAL_FRAME, ORBIT_FRAME) if orbit is not None else None
+        self.error_cdr = VectorCodec('error', BODY_FRAME)   # error/*: the numbers of errors()
         self.eigenaxis = Vector3Stamped()
         self.euler = Vector3Stamped()
         for msg in (self.eigenaxis, self.euler):
@@ -157,13 +162,25 @@ class VisualMessages:
         """inertial -> body at ``t_ns``: rotation ``q`` (the attitude, body in inertial)."""
         return set_transform(self.body, t_ns, q)
 
+    def body_frame_cdr(self, t_ns: int, q) -> bytes:
+        """The CDR bytes of :meth:`body_frame`."""
+        return self._body_cdr.encode(t_ns, q)
+
     def orbit_frame(self, t_ns: int) -> TransformStamped:
         """inertial -> orbit at ``t_ns`` (:func:`adcs_core.orbit.orbit_frame_attitude`, propagated in
         closed form: the orbit frame turns at ``w_io^o`` about its y axis)."""
+        return set_transform(self.orbit, t_ns, self.orbit_attitude(t_ns))
+
+    def orbit_frame_cdr(self, t_ns: int) -> bytes:
+        """The CDR bytes of :meth:`orbit_frame`."""
+        return self._orbit_cdr.encode(t_ns, self.orbit_attitude(t_ns))
+
+    def orbit_attitude(self, t_ns: int) -> np.ndarray:
+        """The orbit frame's attitude (x, y, z, w; w >= 0, as orbit_frame_attitude) at ``t_ns``."""
         half = 0.5 * t_ns / NS_PER_S * float(self._orbit_rate[1])   # w_io^o = [0, -w_o, 0]
         spin = np.array([0.0, math.sin(half), 0.0, math.cos(half)])
         q = quat_multiply(self._orbit0, spin)
-        return set_transform(self.orbit, t_ns, q if q[3] >= 0 else -q)   # w >= 0, as orbit_frame_attitude
+        return q if q[3] >= 0 else -q
 
     def errors(self, t_ns: int, q) -> tuple[Vector3Stamped, Vector3Stamped]:
         """(error/eigenaxis, error/euler_213) of attitude ``q`` against the target."""
