@@ -124,22 +124,14 @@ def _set(obj, path: str, value) -> None:
         setattr(parent, key, value)
 
 
-def slot_format(msg_type: type, path: str) -> str:
-    """``struct`` format character of the number at ``path`` of an rclpy message class."""
-    cls = msg_type
+def slot_format(msg, path: str) -> str:
+    """``struct`` format character of the number at ``path`` of the rclpy message ``msg``."""
     parts = path.split('.')
-    for part in parts:
-        kind = cls.get_fields_and_field_types()[part.split('[')[0]]
-        if part is not parts[-1]:
-            cls = _message_class(kind.removeprefix('sequence<').removesuffix('>').split('[')[0])
-    base = kind.removeprefix('sequence<').removesuffix('>').split('[')[0]
-    return _SLOT_FORMATS[base]
-
-
-def _message_class(name: str) -> type:
-    package, msg_name = name.split('/')
-    module = __import__(f'{package}.msg', fromlist=[msg_name])
-    return getattr(module, msg_name)
+    parent = msg
+    for part in parts[:-1]:
+        parent = _step(parent, part)
+    kind = type(parent).get_fields_and_field_types()[parts[-1].split('[')[0]]
+    return _SLOT_FORMATS[kind.removeprefix('sequence<').removesuffix('>').split('[')[0]]
 
 
 def probe_offset(rb_msg, typename: str, path: str, fmt: str) -> int:
@@ -171,13 +163,13 @@ class Template:
         rb = to_rosbags(msg)
         self.data = bytes(typestore().serialize_cdr(rb, typename))
         self.size = len(self.data)
-        offsets = [probe_offset(rb, typename, p, slot_format(self.msg_type, p)) for p in slots]
+        offsets = [probe_offset(rb, typename, p, slot_format(msg, p)) for p in slots]
         if offsets != sorted(set(offsets)):
             raise ValueError(f'{typename}: slots must be given in wire order ({list(slots)})')
-        read = [(o, slot_format(self.msg_type, p)) for o, p in zip(offsets, slots)]
+        read = [(o, slot_format(msg, p)) for o, p in zip(offsets, slots)]
         placed = sorted([(o, f, False) for o, f in read]
-                        + [(probe_offset(rb, typename, p, slot_format(self.msg_type, p)),
-                            slot_format(self.msg_type, p), True) for p in free])
+                        + [(probe_offset(rb, typename, p, slot_format(msg, p)),
+                            slot_format(msg, p), True) for p in free])
         self._runs = _runs(read)
         self._unpack, self._checks = _reader(self.data, placed)
 
@@ -191,7 +183,7 @@ class Template:
     def decode(self, data: bytes) -> tuple | None:
         """The slots' values if ``data`` has this layout (its length, and every byte that is not a
         slot's or a free slot's equal to the template's), else None."""
-        if len(data) != self.size:
+        if type(data) is not bytes or len(data) != self.size:
             return None
         for start, stop, expected in self._checks:
             if data[start:stop] != expected:
@@ -233,11 +225,15 @@ def _stamp(t_ns: int) -> tuple[int, int]:
 
 
 def deserialized(data: bytes, msg_type: type, topic: str):
-    """``deserialize_message`` of received bytes; InvalidMessage if they are not a ``msg_type``."""
+    """``deserialize_message`` of received bytes (a ``msg_type`` object is taken as it is: the
+    handlers also take the object path's messages); InvalidMessage if they are not a ``msg_type``."""
+    if isinstance(data, msg_type):
+        return data
     try:
         return deserialize_message(data, msg_type)
     except Exception as exc:  # noqa: BLE001 - rmw's error for bytes that are not the type
-        raise InvalidMessage(f'{topic}: {len(data)} bytes that are not a {type_name(msg_type)} '
+        what = f'{len(data)} bytes' if isinstance(data, bytes) else type(data).__name__
+        raise InvalidMessage(f'{topic}: {what} that are not a {type_name(msg_type)} '
                              f'({type(exc).__name__})') from None
 
 
@@ -384,7 +380,8 @@ class JointStateCodec:
             if v is not None:
                 return JointStateView(v[0], v[1], name, v[2:2 + a], v[2 + a:2 + a + b], v[2 + a + b:])
         msg = deserialized(data, JointState, self.topic)
-        self._learn(msg, data)
+        if type(data) is bytes:
+            self._learn(msg, data)
         return msg
 
     def _learn(self, msg: JointState, data: bytes) -> None:

@@ -39,7 +39,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213, quat_multiply
 from adcs_core.orbit import CircularOrbit, orbit_frame_attitude, orbit_rate
-from adcs_msgs_py.cdr import TransformCodec, VectorCodec
+from adcs_msgs_py.cdr import STAMP, Template, TransformCodec, VectorCodec
 from adcs_msgs_py.conversions import BODY_FRAME, INERTIAL_FRAME, NS_PER_S, stamp_from_ns
 
 ORBIT_FRAME = 'orbit'
@@ -119,6 +119,7 @@ class VisualMessages:
                                 0.04 * self.length) if n else None)
         self.plumes = self._plumes(thruster_positions, thruster_directions)
         self.markers = MarkerArray(markers=[m for m in (self.momentum, self.plumes) if m is not None])
+        self._markers_cdr: dict[tuple, Template] = {}   # per set of firing thrusters
 
     def static_markers(self, t_ns: int) -> MarkerArray:
         """What never moves in its frame (published once): the body box and axes, the target axes."""
@@ -207,3 +208,31 @@ class VisualMessages:
         if self.plumes is not None:
             self.plumes.points = [p for ends, on in zip(self._plume_ends, on_time) if on > 0 for p in ends]
         return self.markers
+
+    def marker_array_cdr(self, t_ns: int, wheel_speed=None, on_time: Sequence[float] = ()):
+        """The CDR bytes of :meth:`marker_array` (a template per set of firing thrusters, the stamps
+        and the momentum arrow's head written in); the message itself without wheel speeds."""
+        if wheel_speed is None and self.momentum is not None:
+            return self.marker_array(t_ns, wheel_speed, on_time)
+        firing = tuple(on > 0 for on in on_time) if self.plumes is not None else ()
+        template = self._markers_cdr.get(firing)
+        if template is None:
+            template = self._markers_cdr[firing] = self._marker_template(on_time)
+        sec, nanosec = divmod(int(t_ns), NS_PER_S)
+        values = []
+        if self.momentum is not None:
+            h = (self.spin * np.asarray(wheel_speed, dtype=float)) @ self.wheel_axes
+            p = self.momentum_scale * h
+            values += [sec, nanosec, float(p[0]), float(p[1]), float(p[2])]
+        if self.plumes is not None:
+            values += [sec, nanosec]
+        return template.encode(values)
+
+    def _marker_template(self, on_time) -> Template:
+        msg = self.marker_array(0, np.zeros(len(self.spin)) if self.momentum is not None else None, on_time)
+        slots = []
+        for i, m in enumerate(msg.markers):
+            slots += [f'markers[{i}].{s}' for s in STAMP]
+            if m is self.momentum:
+                slots += [f'markers[{i}].points[1].{c}' for c in 'xyz']
+        return Template(msg, slots)

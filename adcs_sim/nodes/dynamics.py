@@ -296,7 +296,7 @@ class DynamicsNode(AdcsNode):
         if pub is None or not pub.get_subscription_count():
             return
         on_time = self.commands['thrusters'].on_time if self.thrusters is not None else ()
-        pub.publish(self.visual.marker_array(t_ns, self._visual_speed, on_time))
+        pub.publish(self.visual.marker_array_cdr(t_ns, self._visual_speed, on_time))   # marker_array's bytes
 
     def publish_state(self) -> None:
         t_ns = self.step_ns
