@@ -224,6 +224,12 @@ def _stamp(t_ns: int) -> tuple[int, int]:
     return divmod(int(t_ns), NS_PER_S)
 
 
+def _floats(values) -> Sequence:
+    """Numbers as ``pack`` takes them fastest: an array's ``tolist`` (Python floats: ``float(v)``
+    of each element, as the object path's conversions take them)."""
+    return values.tolist() if isinstance(values, np.ndarray) else values
+
+
 def deserialized(data: bytes, msg_type: type, topic: str):
     """``deserialize_message`` of received bytes (a ``msg_type`` object is taken as it is: the
     handlers also take the object path's messages); InvalidMessage if they are not a ``msg_type``."""
@@ -372,7 +378,7 @@ class JointStateCodec:
         if template is None:
             template = self._encoders[key] = joint_state_template('', names, key[1:])
         sec, nanosec = _stamp(t_ns)
-        return template.encode((sec, nanosec, *position, *velocity, *effort))
+        return template.encode((sec, nanosec, *_floats(position), *_floats(velocity), *_floats(effort)))
 
     def message(self, data: bytes):
         for template, name, a, b in self._known:
