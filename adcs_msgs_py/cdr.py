@@ -15,20 +15,24 @@ conversion to C and rmw's (de)serialisation, which cost the graph most of its pe
   differ. Each step copies the template and writes the numbers with precompiled
   ``struct.Struct.pack_into`` runs. The status (:func:`status_bytes`, strings of varying lengths) is
   written string by string (CDR: ``uint32`` length with the NUL, UTF-8 bytes, NUL, 4-byte alignment).
-* **Decoding** (:class:`Decoder`): when a message has its template's length and every byte outside
+* **Decoding** (:meth:`Template.decode`): when a message has its template's length and every byte outside
   the numbers (encapsulation, strings, sequence lengths, padding) equals the template's, the numbers
   are read with one ``Struct.unpack_from`` and go through the very validation of the object path
   (:mod:`adcs_msgs_py.conversions`: same acceptance, same :class:`InvalidMessage` texts). Anything
   else falls back to ``rclpy.serialization.deserialize_message`` and the ``*_from_msg`` function;
-  bytes that do not deserialize are an :class:`InvalidMessage` too (nothing else escapes).
+  bytes that do not deserialize are an :class:`InvalidMessage` too (nothing else escapes). The
+  layouts of a received JointState (whose names the receiver does not fix) are learnt from the
+  messages the object path accepted (:class:`JointStateCodec`).
 
-Measured (``benchmarks/cdr_codec.py``, us per message, one run, 2-core machine; ``Odometry`` state /
-``JointState`` of 3 wheels / 17-value ``DiagnosticArray``): encode with rclpy objects +
-``serialize_message`` 27 / 27 / 130, rosbags ``serialize_cdr`` from its own message objects 24 / 16 / 60,
-this module 2.4 / 2.8 / 14; decode with ``deserialize_message`` + validation 80 / 40, rosbags
-``deserialize_cdr`` + validation 34 / 20, this module 8 / 7. rosbags is the library made for CDR and
-is used here to make the templates (and by the bag code), but per message it builds dataclass
-objects much as rclpy does; the template path is 5-10x faster on both sides, so it is the hot path's.
+Measured (``benchmarks/cdr_codec.py``: us per message, the three ways alternated in one run, medians;
+2-core machine shared with other jobs, so the ratios are the figures, the absolute times ~5-10x a
+quiet machine's). Encode: rclpy objects + ``serialize_message`` / rosbags ``serialize_cdr`` (its
+message object updated in place) / this module: Odometry state 426 / 102 / 35 us, JointState of 3
+wheels 253 / 145 / 94, /clock 113 / 44 / 12, 17-value status 722 / 584 / 284. Decode + validation:
+``deserialize_message`` / rosbags ``deserialize_cdr`` / this module: state 735 / 288 / 71, wheel
+state 213 / 170 / 81. rosbags is the library made for CDR and makes the templates here (and serves
+the bag code), but per message it builds and walks dataclass objects as rclpy does: this module is
+1.5-4x faster than rosbags and 2.5-12x faster than the object path, so the hot path uses it.
 """
 from __future__ import annotations
 
@@ -38,13 +42,10 @@ import struct
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TransformStamped, Vector3Stamped
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message
 from rosbags.typesys import Stores, get_typestore
-from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from adcs_msgs_py import conversions as cv
