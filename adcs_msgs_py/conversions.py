@@ -132,11 +132,16 @@ def state_to_msg(t_ns: int, q: np.ndarray, w: np.ndarray, msg: Odometry | None =
 
 def state_from_msg(msg: Odometry) -> tuple[int, np.ndarray, np.ndarray]:
     """nav_msgs/Odometry -> (t_ns, q (x y z w), w); raises InvalidMessage."""
-    o = msg.pose.pose.orientation
-    q = checked_quaternion('state.pose.orientation', (o.x, o.y, o.z, o.w))
-    a = msg.twist.twist.angular
-    w = _finite('state.twist.angular', (a.x, a.y, a.z), 3)
-    return checked_stamp('state', msg.header.stamp), q, w
+    o, a, stamp = msg.pose.pose.orientation, msg.twist.twist.angular, msg.header.stamp
+    return state_from_values((o.x, o.y, o.z, o.w), (a.x, a.y, a.z), stamp.sec, stamp.nanosec)
+
+
+def state_from_values(xyzw, w, sec: int, nanosec: int) -> tuple[int, np.ndarray, np.ndarray]:
+    """:func:`state_from_msg` of the message's numbers (orientation, angular rate, stamp): the
+    checks of the object path and of the serialized one (:mod:`adcs_msgs_py.cdr`)."""
+    q = checked_quaternion('state.pose.orientation', xyzw)
+    w = _finite('state.twist.angular', w, 3)
+    return _checked_ns('state', int(sec), int(nanosec)), q, w
 
 
 # --- wheels -------------------------------------------------------------------------------
@@ -286,8 +291,13 @@ def vector_to_msg(t_ns: int, v, frame_id: str = BODY_FRAME) -> Vector3Stamped:
 
 def vector_from_msg(msg: Vector3Stamped, name: str = 'torque_cmd') -> tuple[int, np.ndarray]:
     """geometry_msgs/Vector3Stamped -> (t_ns, vector); raises InvalidMessage."""
-    v = msg.vector
-    return checked_stamp(name, msg.header.stamp), _finite(f'{name}.vector', (v.x, v.y, v.z), 3)
+    v, stamp = msg.vector, msg.header.stamp
+    return vector_from_values((v.x, v.y, v.z), stamp.sec, stamp.nanosec, name)
+
+
+def vector_from_values(xyz, sec: int, nanosec: int, name: str = 'torque_cmd') -> tuple[int, np.ndarray]:
+    """:func:`vector_from_msg` of the message's numbers (vector, stamp)."""
+    return _checked_ns(name, int(sec), int(nanosec)), _finite(f'{name}.vector', xyz, 3)
 
 
 # --- status (DiagnosticArray) ----------------------------------------------------------------
@@ -300,11 +310,15 @@ def status_to_msg(t_ns: int, name: str, values: Mapping[str, object], level: str
     """
     status = DiagnosticStatus(level=STATUS_LEVELS[level], name=name, message=message,
                               hardware_id=hardware_id)
-    status.values = [KeyValue(key=str(k), value=repr(float(v)) if isinstance(v, (float, np.floating))
-                              else str(v)) for k, v in values.items()]
+    status.values = [KeyValue(key=k, value=v) for k, v in status_pairs(values)]
     msg = DiagnosticArray(status=[status])
     msg.header.stamp = stamp_from_ns(t_ns)
     return msg
+
+
+def status_pairs(values: Mapping[str, object]) -> list[tuple[str, str]]:
+    """The (key, value) strings of a status: floats by ``repr`` (they read back bit for bit)."""
+    return [(str(k), repr(float(v)) if isinstance(v, (float, np.floating)) else str(v)) for k, v in values.items()]
 
 
 def status_values(status: DiagnosticStatus) -> dict[str, object]:

@@ -39,6 +39,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213, quat_multiply
 from adcs_core.orbit import CircularOrbit, orbit_frame_attitude, orbit_rate
+from adcs_msgs_py.cdr import STAMP, Template, TransformCodec, VectorCodec
 from adcs_msgs_py.conversions import BODY_FRAME, INERTIAL_FRAME, NS_PER_S, stamp_from_ns
 
 ORBIT_FRAME = 'orbit'
@@ -101,6 +102,10 @@ class VisualMessages:
         if orbit is not None:   # q_io(t) = q_io(0) (x) the rotation by w_io^o t about the orbit normal
             self._orbit0 = orbit_frame_attitude(orbit, 0.0)
             self._orbit_rate = orbit_rate(orbit)[1]
+        # The per-step messages' CDR bytes (adcs_msgs_py.cdr): what the dynamics node publishes.
+        self._body_cdr = TransformCodec(INERTIAL_FRAME, BODY_FRAME)
+        self._orbit_cdr = TransformCodec(INERTIAL_FRAME, ORBIT_FRAME) if orbit is not None else None
+        self.error_cdr = VectorCodec('error', BODY_FRAME)   # error/*: the numbers of errors()
         self.eigenaxis = Vector3Stamped()
         self.euler = Vector3Stamped()
         for msg in (self.eigenaxis, self.euler):
@@ -114,6 +119,7 @@ class VisualMessages:
                                 0.04 * self.length) if n else None)
         self.plumes = self._plumes(thruster_positions, thruster_directions)
         self.markers = MarkerArray(markers=[m for m in (self.momentum, self.plumes) if m is not None])
+        self._markers_cdr: dict[tuple, Template] = {}   # per set of firing thrusters
 
     def static_markers(self, t_ns: int) -> MarkerArray:
         """What never moves in its frame (published once): the body box and axes, the target axes."""
@@ -157,13 +163,25 @@ class VisualMessages:
         """inertial -> body at ``t_ns``: rotation ``q`` (the attitude, body in inertial)."""
         return set_transform(self.body, t_ns, q)
 
+    def body_frame_cdr(self, t_ns: int, q) -> bytes:
+        """The CDR bytes of :meth:`body_frame`."""
+        return self._body_cdr.encode(t_ns, q)
+
     def orbit_frame(self, t_ns: int) -> TransformStamped:
         """inertial -> orbit at ``t_ns`` (:func:`adcs_core.orbit.orbit_frame_attitude`, propagated in
         closed form: the orbit frame turns at ``w_io^o`` about its y axis)."""
+        return set_transform(self.orbit, t_ns, self.orbit_attitude(t_ns))
+
+    def orbit_frame_cdr(self, t_ns: int) -> bytes:
+        """The CDR bytes of :meth:`orbit_frame`."""
+        return self._orbit_cdr.encode(t_ns, self.orbit_attitude(t_ns))
+
+    def orbit_attitude(self, t_ns: int) -> np.ndarray:
+        """The orbit frame's attitude (x, y, z, w; w >= 0, as orbit_frame_attitude) at ``t_ns``."""
         half = 0.5 * t_ns / NS_PER_S * float(self._orbit_rate[1])   # w_io^o = [0, -w_o, 0]
         spin = np.array([0.0, math.sin(half), 0.0, math.cos(half)])
         q = quat_multiply(self._orbit0, spin)
-        return set_transform(self.orbit, t_ns, q if q[3] >= 0 else -q)   # w >= 0, as orbit_frame_attitude
+        return q if q[3] >= 0 else -q
 
     def errors(self, t_ns: int, q) -> tuple[Vector3Stamped, Vector3Stamped]:
         """(error/eigenaxis, error/euler_213) of attitude ``q`` against the target."""
@@ -190,3 +208,31 @@ class VisualMessages:
         if self.plumes is not None:
             self.plumes.points = [p for ends, on in zip(self._plume_ends, on_time) if on > 0 for p in ends]
         return self.markers
+
+    def marker_array_cdr(self, t_ns: int, wheel_speed=None, on_time: Sequence[float] = ()):
+        """The CDR bytes of :meth:`marker_array` (a template per set of firing thrusters, the stamps
+        and the momentum arrow's head written in); the message itself without wheel speeds."""
+        if wheel_speed is None and self.momentum is not None:
+            return self.marker_array(t_ns, wheel_speed, on_time)
+        firing = tuple(on > 0 for on in on_time) if self.plumes is not None else ()
+        template = self._markers_cdr.get(firing)
+        if template is None:
+            template = self._markers_cdr[firing] = self._marker_template(on_time)
+        sec, nanosec = divmod(int(t_ns), NS_PER_S)
+        values = []
+        if self.momentum is not None:
+            h = (self.spin * np.asarray(wheel_speed, dtype=float)) @ self.wheel_axes
+            p = self.momentum_scale * h
+            values += [sec, nanosec, float(p[0]), float(p[1]), float(p[2])]
+        if self.plumes is not None:
+            values += [sec, nanosec]
+        return template.encode(values)
+
+    def _marker_template(self, on_time) -> Template:
+        msg = self.marker_array(0, np.zeros(len(self.spin)) if self.momentum is not None else None, on_time)
+        slots = []
+        for i, m in enumerate(msg.markers):
+            slots += [f'markers[{i}].{s}' for s in STAMP]
+            if m is self.momentum:
+                slots += [f'markers[{i}].points[1].{c}' for c in 'xyz']
+        return Template(msg, slots)

@@ -387,5 +387,7 @@ def test_controller_node_refuses_a_non_finite_law_output(ros_domain, tmp_path):
         assert sent == [] and ctl.rejects.counts['law'] == 1
         ctl._on_state(cv.state_to_msg(1, target, [0.01, 0.0, 0.0]))
         assert len(sent) == 1 and ctl.rejects.counts['law'] == 1
-        assert all(math.isfinite(v) for v in (list(sent[0].effort) if hasattr(sent[0], 'effort')
-                                               else [sent[0].vector.x, sent[0].vector.y, sent[0].vector.z]))
+        from rclpy.serialization import deserialize_message
+        cmd = deserialize_message(sent[0], ctl.pub_cmd.msg_type)   # the node publishes CDR bytes (adcs_msgs_py.cdr)
+        assert all(math.isfinite(v) for v in (list(cmd.effort) if hasattr(cmd, 'effort')
+                                               else [cmd.vector.x, cmd.vector.y, cmd.vector.z]))

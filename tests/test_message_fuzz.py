@@ -96,10 +96,11 @@ def clocks(draw):
 
 
 def feed(node, sub, msg, convert=None) -> None:
-    """``msg`` through ``sub``'s callback (what the executor calls); no exception may escape, and a
-    message the interface refuses is counted (exactly once)."""
+    """``msg`` through ``sub``'s callback (what the executor calls: its serialized bytes for a raw
+    subscription, adcs_msgs_py.cdr); no exception may escape, and a message the interface refuses
+    is counted (exactly once)."""
     before = node.rejects.total
-    sub.callback(msg, {})
+    sub.callback(serialize_message(msg) if sub.raw and not isinstance(msg, bytes) else msg, {})
     if convert is not None and refused(convert):
         assert node.rejects.total == before + 1, (sub.topic_name, msg)
 

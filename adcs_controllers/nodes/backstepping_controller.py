@@ -23,6 +23,7 @@ from adcs_controllers.families import BACKSTEPPING, state_topic
 from adcs_controllers.laws.base import LawOutputRejected, checked_control
 from adcs_controllers.nodes.base import StampPairs, WheelStatePairing
 from adcs_core.faults import FaultTracker
+from adcs_msgs_py import cdr
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.node import AdcsNode, entry_point
@@ -43,6 +44,11 @@ class BacksteppingController(WheelStatePairing, AdcsNode):
         self.pub_status = self.publisher(topics.CONTROLLER_STATUS)
         self.sub_state = self.sub_wheel_state = None
         self.state_topic = state_topic(p)   # state, or estimate/state (feedback: estimate)
+        # Messages in and out as CDR bytes (adcs_msgs_py.cdr), through the same conversions' checks.
+        self.state_cdr = cdr.StateCodec(self.state_topic)
+        self.wheel_state_cdr = cdr.JointStateCodec(topics.WHEELS_STATE)
+        self.thrusters_cdr = cdr.JointStateCodec(topics.THRUSTERS_CMD)
+        self.wheels_cdr = cdr.JointStateCodec(topics.WHEELS_CMD)
         self.pairs = StampPairs()  # (q, w) and the wheel speed of one stamp
         self.firings = 0        # thruster-periods fired so far
         self.steps = 0          # steps answered (the acknowledgement pacing counts them)
@@ -62,8 +68,8 @@ class BacksteppingController(WheelStatePairing, AdcsNode):
         recorder = 1 if self.params['startup.expect_recorder'] else 0
         self.wait_for_publishers({self.pub_thrusters: 1 + recorder, self.pub_wheels: 1 + recorder,
                                   self.pub_status: recorder}, self.params['startup.timeout'])
-        self.sub_wheel_state = self.subscription(topics.WHEELS_STATE, self._on_wheel_state)
-        self.sub_state = self.subscription(self.state_topic, self._on_state)
+        self.sub_wheel_state = self.subscription(topics.WHEELS_STATE, self._on_wheel_state, raw=True)
+        self.sub_state = self.subscription(self.state_topic, self._on_state, raw=True)
 
     def run(self, executor) -> None:
         if self.params['startup.expect_faults']:
@@ -74,8 +80,8 @@ class BacksteppingController(WheelStatePairing, AdcsNode):
 
     # --- pairing ------------------------------------------------------------------------------
 
-    def _on_state(self, msg) -> None:
-        parsed = self.rejects.accept(self.state_topic, lambda: cv.state_from_msg(msg))
+    def _on_state(self, data: bytes) -> None:
+        parsed = self.rejects.accept(self.state_topic, lambda: self.state_cdr.decode(data))
         if parsed is not None:
             self._pair_state(*parsed)
 
@@ -97,8 +103,9 @@ class BacksteppingController(WheelStatePairing, AdcsNode):
             self.rejects.reject('law', str(exc))
             return
         on_time, wheel_torque, info = self.actuation.command(tau, w, speed)
-        self.pub_thrusters.publish(cv.thruster_cmd_to_msg(t_ns, self.thruster_names, on_time))
-        self.pub_wheels.publish(cv.wheel_cmd_to_msg(t_ns, self.wheel_names, effort=wheel_torque))
+        # the bytes of thruster_cmd_to_msg and wheel_cmd_to_msg(..., effort=...)
+        self.pub_thrusters.publish(self.thrusters_cdr.encode(t_ns, self.thruster_names, effort=on_time))
+        self.pub_wheels.publish(self.wheels_cdr.encode(t_ns, self.wheel_names, effort=wheel_torque))
         fired = int(np.count_nonzero(on_time > 0.0))
         self.firings += fired
         if self.pub_status.get_subscription_count():  # after the commands: off the critical path
@@ -116,7 +123,7 @@ class BacksteppingController(WheelStatePairing, AdcsNode):
                       'wheel_torque': float(wheel_torque[0]), 'wheel_free': str(bool(info['wheel_free'])).lower(),
                       'firing_now': fired, 'firing_count': self.firings,
                       'rejected_messages': self.rejects.total, 'late_faults': self.faults.late}
-            self.pub_status.publish(cv.status_to_msg(t_ns, self.get_name(), values))
+            self.pub_status.publish(cdr.status_bytes(t_ns, self.get_name(), values))
 
 
 main = entry_point(BacksteppingController)

@@ -36,6 +36,7 @@ import numpy as np
 from adcs_controllers.families import ControllerFamily, state_topic
 from adcs_controllers.laws.base import LawOutputRejected, checked_control
 from adcs_core.faults import FaultTracker
+from adcs_msgs_py import cdr
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.node import AdcsNode
@@ -67,15 +68,16 @@ class StampPairs:
 class WheelStatePairing:
     """For a node that needs the state and the wheel speeds of the same step: pairs ``state`` and
     ``wheels/state`` by stamp, whichever arrives first, and calls ``self.on_pair(t_ns, q, w,
-    speed)`` once both are here. The node provides ``rejects``, ``wheel_names`` and ``pairs`` (a
-    :class:`StampPairs`)."""
+    speed)`` once both are here. The node provides ``rejects``, ``wheel_names``, ``pairs`` (a
+    :class:`StampPairs`) and ``wheel_state_cdr`` (a :class:`~adcs_msgs_py.cdr.JointStateCodec`:
+    ``wheels/state`` is subscribed as bytes)."""
 
     def _pair_state(self, t_ns: int, q: np.ndarray, w: np.ndarray) -> None:
         self._paired(t_ns, self.pairs.add(0, t_ns, (q, w)))
 
-    def _on_wheel_state(self, msg) -> None:
-        parsed = self.rejects.accept(topics.WHEELS_STATE,
-                                     lambda: cv.wheel_speeds_from_msg(msg, self.wheel_names))
+    def _on_wheel_state(self, data: bytes) -> None:
+        parsed = self.rejects.accept(topics.WHEELS_STATE, lambda: cv.wheel_speeds_from_msg(
+            self.wheel_state_cdr.message(data), self.wheel_names))
         if parsed is not None:
             self._paired(parsed[0], self.pairs.add(1, *parsed))
 
@@ -106,6 +108,11 @@ class ControllerNode(WheelStatePairing, AdcsNode):
         self.pub_cmd = self.publisher(topics.WHEELS_CMD if self.actuator == 'wheels' else topics.TORQUE_CMD)
         self.pub_status = self.publisher(topics.CONTROLLER_STATUS)
         self.state_topic = state_topic(p)   # state, or estimate/state (feedback: estimate)
+        # Messages in and out as CDR bytes (adcs_msgs_py.cdr), through the same conversions' checks.
+        self.state_cdr = cdr.StateCodec(self.state_topic)
+        self.wheel_state_cdr = cdr.JointStateCodec(topics.WHEELS_STATE)
+        self.cmd_cdr = (cdr.JointStateCodec(topics.WHEELS_CMD) if self.actuator == 'wheels'
+                        else cdr.VectorCodec(topics.TORQUE_CMD))
         self.sub_state = None
         self.states = 0  # steps computed (the acknowledgement pacing counts them)
         self.sub_wheels = None
@@ -138,8 +145,8 @@ class ControllerNode(WheelStatePairing, AdcsNode):
         self.wait_for_publishers({self.pub_cmd: 1 + recorder, self.pub_status: recorder},
                                  self.params['startup.timeout'])
         if self.needs_wheel_momentum:
-            self.sub_wheels = self.subscription(topics.WHEELS_STATE, self._on_wheel_state)
-        self.sub_state = self.subscription(self.state_topic, self._on_state)
+            self.sub_wheels = self.subscription(topics.WHEELS_STATE, self._on_wheel_state, raw=True)
+        self.sub_state = self.subscription(self.state_topic, self._on_state, raw=True)
 
     def run(self, executor) -> None:
         if self.params['startup.expect_faults']:
@@ -177,8 +184,8 @@ class ControllerNode(WheelStatePairing, AdcsNode):
     # --- state -> command -------------------------------------------------------------------
 
 
-    def _on_state(self, msg) -> None:
-        parsed = self.rejects.accept(self.state_topic, lambda: cv.state_from_msg(msg))
+    def _on_state(self, data: bytes) -> None:
+        parsed = self.rejects.accept(self.state_topic, lambda: self.state_cdr.decode(data))
         if parsed is None:
             return
         t_ns, q, w = parsed
@@ -216,22 +223,22 @@ class ControllerNode(WheelStatePairing, AdcsNode):
             status.update({'rejected_messages': self.rejects.total,
                            'available_wheels': self.available_wheels() or 'none',
                            'late_faults': self.faults.late})
-            self.pub_status.publish(cv.status_to_msg(t_ns, self.get_name(), status))
+            self.pub_status.publish(cdr.status_bytes(t_ns, self.get_name(), status))
 
     def publish_momentum(self, t_ns: int, h: np.ndarray) -> None:
         """Send the wheel momentum ``h`` (body axes) as speed commands to the available wheels
         (the others are not named: they keep their last command, and produce no torque)."""
         speed = self.actuation.command_momentum(h)
         ok = self.actuation.available
-        self.pub_cmd.publish(cv.wheel_cmd_to_msg(
+        self.pub_cmd.publish(self.cmd_cdr.encode(   # wheel_cmd_to_msg(..., velocity=...)'s bytes
             t_ns, [n for n, a in zip(self.wheel_names, ok) if a], velocity=speed[ok]))
 
     def publish_torque(self, t_ns: int, torque: np.ndarray) -> np.ndarray:
         """Send body torque ``torque`` through the configured actuators; return what it commands
         (:class:`~adcs_controllers.laws.allocation.Actuation`)."""
         values, applied = self.actuation.command(torque)
-        if self.actuator == 'wheels':
-            self.pub_cmd.publish(cv.wheel_cmd_to_msg(t_ns, self.wheel_names, effort=values))
+        if self.actuator == 'wheels':   # the bytes of wheel_cmd_to_msg(..., effort=...) / vector_to_msg
+            self.pub_cmd.publish(self.cmd_cdr.encode(t_ns, self.wheel_names, effort=values))
         else:
-            self.pub_cmd.publish(cv.vector_to_msg(t_ns, values))
+            self.pub_cmd.publish(self.cmd_cdr.encode(t_ns, values))
         return applied

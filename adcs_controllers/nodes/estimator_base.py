@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from adcs_controllers.estimators.families import EstimatorFamily
-from adcs_msgs_py import conversions as cv
+from adcs_msgs_py import cdr
 from adcs_msgs_py import conversions_determination as cd
 from adcs_msgs_py import topics
 from adcs_msgs_py.conversions import InvalidMessage
@@ -129,4 +129,4 @@ class EstimatorNode(AdcsNode):
             values = {k: _plain(v) for k, v in status.items()}
             values['used'] = ','.join(n for n in self.sensors if values.get(f'used_{n}')) or 'none'
             values['rejected_messages'] = self.rejects.total
-            self.pub_status.publish(cv.status_to_msg(t_ns, self.get_name(), values))
+            self.pub_status.publish(cdr.status_bytes(t_ns, self.get_name(), values))   # status_to_msg's bytes

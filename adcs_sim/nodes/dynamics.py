@@ -51,6 +51,7 @@ import time
 import numpy as np
 
 from adcs_core.faults import FaultTracker, split_snapshot
+from adcs_msgs_py import cdr
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import conversions_determination as cd
 from adcs_msgs_py import topics
@@ -138,21 +139,30 @@ class DynamicsNode(AdcsNode):
         self._step_publishers = [p for p in (self.pub_clock, self.pub_state, self.pub_truth,
                                              self.pub_wheels) if p is not None]
         self._step_publishers += list(self.pub_sensors.values())
-        self._state_msg = None
-        self._truth_msg = None
-        self._wheel_msg = None
+        self._codecs()
         self.visual, self.pub_visual = self._visual_setup(p)
         self._visual_speed = None   # wheel speeds at the start of the step being integrated
 
         self.subs = {}
         if self.wheels:
-            self.subs[topics.WHEELS_CMD] = self.subscription(topics.WHEELS_CMD, self._on_wheel_cmd)
+            self.subs[topics.WHEELS_CMD] = self.subscription(topics.WHEELS_CMD, self._on_wheel_cmd, raw=True)
         if 'torquers' in self.plant.slices:
-            self.subs[topics.TORQUE_CMD] = self.subscription(topics.TORQUE_CMD, self._on_torque_cmd)
+            self.subs[topics.TORQUE_CMD] = self.subscription(topics.TORQUE_CMD, self._on_torque_cmd, raw=True)
         if self.thrusters:
-            self.subs[topics.THRUSTERS_CMD] = self.subscription(topics.THRUSTERS_CMD, self._on_thruster_cmd)
+            self.subs[topics.THRUSTERS_CMD] = self.subscription(topics.THRUSTERS_CMD, self._on_thruster_cmd,
+                                                                raw=True)
         self.faults = FaultTracker()
         self.sub_faults = self.subscription(topics.FAULTS, self._on_faults)
+
+    def _codecs(self) -> None:
+        """The hot messages go out as CDR bytes (:mod:`adcs_msgs_py.cdr`: templates made once, the
+        numbers written in) and the commands come in as bytes, read by the same codecs."""
+        self._state_cdr = cdr.StateCodec(topics.STATE)
+        self._clock_cdr = cdr.ClockCodec()
+        self._wheels_cdr = cdr.JointStateCodec(topics.WHEELS_STATE)
+        self._thrusters_cdr = cdr.JointStateCodec(topics.THRUSTERS_STATE)
+        self._cmd_cdr = {t: cdr.JointStateCodec(t) for t in (topics.WHEELS_CMD, topics.THRUSTERS_CMD)}
+        self._cmd_cdr[topics.TORQUE_CMD] = cdr.VectorCodec(topics.TORQUE_CMD)
 
     def _visual_setup(self, p) -> tuple[VisualMessages | None, dict]:
         """The viewer messages (adcs_msgs_py/visual.py) and their publishers, if enabled."""
@@ -205,9 +215,10 @@ class DynamicsNode(AdcsNode):
         self.received.add(topic)
         return True
 
-    def _on_wheel_cmd(self, msg) -> None:
+    def _on_wheel_cmd(self, data: bytes) -> None:
+        codec = self._cmd_cdr[topics.WHEELS_CMD]
         parsed = self.rejects.accept(topics.WHEELS_CMD,
-                                     lambda: cv.wheel_cmd_from_msg(msg, self.wheel_index))
+                                     lambda: cv.wheel_cmd_from_msg(codec.message(data), self.wheel_index))
         if parsed is None:
             return
         t_ns, index, values, mode = parsed
@@ -219,17 +230,18 @@ class DynamicsNode(AdcsNode):
         speed_mode[index] = mode == 'speed'
         self.commands['wheels'] = WheelCommand(value, speed_mode)
 
-    def _on_torque_cmd(self, msg) -> None:
-        parsed = self.rejects.accept(topics.TORQUE_CMD, lambda: cv.vector_from_msg(msg))
+    def _on_torque_cmd(self, data: bytes) -> None:
+        parsed = self.rejects.accept(topics.TORQUE_CMD, lambda: self._cmd_cdr[topics.TORQUE_CMD].decode(data))
         if parsed is None:
             return
         t_ns, torque = parsed
         if self._accept_stamp(topics.TORQUE_CMD, t_ns):
             self.commands['torquers'] = torque
 
-    def _on_thruster_cmd(self, msg) -> None:
+    def _on_thruster_cmd(self, data: bytes) -> None:
+        codec = self._cmd_cdr[topics.THRUSTERS_CMD]
         parsed = self.rejects.accept(topics.THRUSTERS_CMD,
-                                     lambda: cv.thruster_cmd_from_msg(msg, self.thruster_index))
+                                     lambda: cv.thruster_cmd_from_msg(codec.message(data), self.thruster_index))
         if parsed is None:
             return
         t_ns, index, on_time = parsed
@@ -258,7 +270,7 @@ class DynamicsNode(AdcsNode):
         if self.pub_thrusters is None or not self.pub_thrusters.get_subscription_count():
             return
         cmd = self.commands['thrusters']
-        self.pub_thrusters.publish(cv.thruster_state_to_msg(
+        self.pub_thrusters.publish(self._thrusters_cdr.encode(   # thruster_state_to_msg's bytes
             t_ns, self.thrusters.names, self.x[self.plant.slices['thrusters']], cmd.on_time,
             self.thrusters.forces(t, cmd)))
 
@@ -268,13 +280,14 @@ class DynamicsNode(AdcsNode):
         """frames/* and error/* of the true attitude at ``t_ns``, to what is subscribed."""
         live = {t: pub for t, pub in self.pub_visual.items() if pub.get_subscription_count()}
         if FRAMES_BODY in live:
-            live[FRAMES_BODY].publish(self.visual.body_frame(t_ns, q))
+            live[FRAMES_BODY].publish(self.visual.body_frame_cdr(t_ns, q))
         if FRAMES_ORBIT in live:
-            live[FRAMES_ORBIT].publish(self.visual.orbit_frame(t_ns))
+            live[FRAMES_ORBIT].publish(self.visual.orbit_frame_cdr(t_ns))
         if ERROR_EIGENAXIS in live or ERROR_EULER_213 in live:
             for topic, msg in zip((ERROR_EIGENAXIS, ERROR_EULER_213), self.visual.errors(t_ns, q)):
-                if topic in live:
-                    live[topic].publish(msg)
+                if topic in live:   # the message's bytes (cdr.VectorCodec), not the object
+                    v = msg.vector
+                    live[topic].publish(self.visual.error_cdr.encode(t_ns, (v.x, v.y, v.z)))
 
     def publish_markers(self, t_ns: int) -> None:
         """markers of the step just integrated (stamp ``t_ns`` = its start): the wheel momentum at
@@ -283,7 +296,7 @@ class DynamicsNode(AdcsNode):
         if pub is None or not pub.get_subscription_count():
             return
         on_time = self.commands['thrusters'].on_time if self.thrusters is not None else ()
-        pub.publish(self.visual.marker_array(t_ns, self._visual_speed, on_time))
+        pub.publish(self.visual.marker_array_cdr(t_ns, self._visual_speed, on_time))   # marker_array's bytes
 
     def publish_state(self) -> None:
         t_ns = self.step_ns
@@ -291,22 +304,18 @@ class DynamicsNode(AdcsNode):
         q, w = x[:4], x[4:7]
         # The state first: the controllers start computing while the rest goes out.
         q_m, w_m = self.measurement.measure(q, w)
-        self._state_msg = cv.state_to_msg(t_ns, q_m, w_m, self._state_msg)
-        self.pub_state.publish(self._state_msg)
+        self.pub_state.publish(self._state_cdr.encode(t_ns, q_m, w_m))   # state_to_msg's bytes
         # The rest is for recording and observers: not even built when nobody subscribes.
         if self.pub_clock.get_subscription_count():
-            self.pub_clock.publish(cv.clock_msg(t_ns))
+            self.pub_clock.publish(self._clock_cdr.encode(t_ns))
         if self.pub_truth is not None and self.pub_truth.get_subscription_count():
-            self._truth_msg = cv.state_to_msg(t_ns, q, w, self._truth_msg)
-            self.pub_truth.publish(self._truth_msg)
+            self.pub_truth.publish(self._state_cdr.encode(t_ns, q, w))
         if self.wheels is not None and self.pub_wheels.get_subscription_count():
             xa = x[self.plant.slices['wheels']]
             n = self.wheels.count
             speed = xa[:n]
             torque = self.wheels.motor_torque(speed, self.commands['wheels'])
-            self._wheel_msg = cv.wheel_state_to_msg(t_ns, self.wheels.names, xa[n:], speed, torque,
-                                                    self._wheel_msg)
-            self.pub_wheels.publish(self._wheel_msg)
+            self.pub_wheels.publish(self._wheels_cdr.encode(t_ns, self.wheels.names, xa[n:], speed, torque))
         self.publish_sensors(t_ns, q, w)
         if self.visual is not None:
             self.publish_visual_state(t_ns, q)
@@ -331,7 +340,7 @@ class DynamicsNode(AdcsNode):
         if self.link.active:
             values.update({'link_lost_steps': self.link.dropped, 'link_late_steps': self.link.delayed})
         level = 'WARN' if self.missed_steps else 'OK'
-        self.pub_status.publish(cv.status_to_msg(self.step_ns, 'dynamics', values, level))
+        self.pub_status.publish(cdr.status_bytes(self.step_ns, 'dynamics', values, level))
 
     # --- main loop ------------------------------------------------------------------------
 
