@@ -13,7 +13,7 @@ from mcap.exceptions import McapError
 
 from adcs_msgs_py import names as topics
 from adcs_sim.app.analysis import RunData
-from adcs_sim.app.status_records import parse_values, status_column, status_keys, status_names
+from adcs_sim.app.status_records import status_keys, status_names, status_values
 
 ERROR_LEVEL = 2  # diagnostic_msgs/DiagnosticStatus.ERROR
 # Status keys of the commanded torque (plotted in the torque figure, not with the other status values).
@@ -104,8 +104,7 @@ def status_series(run: RunData) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     several = len(status_names(records)) > 1
     out = {}
     for name, key in status_keys(records):
-        _, ts, raw = status_column(records, key, name)
-        out[f'{name}/{key}' if several else key] = (ts, parse_values(raw))
+        out[f'{name}/{key}' if several else key] = status_values(records, key, name)
     return out
 
 
