@@ -14,7 +14,8 @@ work), ``--repeat`` times:
   ``--rate`` Hz written as ``benchmarks/analysis_speed.py`` writes it (or ``--bag DIR``, an
   existing one): the report's time and peak memory (the target: <= 300 MB at 24 h, 10 Hz).
 
-Prints best-of-``--repeat`` times and peaks and their ratios (old / new). Not a test (minutes).
+Prints best-of-``--repeat`` wall and CPU times (user + system: less disturbed by a loaded
+machine) and peaks, and their ratios (old / new). Not a test (minutes).
 """
 from __future__ import annotations
 
@@ -39,8 +40,9 @@ try:
     runpy.run_module('adcs_sim.app.analyze', run_name='__main__')
 except SystemExit as exc:
     assert not exc.code, exc.code
-print(json.dumps({'seconds': time.perf_counter() - t0,
-                  'peak_mib': resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+usage = resource.getrusage(resource.RUSAGE_SELF)
+print(json.dumps({'seconds': time.perf_counter() - t0, 'cpu_s': usage.ru_utime + usage.ru_stime,
+                  'peak_mib': usage.ru_maxrss / 1024}))
 '''
 
 
@@ -63,14 +65,16 @@ def alternate(label: str, bag: Path, base: Path | None, repeat: int, tmp: Path, 
     for _ in range(repeat):
         for kind, tree in trees.items():
             rows[kind].append(measure(tree, bag, tmp / label / kind, env))
-    best = {k: {'seconds': min(r['seconds'] for r in v), 'peak_mib': min(r['peak_mib'] for r in v)}
-            for k, v in rows.items()}
+    best = {k: {'seconds': min(r['seconds'] for r in v), 'cpu_s': min(r['cpu_s'] for r in v),
+                'peak_mib': min(r['peak_mib'] for r in v)} for k, v in rows.items()}
     for kind, b in best.items():
         every = ', '.join(f'{r["seconds"]:.2f}' for r in rows[kind])
-        print(f'{label:<9} {kind}: {b["seconds"]:7.2f} s (best of {repeat}: {every})   peak RSS {b["peak_mib"]:7.1f} MiB')
+        print(f'{label:<9} {kind}: {b["seconds"]:7.2f} s wall (best of {repeat}: {every}), {b["cpu_s"]:7.2f} s CPU   '
+              f'peak RSS {b["peak_mib"]:7.1f} MiB')
     if base is not None:
         o, n = best['old'], best['new']
-        print(f'{label:<9} old / new: time {o["seconds"] / n["seconds"]:.2f}x, peak memory {o["peak_mib"] / n["peak_mib"]:.2f}x')
+        print(f'{label:<9} old / new: wall {o["seconds"] / n["seconds"]:.2f}x, CPU {o["cpu_s"] / n["cpu_s"]:.2f}x, '
+              f'peak memory {o["peak_mib"] / n["peak_mib"]:.2f}x')
 
 
 def same_reports(a: Path, b: Path) -> str:
