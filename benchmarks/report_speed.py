@@ -41,7 +41,9 @@ try:
 except SystemExit as exc:
     assert not exc.code, exc.code
 usage = resource.getrusage(resource.RUSAGE_SELF)
-print(json.dumps({'seconds': time.perf_counter() - t0, 'cpu_s': usage.ru_utime + usage.ru_stime,
+import adcs_sim, pathlib
+print(json.dumps({'code': str(pathlib.Path(adcs_sim.__file__).parents[1]),
+                  'seconds': time.perf_counter() - t0, 'cpu_s': usage.ru_utime + usage.ru_stime,
                   'peak_mib': usage.ru_maxrss / 1024}))
 '''
 
@@ -52,11 +54,16 @@ def measure(tree: Path | None, bag: Path, out: Path, env: dict) -> dict:
     if tree is not None:
         env['PYTHONPATH'] = str(tree)
     shutil.rmtree(out, ignore_errors=True)
-    done = subprocess.run([sys.executable, '-c', CHILD, str(bag), '--out', str(out)], env=env, cwd=ROOT,
+    out.parent.mkdir(parents=True, exist_ok=True)
+    # (not from the tree's folder: `python -c` puts the current directory before PYTHONPATH)
+    done = subprocess.run([sys.executable, '-c', CHILD, str(bag.resolve()), '--out', str(out)], env=env, cwd=out.parent,
                           capture_output=True, text=True)
     if done.returncode:
         raise SystemExit(f'report of {bag} failed ({tree or "this tree"}):\n{done.stderr[-2000:]}')
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    row = json.loads(done.stdout.strip().splitlines()[-1])
+    if row['code'] != str(tree or ROOT):
+        raise SystemExit(f'the report ran {row["code"]}\'s code, not {tree or ROOT}\'s')
+    return row
 
 
 def alternate(label: str, bag: Path, base: Path | None, repeat: int, tmp: Path, env: dict) -> None:
