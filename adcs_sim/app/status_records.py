@@ -66,6 +66,81 @@ def _text(value) -> str:
     return value.decode('utf-8', 'surrogatepass') if isinstance(value, bytes) else value
 
 
+def _texts(column: np.ndarray) -> list[str]:
+    """The value texts of a column (fixed-width UTF-8 bytes or an object array of texts)."""
+    if column.dtype == object:
+        return [_text(v) for v in column.tolist()]
+    try:
+        return column.astype(str).tolist()   # ASCII (every number a controller publishes): one cast
+    except UnicodeDecodeError:
+        return [_text(v) for v in column.tolist()]
+
+
+CHUNK = 65536   # values parsed at a time: the texts of one chunk exist at once, not a run's
+
+
+def status_keys(records) -> list[tuple[str, str]]:
+    """(status name, key) of every value in status records (a :class:`StatusRecords` or any sequence
+    of ``(t, name, {key: value})``), in the order they first appear (a record's keys in its order)."""
+    if isinstance(records, StatusRecords):
+        return records.keys()
+    return list(dict.fromkeys((name, key) for _, name, values in records for key in values))
+
+
+def status_names(records) -> set[str]:
+    """The status names of the records (those with no value included)."""
+    if isinstance(records, StatusRecords):
+        return {name for name, _, stamps, _ in records._frozen if stamps.size}
+    return {name for _, name, _ in records}
+
+
+def status_column(records, key: str, name: str | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(positions, stamps, raw values) of the records holding ``key`` (those of status ``name``; None:
+    any name), in record order. Raw values: fixed-width UTF-8 bytes, or an object array of texts
+    (:func:`parse_values`, :func:`texts`)."""
+    if isinstance(records, StatusRecords):
+        return records.column(key, name)
+    rows = [(i, t, values[key]) for i, (t, n, values) in enumerate(records)
+            if key in values and (name is None or n == name)]
+    raw = np.empty(len(rows), dtype=object)
+    raw[:] = [v for _, _, v in rows]
+    return (np.array([i for i, _, _ in rows], dtype=np.int64), np.array([t for _, t, _ in rows], dtype=float), raw)
+
+
+def status_values(records, key: str, name: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(stamps, :func:`parse_values`) of :func:`status_column`; a :class:`StatusRecords` parses each
+    key once (the torque and the status figures both read the status values: 864 000 texts a key
+    for a day at 10 Hz)."""
+    if isinstance(records, StatusRecords):
+        return records.values(key, name)
+    _, stamps, raw = status_column(records, key, name)
+    return stamps, parse_values(raw)
+
+
+def parse_values(raw: np.ndarray) -> np.ndarray:
+    """Raw status values as floats where every one parses (as ``np.array(texts, dtype=float)``
+    would: chunk by chunk, so a day's texts never exist at once), else as :func:`texts`."""
+    out = np.empty(raw.size, dtype=float)
+    for i in range(0, raw.size, CHUNK):
+        try:
+            out[i:i + CHUNK] = np.array(_texts(raw[i:i + CHUNK]), dtype=float)
+        except ValueError:
+            return texts(raw)
+    return out
+
+
+def texts(raw: np.ndarray) -> np.ndarray:
+    """Raw status values as an object array of texts, each distinct text one object."""
+    if raw.dtype == object:
+        out = np.empty(raw.size, dtype=object)
+        out[:] = [str(v) for v in _texts(raw)]
+        return out
+    distinct, inverse = np.unique(raw, return_inverse=True)
+    decoded = np.empty(distinct.size, dtype=object)
+    decoded[:] = _texts(distinct)
+    return decoded[inverse.reshape(-1)]
+
+
 class StatusRecords(Sequence):
     """``(t, name, {key: value})`` per status, in stamp order (reading order on ties).
 
@@ -77,6 +152,8 @@ class StatusRecords(Sequence):
         self._count = 0
         self._frozen: list[tuple] = []                 # (name, keys, stamps, columns) per layout
         self._where = np.zeros((0, 2), dtype=np.int32)  # record i -> (layout, row)
+        self._positions = None   # per layout, its records' positions (_layout_positions)
+        self._values: dict = {}  # (key, name) -> values(): parsed once
 
     def add(self, stamps: np.ndarray, messages: list) -> None:
         """One batch of messages: each status kept as (its message's stamp, name, values)."""
@@ -137,3 +214,44 @@ class StatusRecords(Sequence):
 
     def __repr__(self) -> str:
         return f'StatusRecords({len(self)} records)'
+
+    def keys(self) -> list[tuple[str, str]]:
+        """:func:`status_keys` of the records, from the layouts."""
+        first = {}   # (name, key) -> (record where it first appears, place in that record)
+        for i, (name, keys, _, _) in enumerate(self._frozen):
+            where = self._layout_positions(i)
+            for j, key in enumerate(keys):
+                if where.size and ((name, key) not in first or first[name, key] > (int(where[0]), j)):
+                    first[name, key] = (int(where[0]), j)
+        return sorted(first, key=first.get)
+
+    def _layout_positions(self, i: int) -> np.ndarray:
+        """Positions (record order) of layout ``i``'s records; computed once per layout."""
+        if self._positions is None:
+            order = np.argsort(self._where[:, 0], kind='stable')
+            bounds = np.searchsorted(self._where[order, 0], np.arange(len(self._frozen) + 1))
+            self._positions = [order[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+        return self._positions[i]
+
+    def values(self, key: str, name: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`status_values` of the records, parsed once per (key, name)."""
+        if (key, name) not in self._values:
+            _, stamps, raw = self.column(key, name)
+            self._values[key, name] = (stamps, parse_values(raw))
+        return self._values[key, name]
+
+    def column(self, key: str, name: str | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:func:`status_column` of the records, from the layouts' columns (no record rebuilt)."""
+        parts = []
+        for i, (layout_name, keys, stamps, columns) in enumerate(self._frozen):
+            if key in keys and (name is None or layout_name == name):
+                where = self._layout_positions(i)
+                rows = self._where[where, 1]
+                parts.append((where, stamps[rows], columns[keys.index(key)][rows]))
+        if not parts:
+            return np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=object)
+        if len(parts) == 1:
+            return parts[0]
+        where = np.concatenate([p[0] for p in parts])
+        order = np.argsort(where, kind='stable')
+        return where[order], np.concatenate([p[1] for p in parts])[order], _concatenate([p[2] for p in parts])[order]

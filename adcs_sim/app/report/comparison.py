@@ -12,6 +12,7 @@ import numpy as np
 import yaml
 
 from adcs_sim.app.analysis import attitude_errors
+from adcs_sim.app.report.envelope import reduced
 from adcs_sim.app.report.figures import add_legend, log_positive, new_figure, save_figure, step_plot
 from adcs_sim.app.report.kinds import reference_attitude, run_kind
 from adcs_sim.app.report.lead import comparison_rows, lead_metrics  # defined in .lead (no matplotlib there)
@@ -160,7 +161,7 @@ def _comparison_figures(runs: list[Run], names: list[str], eigen_tol_deg: float)
     fig, (ax,) = new_figure(height=3.6)
     for i, (name, r) in enumerate(zip(names, runs)):
         _, eigen, _ = attitude_errors(r.data)
-        ax.plot(r.data.t, log_positive(eigen), **style(i), label=name)
+        ax.plot(*reduced(r.data.t, log_positive(eigen)), **style(i), label=name)
         faults(ax, i, name, r)
     ax.set_yscale('log')
     ax.axhline(eigen_tol_deg, color='0.3', linestyle=':', label=f'tolerance {eigen_tol_deg:g}°')
@@ -186,7 +187,7 @@ def _comparison_figures(runs: list[Run], names: list[str], eigen_tol_deg: float)
     fig, (ax,) = new_figure(height=3.6)
     for i, (name, r) in enumerate(zip(names, runs)):
         if r.data.wheel_speed.size:
-            ax.plot(r.data.t_wheels, np.linalg.norm(r.data.wheel_speed, axis=1), **style(i), label=name)
+            ax.plot(*reduced(r.data.t_wheels, np.linalg.norm(r.data.wheel_speed, axis=1)), **style(i), label=name)
         else:
             ax.plot([], [], **style(i), label=f'{name} (no wheel states recorded)')
         faults(ax, i, name, r)

@@ -9,11 +9,13 @@ from pathlib import Path
 
 import matplotlib
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from adcs_msgs_py import names as topics
 from adcs_sim.app.analysis import RunData
+from adcs_sim.app.report.envelope import reduced
 from adcs_sim.app.report.kinds import UNKNOWN, RunKind
 from adcs_sim.app.report.loading import commanded_torque, thruster_topics
 
@@ -75,18 +77,39 @@ def add_legend(ax, outside: bool = True, **kw) -> None:
 
 
 def save_figure(fig: Figure, out: Path, name: str) -> list[Path]:
-    """Write ``fig`` as ``<name>.png`` and ``<name>.svg`` in ``out``; return the paths."""
+    """Write ``fig`` as ``<name>.png`` and ``<name>.svg`` in ``out``; return the paths.
+
+    The layout (constrained: a text layout of every tick label, twice) is computed once, at the
+    PNG's resolution, and both files are drawn with it: ``savefig`` would otherwise draw the figure
+    once more before each file just to lay it out (four draws a figure, now two)."""
     paths = [out / f'{name}.png', out / f'{name}.svg']
+    if not isinstance(fig.canvas, FigureCanvasAgg):
+        FigureCanvasAgg(fig)   # one Agg renderer for the layout and the PNG: text measured once
+    fix_layout(fig, DPI)
     fig.savefig(paths[0], dpi=DPI)
-    fig.set_layout_engine('none')  # keep the layout just computed: the SVG need not redo it
     with matplotlib.rc_context({'svg.fonttype': 'none'}):  # text stays text: searchable, smaller
         fig.savefig(paths[1], metadata={'Date': None})
     return paths
 
 
+def fix_layout(fig: Figure, dpi: float) -> None:
+    """Run ``fig``'s layout engine once at ``dpi`` and drop the engine: later draws keep that layout
+    (what ``savefig`` does before its own draw, without the draw)."""
+    engine = fig.get_layout_engine()
+    if engine is None:
+        return
+    old = fig.dpi
+    fig.dpi = dpi
+    try:
+        engine.execute(fig)
+    finally:
+        fig.dpi = old
+    fig.set_layout_engine(None)
+
+
 def step_plot(ax, t, y, t_end: float | None = None, **kw):
     """Zero-order-held signal: each sample held to the next, the last one to ``t_end``."""
-    t, y = np.asarray(t, dtype=float), np.asarray(y)
+    t, y = reduced(np.asarray(t, dtype=float), np.asarray(y))
     if t_end is not None and t.size and t_end > t[-1]:
         t, y = np.append(t, t_end), np.append(y, y[-1:], axis=0)
     return ax.step(t, y, where='post', **kw)
@@ -120,7 +143,7 @@ class Context:
 def fig_attitude_error(c: Context):
     _, eigen, _ = c.errors
     fig, (ax,) = new_figure(height=3.4)
-    ax.plot(c.run.t, log_positive(eigen), color='C0', label='eigenaxis error')
+    ax.plot(*reduced(c.run.t, log_positive(eigen)), color='C0', label='eigenaxis error')
     ax.set_yscale('log')
     ax.axhline(c.eigen_tol_deg, color='0.3', linestyle=':', label=f'tolerance {c.eigen_tol_deg:g}°')
     ts = c.metrics[f'settling_eigenaxis_{c.eigen_tol_deg:g}deg_s']
@@ -138,10 +161,10 @@ def fig_quaternion(c: Context):
     shade_phases([ax], c.phases)
     for i, (label, a) in enumerate([('$q_1$ (x)', 'x'), ('$q_2$ (y)', 'y'), ('$q_3$ (z)', 'z'),
                                     ('$q_4$ (scalar)', 'w')]):
-        ax.plot(c.run.t, c.run.q[:, i], **LINE[a], label=label)
+        ax.plot(*reduced(c.run.t, c.run.q[:, i]), **LINE[a], label=label)
     if c.q_ref is not None:
         for i, a in enumerate('xyzw'):
-            ax.plot(c.run.t, c.q_ref[:, i], color=COLORS[a], linestyle=(0, (1, 1.5)), linewidth=1.2,
+            ax.plot(*reduced(c.run.t, c.q_ref[:, i]), color=COLORS[a], linestyle=(0, (1, 1.5)), linewidth=1.2,
                     label='reference $q_{ref}$ (dotted)' if i == 0 else None)
     ax.set_ylabel('quaternion component (–)')
     ax.set_title('Attitude quaternion, body in inertial ($q_1 q_2 q_3$ vector, $q_4$ scalar)')
@@ -160,8 +183,8 @@ def fig_euler(c: Context):
     _, _, euler = c.errors
     fig, (ax, ax_log) = new_figure(rows=2, height=2.6)
     for i in range(3):
-        ax.plot(c.run.t, euler[:, i], **LINE[EULER_AXES[i]], label=EULER_LABELS[i])
-        ax_log.plot(c.run.t, log_positive(np.abs(euler[:, i])), **LINE[EULER_AXES[i]])
+        ax.plot(*reduced(c.run.t, euler[:, i]), **LINE[EULER_AXES[i]], label=EULER_LABELS[i])
+        ax_log.plot(*reduced(c.run.t, log_positive(np.abs(euler[:, i]))), **LINE[EULER_AXES[i]])
     ax.set_ylabel('angle (deg)')
     ax.set_title('2-1-3 Euler angles of the attitude error')
     ax_log.set_yscale('log')
@@ -178,7 +201,7 @@ def fig_euler(c: Context):
 def fig_body_rates(c: Context):
     fig, (ax,) = new_figure(height=3.2)
     for i, a in enumerate(AXES):
-        ax.plot(c.run.t, c.run.w[:, i], **LINE[a], label=fr'$\omega_{a}$')
+        ax.plot(*reduced(c.run.t, c.run.w[:, i]), **LINE[a], label=fr'$\omega_{a}$')
     ax.set_ylabel('body rate (rad/s)')
     ax.set_title('Body angular rate (body axes)')
     mark_faults([ax], c.events)
@@ -229,7 +252,7 @@ def fig_wheels(c: Context):
     fig, axes = new_figure(rows=2 if torque else 1, height=2.5)
     scale, unit = torque_unit(run.wheel_torque)
     for j, name in enumerate(run.wheel_names):
-        axes[0].plot(run.t_wheels, run.wheel_speed[:, j], **_line(j), label=name)
+        axes[0].plot(*reduced(run.t_wheels, run.wheel_speed[:, j]), **_line(j), label=name)
         if torque:
             step_plot(axes[1], run.t_wheels, scale * run.wheel_torque[:, j], **_line(j), label=name)
     axes[0].set_ylabel('wheel speed (rad/s)')
@@ -256,7 +279,7 @@ def fig_thrusters(c: Context):
         on = run.thruster_on_time[:, j] > 0.0
         bars = list(zip(run.t_thrusters[on], run.thruster_on_time[on, j]))
         ax_f.broken_barh(bars, (n - 1 - j - 0.4, 0.8), color=_line(j)['color'])
-        ax_i.plot(run.t_thrusters + _zoh_period(run), run.thruster_impulse[:, j], **_line(j), label=name)
+        ax_i.plot(*reduced(run.t_thrusters + _zoh_period(run), run.thruster_impulse[:, j]), **_line(j), label=name)
     ax_f.set_yticks(range(n), list(reversed(run.thruster_names)))
     ax_f.set_ylim(-0.6, n - 0.4)
     ax_f.set_ylabel('firing')
@@ -297,7 +320,9 @@ def fig_phase(c: Context):
     ax.grid(True, alpha=0.35)
     for i, a in enumerate(AXES):
         # the curve is broken where the reference steps (seed 000's slew target -> identity)
-        ax.plot(np.insert(qe[:, i], jumps, np.nan), np.insert(c.run.w[:, i], jumps, np.nan), **LINE[a],
+        t, x, y = reduced(c.run.t, qe[:, i], c.run.w[:, i])
+        cut = np.searchsorted(t, c.run.t[jumps]) if t.size < c.run.t.size else jumps
+        ax.plot(np.insert(x, cut, np.nan), np.insert(y, cut, np.nan), **LINE[a],
                 label=fr'$q_{i + 1}$ vs $\omega_{a}$')
         ax.plot(qe[0, i], c.run.w[0, i], 'o', color=COLORS[a], markersize=6)
         ax.plot(qe[-1, i], c.run.w[-1, i], 'x', color=COLORS[a], markersize=8)

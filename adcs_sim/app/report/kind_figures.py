@@ -11,6 +11,7 @@ import numpy as np
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion
 from adcs_sim.app.analysis import POINTING_BANDS_DEG, first_entry_time, pointing_error_deg, settling_time
+from adcs_sim.app.report.envelope import reduced
 from adcs_sim.app.report.figures import (
     LINE,
     Context,
@@ -37,7 +38,7 @@ def fig_reference_error(c: Context):
     tol = TRACKING_BAND_DEG if c.kind.kind == 'tracking' else c.eigen_tol_deg
     fig, (ax,) = new_figure(height=3.4)
     shade_phases([ax], c.phases)
-    ax.plot(c.run.t, log_positive(eigen), color='C0', label='error to the reference')
+    ax.plot(*reduced(c.run.t, log_positive(eigen)), color='C0', label='error to the reference')
     ax.set_yscale('log')
     ax.axhline(tol, color='0.3', linestyle=':', label=f'band {tol:g}°')
     ts = settling_time(c.run.t, eigen, tol)
@@ -66,7 +67,7 @@ def fig_q4_bands(c: Context):
     e = 1.0 - np.abs(qe[:, 3])
     fig, (ax,) = new_figure(height=3.6)
     shade_phases([ax], c.phases)
-    ax.plot(c.run.t, log_positive(e), color='C0', label='1 − |q4| (to the final target)')
+    ax.plot(*reduced(c.run.t, log_positive(e)), color='C0', label='1 − |q4| (to the final target)')
     ax.set_yscale('log')
     after = c.run.t >= t0
     for band, style, colour in ((0.02, '--', 'C1'), (0.01, ':', 'C3')):
@@ -97,15 +98,15 @@ def fig_spin(c: Context):
     if theta is None or w_err is None:
         return 'the controller status has no `theta` and `w_err_x/y/z` (the spin errors of the M2S law)'
     fig, (ax_t, ax_w, ax_r, ax_u) = new_figure(rows=4, height=1.9)
-    ax_t.plot(theta[0], log_positive(theta[1][:, 0]), color='C0', label='θ')
+    ax_t.plot(*reduced(theta[0], log_positive(theta[1][:, 0])), color='C0', label='θ')
     ax_t.axhline(SPIN_THETA_BAND_RAD, color='0.3', linestyle=':', label=f'{SPIN_THETA_BAND_RAD:g} rad')
-    ax_w.plot(w_err[0], log_positive(np.linalg.norm(w_err[1], axis=1)), color='C1', label='‖ω̃‖')
+    ax_w.plot(*reduced(w_err[0], log_positive(np.linalg.norm(w_err[1], axis=1))), color='C1', label='‖ω̃‖')
     ax_w.axhline(SPIN_RATE_BAND_RAD_S, color='0.3', linestyle=':', label=f'{SPIN_RATE_BAND_RAD_S:g} rad/s')
     for ax in (ax_t, ax_w):
         ax.set_yscale('log')
     w_d = vector(param_value(c.kind.params, 'target.rate'), 3)
     w_d = float(np.linalg.norm(w_d)) if w_d is not None else math.nan
-    ax_r.plot(c.run.t, np.linalg.norm(c.run.w, axis=1), color='C0', label='‖ω‖')
+    ax_r.plot(*reduced(c.run.t, np.linalg.norm(c.run.w, axis=1)), color='C0', label='‖ω‖')
     ax_r.axhline(w_d, color='k', linestyle='--', linewidth=1, label=f'‖ω_d‖ = {w_d:.4g} rad/s')
     if c.run.u.size:
         for i, a in enumerate('xyz'):
@@ -140,7 +141,7 @@ def fig_pointing(c: Context):
     err = pointing_error_deg(c.run)
     fig, (ax,) = new_figure(height=3.6)
     shade_phases([ax], c.phases)
-    ax.plot(c.run.t, log_positive(err), color='C0', label='pointing error ∠(σ̂, τ̂)')
+    ax.plot(*reduced(c.run.t, log_positive(err)), color='C0', label='pointing error ∠(σ̂, τ̂)')
     ax.set_yscale('log')
     for b, style in zip(POINTING_BANDS_DEG, ('--', '-.', ':')):
         ax.axhline(b, color='0.3', linestyle=style, linewidth=1)
@@ -168,7 +169,7 @@ def fig_euler_settling(c: Context):
     all_ours = settling_time(c.run.t, np.abs(euler).max(axis=1), 0.5)
     all_paper = _published(c, 'settling_euler213_all_0.5deg_s')
     for k, (ax, (name, i, label)) in enumerate(zip(axes, EULER_NAMES)):
-        ax.plot(c.run.t, log_positive(np.abs(euler[:, i])), color='C0', label=f'|{label}|')
+        ax.plot(*reduced(c.run.t, log_positive(np.abs(euler[:, i]))), color='C0', label=f'|{label}|')
         ax.set_yscale('log')
         for band, colour in ((1.0, 'C1'), (0.5, 'C3')):
             ax.axhline(band, color=colour, linestyle=':', linewidth=1)

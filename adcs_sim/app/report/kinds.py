@@ -29,6 +29,7 @@ from adcs_controllers.families import FAMILIES, RUN_KINDS
 from adcs_controllers.laws.backstepping import OrbitReference
 from adcs_core.orbit import CircularOrbit
 from adcs_sim.app.run_data import RunData
+from adcs_sim.app.status_records import status_column, texts
 
 UNKNOWN = 'unknown'
 # The status key whose text value names the run's phases, per kind.
@@ -108,11 +109,10 @@ def _unit(q) -> np.ndarray | None:
 
 def held_text(run: RunData, key: str) -> np.ndarray | None:
     """The controller's status value ``key`` held (zero-order) at each state sample, or None."""
-    records = [(t, v[key]) for t, _, v in run.controller_status if key in v]
-    if not records:
+    _, ts, raw = status_column(run.controller_status, key)
+    if not ts.size:
         return None
-    ts = np.array([t for t, _ in records])
-    vs = np.array([str(v) for _, v in records], dtype=object)
+    vs = texts(raw)
     k = np.clip(np.searchsorted(ts, run.t, side='right') - 1, 0, ts.size - 1)
     return vs[k]
 

@@ -30,6 +30,7 @@ from adcs_sim.app.analysis import (
 )
 from adcs_sim.app.report.kinds import RunKind, param_value, vector
 from adcs_sim.app.run_data import RunData
+from adcs_sim.app.status_records import parse_values, status_column
 
 DOCS = Path(__file__).resolve().parents[3] / 'docs'
 SPIN_THETA_BAND_RAD = 0.01      # settling band of the spin's attitude error θ (0.57°)
@@ -181,13 +182,22 @@ def _tracking(run: RunData, rk: RunKind, q_ref) -> list[Metric]:
 
 def status_array(run: RunData, keys) -> tuple[np.ndarray, np.ndarray] | None:
     """(t, values (N, len(keys))) of numeric controller status values present in every record."""
-    rows = [(t, [v.get(k) for k in keys]) for t, _, v in run.controller_status if all(k in v for k in keys)]
-    if not rows:
+    found = [status_column(run.controller_status, k) for k in keys]
+    if any(not where.size for where, _, _ in found):
         return None
-    try:
-        return np.array([t for t, _ in rows]), np.array([r for _, r in rows], dtype=float)
-    except ValueError:
+    common = found[0][0]
+    for where, _, _ in found[1:]:
+        common = np.intersect1d(common, where, assume_unique=True)
+    if not common.size:
         return None
+    columns = []
+    for where, ts, raw in found:
+        keep = np.searchsorted(where, common)
+        values = parse_values(raw[keep])
+        if values.dtype == object:
+            return None
+        columns.append(values)
+    return ts[keep], np.column_stack(columns)
 
 
 def _spin(run: RunData, rk: RunKind, q_ref) -> list[Metric]:

@@ -13,6 +13,7 @@ from mcap.exceptions import McapError
 
 from adcs_msgs_py import names as topics
 from adcs_sim.app.analysis import RunData
+from adcs_sim.app.status_records import status_keys, status_names, status_values
 
 ERROR_LEVEL = 2  # diagnostic_msgs/DiagnosticStatus.ERROR
 # Status keys of the commanded torque (plotted in the torque figure, not with the other status values).
@@ -96,23 +97,14 @@ def load_run(path, name: str | None = None) -> Run:
 def status_series(run: RunData) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Controller status values per key: ``{key: (t, values)}``, values float where all parse, else str.
 
-    Keys are prefixed ``<status name>/`` when several controllers publish.
+    Keys are prefixed ``<status name>/`` when several controllers publish. Read key by key from the
+    records' columns (:func:`~adcs_sim.app.status_records.status_column`), not record by record.
     """
     records = run.controller_status
-    several = len({name for _, name, _ in records}) > 1
-    raw: dict[str, tuple[list, list]] = {}
-    for t, name, values in records:
-        for key, value in values.items():
-            ts, vs = raw.setdefault(f'{name}/{key}' if several else key, ([], []))
-            ts.append(t)
-            vs.append(value)
+    several = len(status_names(records)) > 1
     out = {}
-    for key, (ts, vs) in raw.items():
-        try:
-            arr = np.array(vs, dtype=float)
-        except ValueError:
-            arr = np.array(vs, dtype=object)
-        out[key] = (np.array(ts, dtype=float), arr)
+    for name, key in status_keys(records):
+        out[f'{name}/{key}' if several else key] = status_values(records, key, name)
     return out
 
 
