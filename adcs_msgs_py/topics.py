@@ -13,10 +13,12 @@ QoS choices
   acknowledged once ``depth`` newer ones are written, so a recorder that falls behind (seen under
   CPU load with depth 10: five states missing from a 4 500-step bag) would lose data. Hence, when
   a recorder is expected (``startup.expect_recorder``, set by the runner), the publishers of every
-  recorded per-step topic wait for all acknowledgements every :data:`ACK_INTERVAL` (50) steps: a
-  reader is then never more than ~50 steps behind, well inside the writer's depth, and the wait
-  (one heartbeat/acknowledgement round, up to ~10 ms: fastdds_profile.xml) is paid once per 50 steps instead of at
-  every step. Memory stays bounded (200 messages per topic). The nodes' own subscriptions keep
+  recorded per-step topic wait for all acknowledgements every :data:`ACK_INTERVAL` (100) steps: a
+  reader is then never more than ~100 steps behind, inside the writer's depth with a 2x margin, and
+  the wait (one heartbeat/acknowledgement round, up to ~10 ms: fastdds_profile.xml) is paid once
+  per 100 steps instead of at every step. The dynamics node waits at the steps k with
+  k % ACK_INTERVAL == 0, once it has step k's commands; the controllers and estimators at the same
+  k, after they have answered state k, so that the two waits overlap instead of adding up. Memory stays bounded (200 messages per topic). The nodes' own subscriptions keep
   depth :data:`SUB_DEPTH` (10, :func:`subscriber_qos`): a controller that falls behind in
   real-time mode must act on recent states, not work through a backlog of 200 stale ones.
   VOLATILE because a late joiner must not act on an old state.
@@ -76,7 +78,7 @@ from adcs_msgs_py.names import (  # noqa: F401
 
 DEPTH = 200        # writers' history of the per-step topics (messages)
 SUB_DEPTH = 10     # the nodes' own readers of those topics
-ACK_INTERVAL = 50  # steps between two waits for every reader's acknowledgement (< DEPTH)
+ACK_INTERVAL = 100  # steps between two waits for every reader's acknowledgement (< DEPTH)
 
 QOS_LOCKSTEP = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=DEPTH,

@@ -92,8 +92,14 @@ class BacksteppingController(WheelStatePairing, AdcsNode):
 
     def step(self, t_ns: int, q: np.ndarray, w: np.ndarray, speed: np.ndarray) -> None:
         self.steps += 1
-        self.pace_recorder(self.steps, (self.pub_thrusters, self.pub_wheels, self.pub_status),
-                           self.params['startup.timeout'])
+        try:
+            self._answer(t_ns, q, w, speed)
+        finally:   # after the commands (off their critical path), at the dynamics' pacing steps
+            self.pace_recorder(self.steps - 1, (self.pub_thrusters, self.pub_wheels, self.pub_status),
+                               self.params['startup.timeout'])
+
+    def _answer(self, t_ns: int, q: np.ndarray, w: np.ndarray, speed: np.ndarray) -> None:
+        """Compute and publish the commands (and the status) of the state stamped ``t_ns``."""
         # Faults name wheels only and the law does not reconfigure: the snapshot due at t_ns is
         # only taken (FaultTracker.due), so that one arriving after its step counts as late.
         self.faults.due(t_ns)

@@ -201,7 +201,13 @@ class ControllerNode(WheelStatePairing, AdcsNode):
 
     def _step(self, t_ns: int, q: np.ndarray, w: np.ndarray, h: np.ndarray | None = None) -> None:
         self.states += 1
-        self.pace_recorder(self.states, (self.pub_cmd, self.pub_status), self.params['startup.timeout'])
+        try:
+            self._answer(t_ns, q, w, h)
+        finally:   # after the command (off its critical path), at the dynamics' pacing steps
+            self.pace_recorder(self.states - 1, (self.pub_cmd, self.pub_status), self.params['startup.timeout'])
+
+    def _answer(self, t_ns: int, q: np.ndarray, w: np.ndarray, h: np.ndarray | None) -> None:
+        """Compute and publish the command (and the status) of the state stamped ``t_ns``."""
         self.apply_due_faults(t_ns)
         output = self.law.output  # torque or wheel momentum (a reconfiguring law's current phase)
         try:  # a law refusing the state or giving a non-finite output: counted, nothing published

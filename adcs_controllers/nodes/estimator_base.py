@@ -118,7 +118,12 @@ class EstimatorNode(AdcsNode):
         """Run the family's step on the sensors' readings stamped ``t_ns``; publish its estimate and status."""
         self.steps += 1
         self.last_ns = t_ns
-        self.pace_recorder(self.steps, (self.pub_estimate, self.pub_status), self.params['startup.timeout'])
+        try:
+            self._answer(t_ns, readings)
+        finally:   # after the estimate (off its critical path), at the dynamics' pacing steps
+            self.pace_recorder(self.steps - 1, (self.pub_estimate, self.pub_status), self.params['startup.timeout'])
+
+    def _answer(self, t_ns: int, readings: dict) -> None:
         try:
             est, status = self.estimator.step(Measurements(t_ns, **readings))
         except ValueError as exc:   # nothing published: counted (the controller's step is missed)

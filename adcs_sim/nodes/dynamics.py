@@ -163,6 +163,7 @@ class DynamicsNode(AdcsNode):
         self._thrusters_cdr = cdr.JointStateCodec(topics.THRUSTERS_STATE)
         self._cmd_cdr = {t: cdr.JointStateCodec(t) for t in (topics.WHEELS_CMD, topics.THRUSTERS_CMD)}
         self._cmd_cdr[topics.TORQUE_CMD] = cdr.VectorCodec(topics.TORQUE_CMD)
+        self._applied_cdr = cdr.VectorCodec(topics.APPLIED_TORQUE)
 
     def _visual_setup(self, p) -> tuple[VisualMessages | None, dict]:
         """The viewer messages (adcs_msgs_py/visual.py) and their publishers, if enabled."""
@@ -403,7 +404,7 @@ class DynamicsNode(AdcsNode):
             # Next state out first (the controllers' critical path), then the record of this step.
             self.publish_state()
             if self.pub_applied.get_subscription_count():
-                self.pub_applied.publish(cv.vector_to_msg(k * self.period_ns, torque))
+                self.pub_applied.publish(self._applied_cdr.encode(k * self.period_ns, torque))   # vector_to_msg's bytes
             self.publish_thrusters(t, k * self.period_ns)
             if self.visual is not None:
                 self.publish_markers(k * self.period_ns)
