@@ -35,3 +35,7 @@ bench: $(VENV)/.installed
 	$(PY) benchmarks/batch_vs_loop.py
 	$(PY) benchmarks/pointing_montecarlo.py
 	$(PY) benchmarks/law_step.py
+	$(PY) benchmarks/cdr_codec.py
+	$(PY) benchmarks/startup_timeline.py
+	$(PY) benchmarks/report_speed.py --hours 0
+	$(PY) benchmarks/recorder_memory.py --writer
