@@ -64,6 +64,7 @@ from adcs_msgs_py.names import (
     MARKERS_STATIC,
     VISUAL_TOPICS,
 )
+from adcs_msgs_py.guard import IntrusionDetected
 from adcs_msgs_py.node import AdcsNode, RunStopped, main_for
 from adcs_msgs_py.visual import VisualMessages
 from adcs_sim.truth.divergence import nonfinite_cause
@@ -502,6 +503,18 @@ class DynamicsNode(AdcsNode):
         executor.spin_once(timeout_sec=0.0)
         while (remaining := wall_deadline - time.monotonic()) > 0:
             executor.spin_once(timeout_sec=remaining)
+
+    def on_intrusion(self, intruders) -> None:
+        """Stop on an intruder (AdcsNode), but only once every reader has acknowledged what this node
+        already published: the recorder then holds every step up to the stop (the last step's
+        applied torque goes out after the next state; a writer destroyed at once could take it
+        along: seen on a fresh clone, tests/test_intruders.py)."""
+        try:
+            super().on_intrusion(intruders)
+        except IntrusionDetected:
+            if hasattr(self, '_step_publishers'):   # an intruder matched after the endpoints exist
+                self._drain_acks()
+            raise
 
     def _drain_acks(self) -> None:
         self.wait_acked(self._step_publishers + [self.pub_applied, self.pub_status, self.pub_thrusters,
