@@ -195,17 +195,19 @@ def _start_graph(run: _Run, show_progress: bool):
 
 
 def warm_analysis() -> threading.Thread:
-    """Import the end-of-run analysis (the bag reader, the metrics, and scipy's ``Rotation`` their
-    Euler angles use: 0.5-2 s of imports on the 2-core machine) in a thread, while the graph shuts
-    down: the runner only waits then (for the nodes' exits; the recorder's drain is mostly a quiet
-    period), so the imports are off the critical path. (Imported while the nodes ran, they took CPU
-    from the lockstep loop's first steps instead.) A failed import is raised again where the
-    module is used."""
+    """Import the end-of-run analysis (the bag reader, the metrics, and the compiled Euler-angle
+    kernel their Euler angles use: numba and the kernel's cache, 0.5-2 s on the 2-core machine) in
+    a thread, while the graph shuts down: the runner only waits then (for the nodes' exits; the
+    recorder's drain is mostly a quiet period), so the imports are off the critical path. (Imported
+    while the nodes ran, they took CPU from the lockstep loop's first steps instead.) A failed
+    import is raised again where the module is used."""
     def imports() -> None:
         try:
+            import numpy as np
+
             import adcs_sim.app.stream_metrics  # noqa: F401
-            from adcs_core.attitude import scipy_rotation
-            scipy_rotation()
+            from adcs_core.attitude import SMALL_BATCH, euler_213
+            euler_213(np.tile([0.0, 0.0, 0.0, 1.0], (SMALL_BATCH + 1, 1)))   # loads the kernel
         except Exception:  # noqa: BLE001, S110 - raised again by the import in run_scenario
             pass
     thread = threading.Thread(target=imports, name='warm-analysis', daemon=True)
