@@ -45,13 +45,12 @@ import numpy as np
 from geometry_msgs.msg import TransformStamped, Vector3Stamped
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message
-from rosbags.typesys import Stores, get_typestore
 from sensor_msgs.msg import JointState
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py.conversions import NS_PER_S, InvalidMessage
+from adcs_msgs_py.typestore import typestore
 
-_TYPESTORE = None
 _SLOT_FORMATS = {'double': 'd', 'float': 'f', 'int32': 'i', 'uint32': 'I', 'int64': 'q', 'uint64': 'Q'}
 # Two values of each number format whose bytes all differ (the offset probe's sentinels).
 _SENTINELS = {'d': (struct.unpack('<d', bytes(range(0x11, 0x18)) + b'\x3f')[0],
@@ -60,14 +59,6 @@ _SENTINELS = {'d': (struct.unpack('<d', bytes(range(0x11, 0x18)) + b'\x3f')[0],
               'i': (0x11121314, 0x21222324), 'I': (0x11121314, 0x21222324),
               'q': (0x1112131415161718, 0x2122232425262728), 'Q': (0x1112131415161718, 0x2122232425262728)}
 STAMP = ('header.stamp.sec', 'header.stamp.nanosec')
-
-
-def typestore():
-    """rosbags' ROS 2 Jazzy type store (message definitions, CDR serialisation)."""
-    global _TYPESTORE
-    if _TYPESTORE is None:
-        _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
-    return _TYPESTORE
 
 
 def type_name(msg_type: type) -> str:

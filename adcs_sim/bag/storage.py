@@ -12,22 +12,14 @@ from pathlib import Path
 
 import yaml
 
+from adcs_msgs_py.typestore import typestore  # noqa: F401 - the bag code's, shared with the CDR codec
+
 # rosbags' type store and AnyReader are imported when first used (typestore(), any_reader): the
 # highlevel reader alone took ~0.1-0.5 s to import, in every process that writes or reads a bag
 # (the recorder node, adcs-run), most of which never read a non-MCAP bag.
 
 MCAP_MAGIC = b'\x89MCAP0\r\n'
 SQLITE_MAGIC = b'SQLite format 3\x00'
-_TYPESTORE = None
-
-
-def typestore():
-    """The rosbags type store for ROS 2 Jazzy (message definitions and CDR (de)serialisation)."""
-    global _TYPESTORE
-    if _TYPESTORE is None:
-        from rosbags.typesys import Stores, get_typestore
-        _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
-    return _TYPESTORE
 
 
 def mcap_file(bag: str | os.PathLike) -> Path:
