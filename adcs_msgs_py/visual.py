@@ -105,7 +105,7 @@ class VisualMessages:
         # The per-step messages' CDR bytes (adcs_msgs_py.cdr): what the dynamics node publishes.
         self._body_cdr = TransformCodec(INERTIAL_FRAME, BODY_FRAME)
         self._orbit_cdr = TransformCodec(INERTIAL_FRAME, ORBIT_FRAME) if orbit is not None else None
-        self.error_cdr = VectorCodec('error', BODY_FRAME)   # error/*: the numbers of errors()
+        self._error_cdr = VectorCodec('error', BODY_FRAME)   # error/*: the numbers of errors()
         self.eigenaxis = Vector3Stamped()
         self.euler = Vector3Stamped()
         for msg in (self.eigenaxis, self.euler):
@@ -183,18 +183,27 @@ class VisualMessages:
         q = quat_multiply(self._orbit0, spin)
         return q if q[3] >= 0 else -q
 
-    def errors(self, t_ns: int, q) -> tuple[Vector3Stamped, Vector3Stamped]:
-        """(error/eigenaxis, error/euler_213) of attitude ``q`` against the target."""
+    def error_values(self, q) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+        """The vectors of (error/eigenaxis, error/euler_213) of attitude ``q`` against the target:
+        (angle, 0, 0) and the Euler angles by body axis (deg)."""
         qe = error_quaternion(np.asarray(q, dtype=float), self.target)
         angle = math.degrees(float(eigenaxis_angle(qe)))
         y, x, z = np.degrees(euler_213(qe))       # sequence order: about y, then x, then z
+        return (angle, 0.0, 0.0), (float(x), float(y), float(z))
+
+    def errors(self, t_ns: int, q) -> tuple[Vector3Stamped, Vector3Stamped]:
+        """(error/eigenaxis, error/euler_213) of attitude ``q`` against the target."""
         stamp = stamp_from_ns(t_ns)
         self.eigenaxis.header.stamp = self.euler.header.stamp = stamp
-        v = self.eigenaxis.vector
-        v.x, v.y, v.z = angle, 0.0, 0.0
-        v = self.euler.vector
-        v.x, v.y, v.z = float(x), float(y), float(z)
+        for msg, values in zip((self.eigenaxis, self.euler), self.error_values(q)):
+            v = msg.vector
+            v.x, v.y, v.z = values
         return self.eigenaxis, self.euler
+
+    def errors_cdr(self, t_ns: int, q) -> tuple[bytes, bytes]:
+        """The CDR bytes of :meth:`errors` (:class:`~adcs_msgs_py.cdr.VectorCodec`)."""
+        eigenaxis, euler = self.error_values(q)
+        return self._error_cdr.encode(t_ns, eigenaxis), self._error_cdr.encode(t_ns, euler)
 
     def marker_array(self, t_ns: int, wheel_speed=None, on_time: Sequence[float] = ()) -> MarkerArray:
         """The step's moving markers: the wheel momentum from the speeds (rad/s, relative to the

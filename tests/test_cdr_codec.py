@@ -235,3 +235,14 @@ def test_marker_bytes_are_the_object_paths(t_ns, speed, on_time):
                             [[1.0, 0.0, 0.0]] * 4, [[0.0, 1.0, 0.0]] * 4)
     ours = visual.marker_array_cdr(t_ns, speed, on_time)
     assert_wire_equal(ours, visual.marker_array(t_ns, speed, on_time))
+
+
+@FUZZ
+@given(t_ns=T_NS, q=st.lists(st.floats(-1.0, 1.0), min_size=4, max_size=4).filter(
+    lambda v: 0.1 < math.sqrt(sum(x * x for x in v))))
+def test_error_bytes_are_the_object_paths(t_ns, q):
+    from adcs_msgs_py.visual import VisualMessages
+    visual = VisualMessages([0.0, 0.0, 0.0, 1.0], 1.0)
+    q = np.array(q) / math.sqrt(sum(x * x for x in q))
+    for ours, msg in zip(visual.errors_cdr(t_ns, q), visual.errors(t_ns, q)):
+        assert_wire_equal(ours, msg)

@@ -286,10 +286,9 @@ class DynamicsNode(AdcsNode):
         if FRAMES_ORBIT in live:
             live[FRAMES_ORBIT].publish(self.visual.orbit_frame_cdr(t_ns))
         if ERROR_EIGENAXIS in live or ERROR_EULER_213 in live:
-            for topic, msg in zip((ERROR_EIGENAXIS, ERROR_EULER_213), self.visual.errors(t_ns, q)):
-                if topic in live:   # the message's bytes (cdr.VectorCodec), not the object
-                    v = msg.vector
-                    live[topic].publish(self.visual.error_cdr.encode(t_ns, (v.x, v.y, v.z)))
+            for topic, data in zip((ERROR_EIGENAXIS, ERROR_EULER_213), self.visual.errors_cdr(t_ns, q)):
+                if topic in live:   # errors()' bytes
+                    live[topic].publish(data)
 
     def publish_markers(self, t_ns: int) -> None:
         """markers of the step just integrated (stamp ``t_ns`` = its start): the wheel momentum at
