@@ -159,6 +159,21 @@ class MatchedWait:
         self._handlers = []
 
 
+def _take_matched(_info) -> None:
+    """A subscription's matched event, taken so that it is reset; nothing else to do.
+
+    rmw_fastrtps' ``rmw_wait`` waits on each reader's status condition, which stays triggered while
+    one of its enabled statuses is changed and unread. A matched-event handler enables "subscription
+    matched" on that condition (the start-up's :class:`MatchedWait` makes one per waited-for
+    subscription), and destroying the handler does not disable it again: after the start-up, a
+    match that nobody read (the publisher found before the wait began, a restarted controller, an
+    intruder) left the condition triggered, every wait returned at once with nothing ready, and
+    rclpy's executor rebuilt its wait set and waited again, a busy loop through every wait for a
+    message (the showcase's dynamics node woke 20-60 times a step waiting for the wheel command;
+    ros2/rmw_fastrtps#833 describes the same loop). With this handler in the node's wait set the
+    executor takes the event and the next wait blocks (tests/test_executor_wakeups.py)."""
+
+
 class AdcsNode(Node):
     """A node whose parameters are checked against a schema at construction."""
 
@@ -206,6 +221,10 @@ class AdcsNode(Node):
         self.get_logger().warning(f'message on compromised topic {topic} not applied '
                                   f'({self.vetting.refused[topic]} so far)', throttle_duration_sec=5.0)
 
+    #: Whether each subscription carries a handler of its matched event (see :func:`_take_matched`):
+    #: needed under a wait-set executor; the recorder's events executor consumes statuses itself.
+    take_matched_events = True
+
     # Endpoints are created without rclpy's default QoS-event handlers: each adds a waitable to
     # every spin of the lockstep loop (a lean node spins in ~140 us instead of ~250 us). A QoS
     # mismatch still shows: the graph never connects and start-up fails naming the topic.
@@ -237,7 +256,8 @@ class AdcsNode(Node):
             msg_type or s.msg_type, name,
             on_message if self.message_info else (lambda msg, info=None: on_message(msg, info)),  # message only
             qos or topics.subscriber_qos(s.qos), raw=raw,
-            event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
+            event_callbacks=SubscriptionEventCallbacks(
+                use_default_callbacks=False, matched=_take_matched if self.take_matched_events else None))
         return sub
 
     def wait_for(self, what: str, ready: Callable[[], bool], timeout: float, endpoints=(),

@@ -59,6 +59,7 @@ class RecorderNode(AdcsNode):
     # messages of a compromised topic are kept under quarantine/<topic>, so nothing is lost and
     # nothing unattributed is analysed as the run's.
     stop_on_intrusion = False
+    take_matched_events = False   # the events executor reads the statuses from its listeners
     # rclpy's C++ events executor: 53-56 µs of CPU a message against 180-200 µs for the
     # single-threaded executor (raw Odometry on four topics, measured back to back, 2026-12-02). The
     # recorder takes every message of the run, about a dozen a step, on a machine it shares with
