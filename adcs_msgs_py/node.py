@@ -40,6 +40,7 @@ from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
 from adcs_msgs_py import topics
+from adcs_msgs_py.executor import LockstepExecutor
 from adcs_msgs_py.guard import Intruder, IntrusionDetected, PublisherVetting, RejectCounter, parse_publishers
 from adcs_msgs_py.params import REQUIRED, ParameterError, Schema
 from adcs_msgs_py.params_file import load_params_file
@@ -178,8 +179,9 @@ class AdcsNode(Node):
     """A node whose parameters are checked against a schema at construction."""
 
     schema: Schema
-    #: The executor its process spins (:func:`main_for`): rclpy's single-threaded one by default.
-    executor_class = rclpy.executors.SingleThreadedExecutor
+    #: The executor its process spins (:func:`main_for`): rclpy's single-threaded one with a lean
+    #: ``spin_once`` (:class:`~adcs_msgs_py.executor.LockstepExecutor`).
+    executor_class = LockstepExecutor
     #: Whether subscription callbacks take the message info (for the vetting's per-message publisher
     #: GID, which Jazzy's MessageInfo does not carry yet: the vetting then looks the graph up).
     message_info = True
