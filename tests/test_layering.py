@@ -44,7 +44,9 @@ ROS_ROOTS = {'rclpy', 'rosgraph_msgs', 'nav_msgs', 'sensor_msgs', 'geometry_msgs
 # adcs_msgs_py.visual builds the viewer messages (TransformStamped, MarkerArray, Vector3Stamped) of
 # the dynamics node: message construction, like conversions, belongs to the interface's ROS side.
 # adcs_msgs_py.cdr (the hot messages' serialized fast path) too: it (de)serializes those messages.
-ROS_ALLOWED = {'adcs_msgs_py.topics', 'adcs_msgs_py.node', 'adcs_msgs_py.conversions', 'adcs_msgs_py.cdr',
+# adcs_msgs_py.executor is the nodes' executor (part of adcs_msgs_py.node's process plumbing).
+ROS_ALLOWED = {'adcs_msgs_py.topics', 'adcs_msgs_py.node', 'adcs_msgs_py.executor', 'adcs_msgs_py.conversions',
+               'adcs_msgs_py.cdr',
                'adcs_msgs_py.conversions_determination',
                'adcs_msgs_py.rcl_params', 'adcs_msgs_py.visual', 'adcs_sim.app.graph', 'adcs_sim.app.runner'}
 # rcl's own params-file parser (through rclpy's C extension: no participant, no DDS). Scenario files
