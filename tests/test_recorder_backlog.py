@@ -26,6 +26,7 @@ from test_recorder import ACK_TIMEOUT, DEADLINE, check_state, raw_states, ros_no
 from adcs_msgs_py import topics
 from adcs_msgs_py.conversions import state_to_msg
 from adcs_msgs_py.node import FASTDDS_PROFILE
+from adcs_sim.nodes import recorder
 from adcs_sim.nodes.recorder import MAX_UNTAKEN, PROFILES_ENV, READY_LINE, RECORDER_PROFILE, use_recorder_profile
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -57,7 +58,7 @@ def test_the_recorder_profile_is_the_graph_profile_plus_its_reader_bound():
     assert MAX_UNTAKEN > topics.DEPTH > topics.ACK_INTERVAL
 
 
-def test_the_recorder_takes_its_profile_in_place_of_the_graph_default_only(tmp_path):
+def test_the_recorder_takes_its_profile_in_place_of_the_graph_default_only(tmp_path, monkeypatch):
     for given in (None, '', str(FASTDDS_PROFILE), str(FASTDDS_PROFILE.parent / '..' / FASTDDS_PROFILE.parent.name
                                                        / FASTDDS_PROFILE.name)):
         environ = {} if given is None else {PROFILES_ENV: given}
@@ -67,6 +68,10 @@ def test_the_recorder_takes_its_profile_in_place_of_the_graph_default_only(tmp_p
     environ = {PROFILES_ENV: str(own)}   # the user's choice is kept (even one that does not exist)
     use_recorder_profile(environ)
     assert environ == {PROFILES_ENV: str(own)}
+    monkeypatch.setattr(recorder, 'RECORDER_PROFILE', tmp_path / 'missing.xml')   # an incomplete install
+    environ = {PROFILES_ENV: str(FASTDDS_PROFILE)}
+    recorder.use_recorder_profile(environ)
+    assert environ == {PROFILES_ENV: str(FASTDDS_PROFILE)}
 
 
 def test_a_held_recorder_holds_the_publisher_and_loses_nothing(ros_domain, tmp_path):

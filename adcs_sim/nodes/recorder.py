@@ -52,9 +52,11 @@ MAX_UNTAKEN = 500   # messages a topic DDS holds for the recorder (recorder_fast
 def use_recorder_profile(environ=os.environ) -> None:
     """Make the recorder's Fast DDS profile (its readers bounded: :data:`MAX_UNTAKEN`) the
     process's, in place of the graph's default profile (unset, or set by the runner to
-    ``adcs_msgs_py/fastdds_profile.xml``). A profile file the user chose is kept as it is."""
+    ``adcs_msgs_py/fastdds_profile.xml``). A profile file the user chose is kept as it is, and so
+    is the default when the recorder's file is missing (an incomplete install: Fast DDS would
+    refuse a file that is not there and fall back to its own defaults)."""
     current = environ.get(PROFILES_ENV)
-    if not current or Path(current).resolve() == FASTDDS_PROFILE:
+    if (not current or Path(current).resolve() == FASTDDS_PROFILE) and RECORDER_PROFILE.is_file():
         environ[PROFILES_ENV] = str(RECORDER_PROFILE)
 
 
