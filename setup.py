@@ -49,7 +49,7 @@ setup(
     name=PACKAGE,
     version='0.1.0',
     packages=find_packages(include=['adcs_core*', 'adcs_msgs_py*', 'adcs_controllers*', 'adcs_sim*']),
-    package_data={'adcs_msgs_py': ['fastdds_profile.xml']},
+    package_data={'adcs_msgs_py': ['fastdds_profile.xml'], 'adcs_sim.nodes': ['recorder_fastdds.xml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),

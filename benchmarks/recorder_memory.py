@@ -14,11 +14,20 @@ end, and the growth per 1000 chunks over the second half (after the allocator's 
 ``--compare TREE`` (e.g. /tmp/s9_base) runs the recorder of that checkout (``PYTHONPATH``) the same
 way, alternated with this tree's.
 
+``--probe DIR`` runs the recorder under ``benchmarks/recorder_probe.py`` (samples from inside the
+process: glibc's heap in use and free, mmapped, Python's tracemalloc with ``--probe-tracemalloc``,
+the recorder's tables) and prints its backlog, the messages sent and not yet taken, which DDS
+holds for it. What it showed (issue 18, session 10): the growth was that backlog, native memory
+(Python's traced total flat), kept by Fast DDS at its high-water mark; the recorder's readers
+are now bounded (``adcs_sim/nodes/recorder_fastdds.xml``). ``--recorder-env KEY=VALUE`` (e.g.
+``MALLOC_ARENA_MAX=2``, ``FASTRTPS_DEFAULT_PROFILES_FILE=...``) and ``--topics N`` vary the set-up.
+
 ``--writer`` measures the bag writer alone instead, in a lean process of its own (no ROS): RssAnon
 after every 7000 chunks of 7 messages, with its chunk indexes spilled to a temporary file (the
 default) and kept as the mcap Writer's list of objects (before issue 18's fix), one after the other.
 
     .venv/bin/python benchmarks/recorder_memory.py [--seconds 60] [--compare /tmp/s9_base] [--writer]
+        [--probe DIR [--probe-tracemalloc 3] [--trim]] [--topics 20] [--domains 220 229]
 """
 from __future__ import annotations
 
@@ -52,9 +61,10 @@ def rss_parts(pid: int) -> str:
 
 
 def record(tree: Path, seconds: float, sample: float, tmp: Path, env: dict, flush_period: float = 0.01,
-           chunk_size: int = 4096):
+           chunk_size: int = 4096, n_topics: int = len(TOPICS), probe: dict | None = None):
     """One recording of ``seconds`` by the recorder of ``tree``: [(t, RSS MiB, messages sent)] and
-    the bag folder."""
+    the bag folder. ``probe``: environment of benchmarks/recorder_probe.py, which then runs the
+    recorder (its memory sampled from inside)."""
     import rclpy
     from nav_msgs.msg import Odometry
     from rclpy.context import Context
@@ -64,13 +74,16 @@ def record(tree: Path, seconds: float, sample: float, tmp: Path, env: dict, flus
     from adcs_sim.nodes.recorder import READY_LINE
     out = tmp / 'bag'
     renv = {**env, 'PYTHONPATH': str(tree)}
-    proc = subprocess.Popen([sys.executable, '-m', 'adcs_sim.nodes.recorder', '--ros-args', '-p', f'output:={out}',
+    command = [sys.executable, *([str(ROOT / 'benchmarks' / 'recorder_probe.py')] if probe is not None else
+                                 ['-m', 'adcs_sim.nodes.recorder'])]
+    renv.update(probe or {})
+    proc = subprocess.Popen([*command, '--ros-args', '-p', f'output:={out}',
                              '-p', f'flush_period:={flush_period!r}', '-p', f'chunk_size:={chunk_size}'], cwd=tree, env=renv, stdout=subprocess.PIPE,
                             stderr=subprocess.DEVNULL, text=True)
     context = Context()
     rclpy.init(context=context, domain_id=int(env['ROS_DOMAIN_ID']))
     node = rclpy.create_node('bench_publisher', context=context)
-    pubs = [node.create_publisher(Odometry, name, topics.QOS_LOCKSTEP) for name in TOPICS]
+    pubs = [node.create_publisher(Odometry, name, topics.QOS_LOCKSTEP) for name in TOPICS[:n_topics]]
     samples = []
     try:
         assert proc.stdout.readline().strip() == READY_LINE
@@ -105,7 +118,7 @@ def record(tree: Path, seconds: float, sample: float, tmp: Path, env: dict, flus
         rclpy.try_shutdown(context=context)
         proc.send_signal(2)
         proc.wait(60)
-    return samples, out
+    return samples, out, t0
 
 
 WRITER_CHILD = r'''
@@ -160,6 +173,46 @@ def describe(label: str, samples, bag: Path) -> None:
           f'+{growth:.0f} KiB per 1000 chunks ({per_message:.0f} B per message) over the second half', flush=True)
 
 
+def probe_env(args, name: str) -> dict | None:
+    if args.probe is None:
+        return None
+    args.probe.mkdir(parents=True, exist_ok=True)
+    out = args.probe / f'{name}.jsonl'
+    out.unlink(missing_ok=True)
+    return {'ADCS_PROBE_OUT': str(out.resolve()), 'ADCS_PROBE_PERIOD': str(args.sample * 2),
+            'ADCS_PROBE_DIFF_AT': str(args.seconds / 2), 'ADCS_PROBE_TRIM': '1' if args.trim else '0',
+            **({'ADCS_PROBE_TRACEMALLOC': str(args.probe_tracemalloc)} if args.probe_tracemalloc else {})}
+
+
+def describe_probe(path: Path, sent, t0: float) -> None:
+    """The probe's samples at a quarter, half and the end of the publishing (MiB): what grew, native
+    or Python, and how many messages the recorder had not taken yet (sent - received: what DDS holds
+    for it; the publisher's samples interpolated at the probe's time)."""
+    import json
+
+    import numpy as np
+    rows = [json.loads(line) for line in path.read_text().splitlines()]
+    samples = [r for r in rows if 'chunks' in r and not r.get('exit') and r['mono'] - t0 <= sent[-1][0]]
+    mib = 1 / 2**20
+    # messages sent before the recorder had discovered their topic never reach it: what it took in
+    # the end (after its drain) tells how many
+    lost = sent[-1][2] - next(r['received'] for r in rows if r.get('exit'))
+    times, counts = [s[0] for s in sent], [s[2] for s in sent]
+    for r in samples:
+        r['backlog'] = int(np.interp(r['mono'] - t0, times, counts, left=0)) - r['received'] - lost
+    print('    backlog (messages sent, not yet taken) over the recording: '
+          + ' '.join(str(r['backlog']) for r in samples))
+    for r in (samples[len(samples) // 4], samples[len(samples) // 2], samples[-1]):
+        traced = f', Python traced {r["traced"] * mib:.1f}' if r.get('traced') is not None else ''
+        trimmed = f' ({r["anon_after_trim_kib"] / 1024:.1f} after malloc_trim)' if 'anon_after_trim_kib' in r else ''
+        print(f'    t {r["t"]:6.1f} s, {r["chunks"]:6d} chunks: RssAnon {r["anon_kib"] / 1024:.1f}{trimmed}, '
+              f'malloc in use {r["heap_used"] * mib:.1f} + mmapped {r["mmapped"] * mib:.1f}, free in heaps '
+              f'{r["heap_free"] * mib:.1f}, {r["maps"]} maps, {r["threads"]} threads{traced}', flush=True)
+    for r in rows:
+        for line in r.get('diff', ()):
+            print(f'    {line}')
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--seconds', type=float, default=60.0)
@@ -169,6 +222,16 @@ def main() -> int:
     ap.add_argument('--flush-period', type=float, default=0.01, help="the recorder's (s; default 0.01)")
     ap.add_argument('--chunk-size', type=int, default=4096, help="the recorder's (bytes; default 4096)")
     ap.add_argument('--writer', action='store_true', help='the bag writer alone (no ROS), spilled vs listed')
+    ap.add_argument('--topics', type=int, default=len(TOPICS), help=f'how many of the {len(TOPICS)} topics to publish')
+    ap.add_argument('--domains', type=int, nargs=2, default=(100, 232), metavar=('LO', 'HI'),
+                    help='ROS domain ids to lease one from')
+    ap.add_argument('--probe', type=Path, metavar='DIR', help='run the recorder under benchmarks/recorder_probe.py, '
+                    'its samples in DIR (one JSON-lines file a recording)')
+    ap.add_argument('--probe-tracemalloc', type=int, default=0, metavar='FRAMES',
+                    help='with --probe: trace Python allocations (FRAMES deep), diff from the half to the end')
+    ap.add_argument('--trim', action='store_true', help="with --probe: malloc_trim(0) after each sample")
+    ap.add_argument('--recorder-env', action='append', default=[], metavar='KEY=VALUE',
+                    help="set in the recorder's environment (e.g. MALLOC_ARENA_MAX=2)")
     args = ap.parse_args()
     if args.writer:
         writer_only()
@@ -176,8 +239,8 @@ def main() -> int:
     from adcs_msgs_py.node import network_hygiene_defaults
     from adcs_sim.app.domains import DomainLease
     network_hygiene_defaults()   # our Fast DDS profile: 10 ms heartbeats (the acknowledgement waits)
-    lease = DomainLease(100, 232)
-    env = lease.env()
+    lease = DomainLease(*args.domains)
+    env = {**lease.env(), **dict(kv.split('=', 1) for kv in args.recorder_env)}
     os.environ.update({k: env[k] for k in ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE')})
     trees = {'this': ROOT, **({'compared': args.compare.resolve()} if args.compare else {})}
     print(f'ROS_DOMAIN_ID={lease.domain_id}; load average {" ".join(f"{x:.2f}" for x in os.getloadavg())}')
@@ -185,9 +248,12 @@ def main() -> int:
         for i in range(args.repeat):
             for label, tree in trees.items():
                 with tempfile.TemporaryDirectory(prefix='recorder_memory_') as tmp:
-                    samples, bag = record(tree, args.seconds, args.sample, Path(tmp), env, args.flush_period,
-                                          args.chunk_size)
+                    probe = probe_env(args, f'{i + 1}_{label}')
+                    samples, bag, t0 = record(tree, args.seconds, args.sample, Path(tmp), env, args.flush_period,
+                                          args.chunk_size, args.topics, probe)
                     describe(f'[{i + 1}] {label}', samples, bag)
+                    if probe is not None:
+                        describe_probe(Path(probe['ADCS_PROBE_OUT']), samples, t0)
     finally:
         lease.release()
     return 0

@@ -343,6 +343,7 @@ def test_wheel_declares_console_scripts_and_ros_data_files(wheel):
             f'({sorted(n for n in wheel.names if ".data/" in n)})')
     # The nodes' Fast DDS profile (package data of the interface layer, beside adcs_msgs_py/node.py).
     assert 'adcs_msgs_py/fastdds_profile.xml' in wheel.names
+    assert 'adcs_sim/nodes/recorder_fastdds.xml' in wheel.names   # the recorder's (its readers bounded)
 
 
 @pytest.mark.parametrize('script', sorted(CONSOLE_SCRIPTS))

@@ -10,10 +10,16 @@ why, and what is refused).
 On SIGINT / SIGTERM the node stops taking new work, drains what DDS has already delivered, and
 closes the bag (summary + ``metadata.yaml``). After SIGKILL, everything up to the last flush is
 readable (:func:`adcs_sim.bag.reader.read_raw`).
+
+Memory: what DDS has delivered and the recorder has not taken yet is bounded (its Fast DDS
+profile, ``recorder_fastdds.xml``: :data:`MAX_UNTAKEN` messages a topic; a reader that is full
+acknowledges nothing more, so the writers' acknowledgement waits hold the loop until the recorder
+catches up). Without it the process kept the memory of the largest backlog it ever had (issue 18).
 """
 from __future__ import annotations
 
 import importlib
+import os
 import signal
 import sys
 import threading
@@ -29,7 +35,7 @@ from rclpy.serialization import serialize_message
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import names, topics
 from adcs_msgs_py.guard import Intruder
-from adcs_msgs_py.node import AdcsNode, main_for
+from adcs_msgs_py.node import FASTDDS_PROFILE, AdcsNode, main_for
 from adcs_sim.bag.schema import RECORDER_SCHEMA
 from adcs_sim.bag.tf import TF_TYPE, tf_message_cdr
 from adcs_sim.bag.writer import STAMP_FIRST_TYPES, BagWriter, qos_dicts
@@ -38,6 +44,20 @@ IGNORED_TOPICS = ('/rosout', '/parameter_events')
 STOP_REQUESTED = threading.Event()  # set by SIGINT / SIGTERM in the recorder process
 READY_LINE = 'recorder: ready'
 DRAIN_MAX_S = 10.0  # < the runner's stop timeout (adcs_sim.app.graph.STOP_TIMEOUT_S)
+PROFILES_ENV = 'FASTRTPS_DEFAULT_PROFILES_FILE'
+RECORDER_PROFILE = Path(__file__).resolve().parent / 'recorder_fastdds.xml'
+MAX_UNTAKEN = 500   # messages a topic DDS holds for the recorder (recorder_fastdds.xml's max_samples)
+
+
+def use_recorder_profile(environ=os.environ) -> None:
+    """Make the recorder's Fast DDS profile (its readers bounded: :data:`MAX_UNTAKEN`) the
+    process's, in place of the graph's default profile (unset, or set by the runner to
+    ``adcs_msgs_py/fastdds_profile.xml``). A profile file the user chose is kept as it is, and so
+    is the default when the recorder's file is missing (an incomplete install: Fast DDS would
+    refuse a file that is not there and fall back to its own defaults)."""
+    current = environ.get(PROFILES_ENV)
+    if (not current or Path(current).resolve() == FASTDDS_PROFILE) and RECORDER_PROFILE.is_file():
+        environ[PROFILES_ENV] = str(RECORDER_PROFILE)
 
 
 def message_class(type_name: str):
@@ -232,6 +252,7 @@ def main(args=None) -> None:
     # at any moment stops the recorder cleanly instead of killing it with the bag unclosed.
     signal.signal(signal.SIGINT, _request_stop)
     signal.signal(signal.SIGTERM, _request_stop)
+    use_recorder_profile()   # before rclpy.init: Fast DDS reads its profiles once per process
     raise SystemExit(main_for(RecorderNode, args, handle_signals=False))
 
 
