@@ -294,8 +294,11 @@ class AdcsNode(Node):
         """Block until every reader has acknowledged what ``publishers`` (None entries skipped)
         sent, or ``timeout`` wall seconds per publisher."""
         for pub in publishers:
-            if pub is not None:
-                pub.wait_for_all_acked(Duration(seconds=timeout))
+            if pub is not None and not pub.wait_for_all_acked(Duration(seconds=timeout)):
+                self.get_logger().warning(
+                    f'{pub.topic_name}: not every reader acknowledged within {timeout:g} s; a reader '
+                    'that stays this far behind may miss messages (adcs_msgs_py.topics)',
+                    throttle_duration_sec=5.0)
 
     def pace_recorder(self, step: int, publishers, timeout: float) -> None:
         """Every :data:`~adcs_msgs_py.topics.ACK_INTERVAL` steps, when a recorder is expected,

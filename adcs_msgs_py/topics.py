@@ -18,7 +18,12 @@ QoS choices
   the wait (one heartbeat/acknowledgement round, up to ~10 ms: fastdds_profile.xml) is paid once
   per 100 steps instead of at every step. The dynamics node waits at the steps k with
   k % ACK_INTERVAL == 0, once it has step k's commands; the controllers and estimators at the same
-  k, after they have answered state k, so that the two waits overlap instead of adding up. Memory stays bounded (200 messages per topic). The nodes' own subscriptions keep
+  k, after they have answered state k, so that the two waits overlap instead of adding up. Memory stays bounded (200 messages per topic).
+  A reliable reader acknowledges what DDS has put in its history, not what the node has taken:
+  the recorder's readers hold at most 500 untaken messages a topic (adcs_sim/nodes/recorder_fastdds.xml),
+  so a full one acknowledges nothing more and the waits hold the loop until the recorder catches
+  up. A wait that times out (``lockstep.timeout`` per publisher) is logged: a recorder stalled
+  that long could be overwritten two intervals later. The nodes' own subscriptions keep
   depth :data:`SUB_DEPTH` (10, :func:`subscriber_qos`): a controller that falls behind in
   real-time mode must act on recent states, not work through a backlog of 200 stale ones.
   VOLATILE because a late joiner must not act on an old state.
