@@ -106,23 +106,35 @@ def _on_sigterm(signum, frame):
     raise KeyboardInterrupt
 
 
+EXECUTOR_ENV = 'PINGPONG_EXECUTOR'   # the roles' executor: 'rclpy' (default) or 'lockstep'
+
+
 # --- (i) ping-pong roles (run in child processes) --------------------------------------------------
 
 @contextlib.contextmanager
 def _role_node(name: str, interruptible: bool = True):
     """(node, executor) on a private context; Ctrl-C / SIGTERM end the role quietly when
-    ``interruptible``; the node and context are always cleaned up."""
+    ``interruptible``; the node and context are always cleaned up. ``PINGPONG_EXECUTOR=lockstep``
+    in the environment: the nodes' own executor (adcs_msgs_py.executor.LockstepExecutor) on a node
+    made as AdcsNode makes them (no parameter or type-description services); otherwise rclpy's
+    ``SingleThreadedExecutor`` on a default node."""
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.parameter import Parameter
     from rclpy.signals import SignalHandlerOptions
+
+    from adcs_msgs_py.executor import LockstepExecutor
+    lockstep = os.environ.get(EXECUTOR_ENV) == 'lockstep'
 
     context = Context()
     # A non-default context gets no signal handlers by default: SIGINT would then wait for
     # spin() to wake up. Install them, as adcs_msgs_py.node.main_for does.
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.ALL)
-    node = rclpy.create_node(name, context=context)
-    executor = SingleThreadedExecutor(context=context)
+    lean = {'start_parameter_services': False,
+            'parameter_overrides': [Parameter('start_type_description_service', value=False)]} if lockstep else {}
+    node = rclpy.create_node(name, context=context, **lean)
+    executor = (LockstepExecutor if lockstep else SingleThreadedExecutor)(context=context)
     executor.add_node(node)
     quiet = (KeyboardInterrupt, ExternalShutdownException) if interruptible else ()
     try:
@@ -251,8 +263,11 @@ class _Lines:
         return [json.loads(line) for line in self.lines if line.strip()]
 
 
-def run_pingpong(env: dict, round_trips: int, warmup: int) -> dict:
+def run_pingpong(env: dict, round_trips: int, warmup: int, executor: str = 'rclpy') -> dict:
+    """Round trips/s of the ping-pong; ``executor`` 'rclpy' (rclpy's SingleThreadedExecutor, the
+    issue's "raw rclpy ping-pong") or 'lockstep' (the graph nodes' LockstepExecutor)."""
     me = [sys.executable, str(Path(__file__).resolve())]
+    env = {**env, EXECUTOR_ENV: executor}
     echo = _spawn(me + ['--role', 'echo'], env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     ping = _spawn(me + ['--role', 'ping', '--round-trips', str(round_trips), '--warmup', str(warmup)],
                   env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
