@@ -157,6 +157,22 @@ def ros_domain(monkeypatch):
         lease.release()
 
 
+@pytest.fixture
+def two_contexts(ros_domain):
+    """Two rclpy contexts (two DDS participants, as two processes of the graph) on a leased
+    domain, initialised; shut down at teardown."""
+    import rclpy
+    from rclpy.context import Context
+    pair = (Context(), Context())
+    for ctx in pair:
+        rclpy.init(args=[], context=ctx)
+    try:
+        yield pair
+    finally:
+        for ctx in pair:
+            rclpy.try_shutdown(context=ctx)
+
+
 def _prune_empty(tree: dict) -> None:
     """Drop the mappings left empty by deletions (rcl refuses an empty mapping: ``wheels: {}``)."""
     for key in list(tree):

@@ -15,9 +15,7 @@ whether a wait returned empty.
 """
 from __future__ import annotations
 
-import pytest
 import rclpy
-from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
@@ -25,7 +23,6 @@ from adcs_msgs_py import topics
 from adcs_msgs_py.blocks import startup_params
 from adcs_msgs_py.node import AdcsNode, MatchedWait
 from adcs_msgs_py.params import Schema
-from adcs_sim.app.domains import DomainLease
 
 KINDS = ('subscription', 'guard_condition', 'timer', 'client', 'service')
 
@@ -52,21 +49,6 @@ def counting_wait_set(empty: list[int]):
                 self.is_ready('event', i) for i in getattr(self, 'events', []))
             empty[0] += not ready
     return Counting
-
-
-@pytest.fixture
-def contexts(monkeypatch):
-    """Two contexts (two DDS participants, as two processes of the graph) on a leased domain."""
-    lease = DomainLease(100, 232)
-    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    monkeypatch.setenv('ROS_DOMAIN_ID', str(lease.domain_id))
-    pair = (Context(), Context())
-    for ctx in pair:
-        rclpy.init(args=[], context=ctx)
-    yield pair
-    for ctx in pair:
-        rclpy.try_shutdown(context=ctx)
-    lease.release()
 
 
 def empty_wakes(contexts, node_class, monkeypatch) -> int:
@@ -101,18 +83,18 @@ def empty_wakes(contexts, node_class, monkeypatch) -> int:
         listener.destroy_node()
 
 
-def test_a_matched_publisher_does_not_make_the_executor_spin_empty(contexts, monkeypatch):
-    assert empty_wakes(contexts, Listener, monkeypatch) == 0
+def test_a_matched_publisher_does_not_make_the_executor_spin_empty(two_contexts, monkeypatch):
+    assert empty_wakes(two_contexts, Listener, monkeypatch) == 0
 
 
-def test_pins_rmw_fastrtps_without_the_handler_the_wait_returns_empty(contexts, monkeypatch):
+def test_pins_rmw_fastrtps_without_the_handler_the_wait_returns_empty(two_contexts, monkeypatch):
     """The cause, pinned: if this fails, rmw_fastrtps resets the status itself and the handler
     (AdcsNode.take_matched_events) may go."""
-    assert empty_wakes(contexts, Unhandled, monkeypatch) > 0
+    assert empty_wakes(two_contexts, Unhandled, monkeypatch) > 0
 
 
-def test_every_subscription_of_a_node_carries_its_matched_handler(contexts):
-    node = Listener(contexts[0])
+def test_every_subscription_of_a_node_carries_its_matched_handler(two_contexts):
+    node = Listener(two_contexts[0])
     try:
         sub = node.subscription(topics.STATE, lambda msg: None, raw=True)
         assert [h.event_type.name for h in sub.event_handlers] == ['RCL_SUBSCRIPTION_MATCHED']

@@ -12,7 +12,6 @@ import threading
 
 import pytest
 import rclpy
-from rclpy.context import Context
 from rclpy.executors import ExternalShutdownException
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
@@ -20,20 +19,14 @@ from std_msgs.msg import String
 
 from adcs_msgs_py.executor import LockstepExecutor
 from adcs_msgs_py.node import MatchedWait
-from adcs_sim.app.domains import DomainLease
 
 SPIN_LIMIT = 2000   # spins of <= 1 s each before a test gives up (never reached when it passes)
 
 
 @pytest.fixture
-def graph(monkeypatch):
+def graph(two_contexts):
     """(listener node, talker node, executor of the listener) in two contexts on a leased domain."""
-    lease = DomainLease(100, 232)
-    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    monkeypatch.setenv('ROS_DOMAIN_ID', str(lease.domain_id))
-    contexts = (Context(), Context())
-    for ctx in contexts:
-        rclpy.init(args=[], context=ctx)
+    contexts = two_contexts
     # as an AdcsNode: no parameter services (a node with services is spun by rclpy's own path)
     listener = rclpy.create_node('listener', context=contexts[0], start_parameter_services=False,
                                  parameter_overrides=[Parameter('start_type_description_service', value=False)])
@@ -44,9 +37,6 @@ def graph(monkeypatch):
     executor.shutdown()
     for node in (talker, listener):
         node.destroy_node()
-    for ctx in contexts:
-        rclpy.try_shutdown(context=ctx)
-    lease.release()
 
 
 def connect(talker, topic: str, *subs):
