@@ -21,6 +21,7 @@ import numpy as np
 from numba import njit, prange
 
 from adcs_core.attitude import euler_213, pointing_error
+from adcs_sim.app import metrics_kernel as mk
 from adcs_sim.app.analysis import POINTING_BANDS_DEG, run_metrics, zoh_durations
 from adcs_sim.app.estimation import estimation_metrics, series_from_batch
 
@@ -88,7 +89,43 @@ def _pointing_columns(t: np.ndarray, error_deg: np.ndarray, bands) -> dict[str, 
 
 def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.ndarray]:
     """The metrics of runs ``rows`` (each simulated over the whole grid), one array per metric
-    (a list-valued metric: an array (runs, n)), in :func:`run_metrics`' order."""
+    (a list-valued metric: an array (runs, n)), in :func:`run_metrics`' order: the compiled passes of
+    :mod:`adcs_sim.app.metrics_kernel` (:func:`full_run_columns_numpy`'s numbers bit for bit)."""
+    K = result.t.size - 1
+    t, t_end = result.t, float(result.t[K])
+    take = slice(None) if rows.size == result.n_runs else rows   # every run: views, not copies
+    q = np.ascontiguousarray(result.q[take])
+    q_ref = result.q_ref[take] if result.q_ref.ndim == 2 else np.broadcast_to(result.q_ref, (rows.size, 4))
+    u = np.ascontiguousarray(result.u[take])
+    speed = (np.ascontiguousarray(result.wheel_speed[take]) if result.wheel_names and result.wheel_speed.shape[-1]
+             else np.zeros((rows.size, K + 1, 0)))
+    vn, aq, cols = np.empty(q.shape[:2]), np.empty(q.shape[:2]), np.empty((rows.size, mk.N_COLUMNS))
+    mk.first_pass(q, np.ascontiguousarray(q_ref, dtype=float), u, speed, t, zoh_durations(t[:K], t_end),
+                  float(tol_deg), vn, aq, cols)
+    mk.second_pass(np.arctan2(vn, aq), t, float(tol_deg), cols)   # numpy's arctan2, as eigenaxis_angle
+    out = {
+        'duration_s': cols[:, mk.DURATION],
+        f'settling_eigenaxis_{tol_deg:g}deg_s': cols[:, mk.SETTLE_EIGEN],
+        f'settling_euler213_{tol_deg:g}deg_s': cols[:, mk.SETTLE_EULER],
+        'settling_euler213_per_axis_s': cols[:, mk.SETTLE_AXIS:mk.SETTLE_AXIS + 3],
+        'final_eigenaxis_error_deg': cols[:, mk.FINAL_EIGEN],
+        'integrated_torque_Nms': cols[:, mk.TORQUE],
+        'control_energy_N2m2s': cols[:, mk.ENERGY],
+        'peak_torque_Nm': cols[:, mk.PEAK_TORQUE:mk.PEAK_TORQUE + 3],
+        'peak_wheel_speed_rad_s': cols[:, mk.PEAK_SPEED],
+    }
+    if result.faults:
+        qe = np.empty(q.shape)
+        error_quaternions(q, np.ascontiguousarray(q_ref, dtype=float), qe, vn)
+        out.update(_fault_columns(result, t, qe, (u[..., 0], u[..., 1], u[..., 2]), t_end))
+    if result.pointing is not None:
+        sigma, tau = result.pointing
+        out.update(_pointing_columns(t, np.degrees(pointing_error(q, sigma, tau)), POINTING_BANDS_DEG))
+    return out
+
+
+def full_run_columns_numpy(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.ndarray]:
+    """:func:`_full_run_columns` in numpy over the batch axis (the reference of the compiled passes)."""
     K = result.t.size - 1
     t, t_u, t_end = result.t, result.t[:K], float(result.t[K])
     take = slice(None) if rows.size == result.n_runs else rows   # every run: views, not copies
