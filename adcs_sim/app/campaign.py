@@ -275,6 +275,9 @@ class Campaign:
     dispersions: list[Dispersion]
     series_every: int = 0   # keep each run's error series every this many steps (0: none)
     checked: bool = False   # every run's draw validated (check_runs): run_chunk need not repeat it
+    # check_runs' draws of every run, with what they were drawn from (seed, dispersions): draws()
+    # takes a chunk's rows from them instead of seeding each run's generator again
+    _drawn: tuple | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def load(cls, path, runs: int | None = None) -> 'Campaign':
@@ -378,8 +381,14 @@ class Campaign:
                 for d in self.dispersions}
 
     def draws(self, indices: list[int]) -> list[dict[str, Any]]:
-        """``[self.draw(i) for i in indices]`` (:meth:`draw_columns`, one row per run)."""
-        columns = [c.tolist() for c in self.draw_columns(indices)]
+        """``[self.draw(i) for i in indices]`` (:meth:`draw_columns`, one row per run; the rows of
+        :meth:`check_runs`' draws of every run when they are of this seed and these dispersions)."""
+        drawn = self._drawn
+        if drawn is not None and drawn[0] == self._draw_key() and all(0 <= i < self.runs for i in indices):
+            rows = np.asarray(indices, dtype=np.int64)
+            columns = [c[rows].tolist() for c in drawn[1]]
+        else:
+            columns = [c.tolist() for c in self.draw_columns(indices)]
         if not columns:
             return [{} for _ in indices]
         targets = [d.target for d in self.dispersions]
@@ -399,6 +408,10 @@ class Campaign:
         if not indices:
             return [np.zeros(0) for _ in samplers]
         return [values(np.array(r)) for (_, values), r in zip(samplers, raws)]
+
+    def _draw_key(self) -> tuple:
+        """What the draws depend on besides the run index (seed, dispersions, run count)."""
+        return self.seed, self.runs, repr(self.dispersions)
 
     def run_given(self, index: int, inputs: dict[str, Any] | None = None) -> dict[str, dict[str, Any]]:
         """The scenario of run ``index`` as written parameters: nominal + draws (+ links).
@@ -444,6 +457,7 @@ class Campaign:
         run; the others are, run after run, so that an impossible draw raises the same error
         (:meth:`run_sections`': the first bad run, its section and key) either way."""
         columns = self.draw_columns(list(range(self.runs)))
+        self._drawn = (self._draw_key(), columns)
         targets = [d.target for d in self.dispersions]
         first = self._changes(dict(zip(targets, [c[0].tolist() for c in columns])))
         stacked = self._changes(dict(zip(targets, columns)))
