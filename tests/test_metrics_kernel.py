@@ -130,3 +130,30 @@ def test_a_real_fused_chunk_and_pointing_runs(tmp_path):
     _same(pointing, 1.0)
     assert repr(batch_run_metrics(pointing, 1.0)) == repr([pointing.metrics(j, 1.0) for j in range(4)])
     assert math.isfinite(pointing.q[0, -1, 0])
+
+
+def _euler_batch(rng, angles_deg: np.ndarray) -> BatchResult:
+    """Attitudes (R, n) from 2-1-3 Euler angles (deg, sequence order y, x, z), the target identity."""
+    from scipy.spatial.transform import Rotation
+    R, n = angles_deg.shape[:2]
+    q = Rotation.from_euler('YXZ', angles_deg.reshape(-1, 3), degrees=True).as_quat().reshape(R, n, 4)
+    q *= rng.choice([-1.0, 1.0], size=(R, n, 1))              # either sign of the double cover
+    return _result(q, rng.normal(size=(R, n - 1, 3)), rng.normal(size=(R, n, 3)), np.array([0.0, 0.0, 0.0, 1.0]))
+
+
+@pytest.mark.parametrize('tol', [0.5, 0.01, 1e-9, 44.9, 45.0, 60.0])
+def test_euler_angles_on_the_band_and_near_gimbal_lock(tol):
+    """Angles a few ulp from the band (where the compiled pass cannot tell without computing them),
+    pitch near +-90 deg (gimbal lock: the kernel's other branches), angles past 90 and 180 deg."""
+    rng = np.random.default_rng(int(tol * 1000) % 2**32)
+    R, n = 12, 50
+    near = tol * (1.0 + rng.choice([-1, 1], size=(R, n, 3)) * 10.0 ** rng.uniform(-16, -8, size=(R, n, 3)))
+    angles = near * rng.choice([-1.0, 1.0], size=(R, n, 3))
+    pick = rng.random(size=(R, n, 3))
+    angles = np.where(pick < 0.2, rng.uniform(-tol, tol, size=(R, n, 3)), angles)
+    angles = np.where(pick > 0.9, rng.uniform(-179.0, 179.0, size=(R, n, 3)), angles)
+    gimbal = rng.random(size=(R, n)) < 0.1
+    angles[..., 1] = np.where(gimbal, rng.choice([-90.0, 90.0], size=(R, n)) + rng.normal(scale=1e-6, size=(R, n)),
+                              angles[..., 1])
+    angles[:, -3:] = rng.uniform(-tol, tol, size=(R, 3, 3)) * 0.999   # most runs settle
+    _same(_euler_batch(rng, angles), tol)

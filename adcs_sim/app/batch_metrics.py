@@ -101,7 +101,7 @@ def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.
              else np.zeros((rows.size, K + 1, 0)))
     vn, aq, cols = np.empty(q.shape[:2]), np.empty(q.shape[:2]), np.empty((rows.size, mk.N_COLUMNS))
     mk.first_pass(q, np.ascontiguousarray(q_ref, dtype=float), u, speed, t, zoh_durations(t[:K], t_end),
-                  float(tol_deg), vn, aq, cols)
+                  float(tol_deg), mk.euler_bands(float(tol_deg)), vn, aq, cols)
     mk.second_pass(np.arctan2(vn, aq), t, float(tol_deg), cols)   # numpy's arctan2, as eigenaxis_angle
     out = {
         'duration_s': cols[:, mk.DURATION],

@@ -12,6 +12,12 @@ settling time and final value of the angle. Every value is the numpy code's bit 
 * the error quaternion and ``|q_v|``: :func:`adcs_sim.app.batch_metrics.error_quaternions`' own
   operations; the 2-1-3 Euler angles: :func:`adcs_core.euler_kernel.euler_213_row`;
   ``np.degrees(x)`` is ``x * (180 / pi)`` (numpy's ``npy_rad2deg``);
+* the settling times need, of each Euler error, only which samples are outside the band and the
+  values at the last exit: :func:`_euler_sides` tells inside from outside with a few products
+  (the angles' tangents and sine from the kernel's own ``a, b, c, d``, no ``atan2`` or ``hypot``:
+  ~10x cheaper), leaving to the kernel's exact computation every sample within a relative 1e-9
+  (and an absolute 1e-10 rad) of the band's edge, near gimbal lock, non-finite, or any band of 45
+  degrees or more; the margin is ~1e5 times the rounding of either computation;
 * ``np.maximum`` and ``max`` propagate a NaN; the settling time is
   :func:`~adcs_sim.app.batch_metrics.settling_times`' expression on the last sample outside the band
   and the next one, tracked while the samples go by;
@@ -40,6 +46,16 @@ DEG = 180.0 / math.pi   # numpy's rad2deg factor (180.0 / NPY_PI)
 DURATION, SETTLE_EIGEN, SETTLE_EULER, SETTLE_AXIS, FINAL_EIGEN, TORQUE, ENERGY, PEAK_TORQUE, PEAK_SPEED = \
     0, 1, 2, 3, 6, 7, 8, 9, 12
 N_COLUMNS = 13
+MARGIN = 1e-10   # what _euler_sides leaves to the exact computation: ~1e5 times its rounding errors
+
+
+def euler_bands(tol_deg: float) -> np.ndarray:
+    """_euler_sides' bounds for a band of tol_deg: tan and sin of the band, each 1e-9 (relative) in
+    and out, and whether to use them at all (below 45 degrees)."""
+    band = math.radians(tol_deg)
+    tan, sin = math.tan(band), math.sin(band)
+    return np.array([tan * (1 - 1e-9), tan * (1 + 1e-9), sin * (1 - 1e-9), sin * (1 + 1e-9),
+                     1.0 if tol_deg < 45.0 else 0.0])
 
 
 @njit(**_INNER)
@@ -140,21 +156,96 @@ def _settling(st, s, t, tol):
 
 
 @njit(**_INNER)
-def _attitude_sample(q, r, k, p0, p1, p2, p3, vn, aq, eul, st, tol):
-    """Sample k of run r: |q_v| and |q4| of the error quaternion into vn, aq; its Euler errors tracked."""
+def _error(q, r, k, p0, p1, p2, p3):
+    """The error quaternion of sample k of run r (quat_conjugate(q_ref) = (p0, p1, p2, p3))."""
     x0, x1, x2, x3 = q[r, k, 0], q[r, k, 1], q[r, k, 2], q[r, k, 3]
     e0 = (p3 * x0 + x3 * p0) + (p1 * x2 - p2 * x1)
     e1 = (p3 * x1 + x3 * p1) + (p2 * x0 - p0 * x2)
     e2 = (p3 * x2 + x3 * p2) + (p0 * x1 - p1 * x0)
-    e3 = p3 * x3 - ((p0 * x0 + p1 * x1) + p2 * x2)
-    vn[r, k] = np.sqrt((e0 * e0 + e1 * e1) + e2 * e2)
-    aq[r, k] = abs(e3)
+    return e0, e1, e2, p3 * x3 - ((p0 * x0 + p1 * x1) + p2 * x2)
+
+
+@njit(**_INNER)
+def _exact_euler(e0, e1, e2, e3, eul):
+    """eul[0] = np.abs(np.degrees(euler_213(e))): the absolute 2-1-3 Euler errors, degrees."""
     euler_213_row(e0, e1, e2, e3, eul, 0)
-    a0, a1, a2 = abs(eul[0, 0] * DEG), abs(eul[0, 1] * DEG), abs(eul[0, 2] * DEG)
-    _track(st, 1, k, _nanmax(_nanmax(a0, a1), a2), tol)
-    _track(st, 2, k, a0, tol)
-    _track(st, 3, k, a1, tol)
-    _track(st, 4, k, a2, tol)
+    eul[0, 0], eul[0, 1], eul[0, 2] = abs(eul[0, 0] * DEG), abs(eul[0, 1] * DEG), abs(eul[0, 2] * DEG)
+
+
+@njit(**_INNER)
+def _side(x, y, scale, lo, hi):
+    """0 if x <= lo y certainly (with a margin of MARGIN scale), 1 if x >= hi y certainly, else 2."""
+    if x <= lo * y - MARGIN * scale:
+        return 0
+    if x >= hi * y + MARGIN * scale:
+        return 1
+    return 2
+
+
+@njit(**_INNER)
+def _euler_sides(e0, e1, e2, e3, bands, side):
+    """side[i]: whether Euler angle i of e is certainly inside the band (0), certainly outside (1) or
+    too close to tell (2: compute it), from euler_213_row's a, b, c, d without atan2 or hypot:
+    first = arg((a + ib)(c + id)), third = arg((a + ib)(c - id)) and sin(second) = (v - u) / (u + v)
+    (u = a² + b², v = c² + d²). Unknown near gimbal lock (the kernel's other branches), for a
+    non-finite or zero e, and when bands[4] is 0 (a band of 45 degrees or more)."""
+    a, b, c, d = e3 - e0, e2 + e1, e0 + e3, e1 - e2
+    u, v = a * a + b * b, c * c + d * d
+    if not (bands[4] > 0.0 and abs(v - u) < (1.0 - 1e-6) * (u + v)):
+        side[0] = side[1] = side[2] = 2
+        return
+    scale = (abs(a) + abs(b)) * (abs(c) + abs(d))
+    side[0] = _side(abs(a * d + b * c), a * c - b * d, scale, bands[0], bands[1])
+    side[2] = _side(abs(b * c - a * d), a * c + b * d, scale, bands[0], bands[1])
+    side[1] = _side(abs(v - u), u + v, u + v, bands[2], bands[3])
+
+
+@njit(**_INNER)
+def _euler_value(q, r, k, p0, p1, p2, p3, axis, eul):
+    """Sample k's absolute Euler error about ``axis`` (3: the largest, NaN first), degrees."""
+    e0, e1, e2, e3 = _error(q, r, k, p0, p1, p2, p3)
+    _exact_euler(e0, e1, e2, e3, eul)
+    if axis == 3:
+        return _nanmax(_nanmax(eul[0, 0], eul[0, 1]), eul[0, 2])
+    return eul[0, axis]
+
+
+@njit(**_INNER)
+def _euler_settling(q, r, p0, p1, p2, p3, axis, last, t, tol, eul):
+    """settling_times of the Euler error ``axis`` whose last sample outside the band is ``last``."""
+    n = t.shape[0]
+    if last < 0:
+        return t[0]
+    if last == n - 1:
+        return math.inf
+    e0 = _euler_value(q, r, last, p0, p1, p2, p3, axis, eul)
+    e1 = _euler_value(q, r, last + 1, p0, p1, p2, p3, axis, eul)
+    if not np.isfinite(e0):
+        return t[last + 1]
+    return t[last] + (e0 - tol) / (e0 - e1) * (t[last + 1] - t[last])
+
+
+@njit(**_INNER)
+def _attitude_columns(q, r, p0, p1, p2, p3, t, tol, bands, vn, aq, out):
+    """Run r's |q_v| and |q4| (into vn, aq) and Euler settling times: each sample's angles are
+    computed only when :func:`_euler_sides` cannot tell, and at the last exits."""
+    last, side, eul = np.full(3, -1), np.empty(3, np.int64), np.empty((1, 3))
+    for k in range(q.shape[1]):
+        e0, e1, e2, e3 = _error(q, r, k, p0, p1, p2, p3)
+        vn[r, k] = np.sqrt((e0 * e0 + e1 * e1) + e2 * e2)
+        aq[r, k] = abs(e3)
+        _euler_sides(e0, e1, e2, e3, bands, side)
+        if side[0] == 2 or side[1] == 2 or side[2] == 2:
+            _exact_euler(e0, e1, e2, e3, eul)
+            for i in range(3):
+                side[i] = 0 if eul[0, i] <= tol else 1
+        for i in range(3):
+            if side[i] == 1:
+                last[i] = k
+    out[r, SETTLE_EULER] = _euler_settling(q, r, p0, p1, p2, p3, 3, max(last[0], max(last[1], last[2])),
+                                           t, tol, eul)
+    for i in range(3):
+        out[r, SETTLE_AXIS + i] = _euler_settling(q, r, p0, p1, p2, p3, i, last[i], t, tol, eul)
 
 
 @njit(**_INNER)
@@ -173,23 +264,15 @@ def _torque_columns(u, r, zoh, held, out):
 
 
 @njit(parallel=True, cache=True, error_model='numpy', nogil=True)
-def first_pass(q, q_ref, u, speed, t, zoh, tol, vn, aq, out):
+def first_pass(q, q_ref, u, speed, t, zoh, tol, bands, vn, aq, out):
     """Every column of run_metrics but the eigenaxis ones, for each run r of q (R, K + 1, 4) (its
     target q_ref[r], torques u (R, K, 3), wheel speeds (R, K + 1, n), n >= 1; or n = 0: NaN) on times
-    t (K + 1,) with hold durations zoh (K,); vn[r], aq[r]: |q_v| and |q4| of the error quaternions."""
+    t (K + 1,) with hold durations zoh (K,); vn[r], aq[r]: |q_v| and |q4| of the error quaternions;
+    bands: :func:`euler_bands` of the settling band."""
     R, n = q.shape[0], q.shape[1]
     for r in prange(R):
-        p0, p1, p2, p3 = -q_ref[r, 0], -q_ref[r, 1], -q_ref[r, 2], q_ref[r, 3]
-        st = np.empty((5, 3))
-        for s in range(5):
-            st[s, 0], st[s, 1], st[s, 2] = -1.0, np.nan, np.nan
-        eul = np.empty((1, 3))
-        for k in range(n):
-            _attitude_sample(q, r, k, p0, p1, p2, p3, vn, aq, eul, st, tol)
+        _attitude_columns(q, r, -q_ref[r, 0], -q_ref[r, 1], -q_ref[r, 2], q_ref[r, 3], t, tol, bands, vn, aq, out)
         out[r, DURATION] = t[n - 1]
-        out[r, SETTLE_EULER] = _settling(st, 1, t, tol)
-        for i in range(3):
-            out[r, SETTLE_AXIS + i] = _settling(st, 2 + i, t, tol)
         _torque_columns(u, r, zoh, np.empty((2, zoh.shape[0])), out)
         peak = np.nan
         if speed.shape[2]:
