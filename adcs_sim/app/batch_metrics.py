@@ -213,3 +213,41 @@ def batch_run_metrics(result, tol_deg: float = 0.5) -> list[dict]:
         if result.estimate is not None:   # as BatchResult.metrics: the estimation metrics too
             metrics[j].update(estimation_metrics(series_from_batch(result, j)))
     return metrics
+
+
+def metric_columns(metrics: dict) -> dict[str, float]:
+    """A run's metrics as scalar columns: lists become ``name[0]``, ``name[1]``, ...; ``missed_steps``
+    (a graph-only quantity) is left out."""
+    out: dict[str, float] = {}
+    for key, value in metrics.items():
+        if key == 'missed_steps':
+            continue
+        if isinstance(value, list):
+            out.update({f'{key}[{j}]': float(v) for j, v in enumerate(value)})
+        else:
+            out[key] = float(value)
+    return out
+
+
+def batch_metric_columns(result, tol_deg: float = 0.5) -> list[dict[str, float]]:
+    """``[metric_columns(m) for m in batch_run_metrics(result, tol_deg)]`` (a campaign's rows), the full
+    runs' columns taken from the batch arrays directly instead of through a dict of lists per run."""
+    K = result.t.size - 1
+    full = (result.n_steps == K) & np.array([f is None for f in result.failure], dtype=bool)
+    rows = np.flatnonzero(full)
+    if K < 1 or result.estimate is not None or not rows.size:
+        return [metric_columns(m) for m in batch_run_metrics(result, tol_deg)]
+    with np.errstate(all='ignore'):
+        columns = _full_run_columns(result, rows, tol_deg)
+    flat = []
+    for key, values in columns.items():
+        if values.ndim == 2:
+            flat += [(f'{key}[{i}]', values[:, i].tolist()) for i in range(values.shape[1])]
+        else:
+            flat.append((key, np.asarray(values, dtype=float).tolist()))
+    out: list = [None] * result.n_runs
+    for r, j in enumerate(rows.tolist()):
+        out[j] = {name: values[r] for name, values in flat}
+    for j in np.flatnonzero(~full).tolist():
+        out[j] = metric_columns(run_metrics(result.run_data(j), tol_deg))
+    return out

@@ -59,7 +59,7 @@ from adcs_msgs_py.params import ParameterError, unflatten
 from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.app.analysis import RunData, attitude_errors_deg, pointing_error_deg, run_metrics
 from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.batch_metrics import batch_run_metrics
+from adcs_sim.app.batch_metrics import batch_metric_columns, metric_columns
 from adcs_sim.app.estimation import estimation_metric_names
 from adcs_sim.app.registry import NODES
 from adcs_sim.app.scenario_files import RunError, config_dirs, resolve_scenario, validate_scenario
@@ -87,20 +87,6 @@ def metric_names(tol_deg: float, pointing: bool = False) -> list[str]:
                     t_u=t[:1], u=np.zeros((1, 3)), missed_steps=0,
                     pointing=(np.array([1.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0])) if pointing else None)
     return list(metric_columns(run_metrics(dummy, tol_deg)))
-
-
-def metric_columns(metrics: dict) -> dict[str, float]:
-    """A run's metrics as scalar columns: lists become ``name[0]``, ``name[1]``, ...; ``missed_steps``
-    (a graph-only quantity) is left out."""
-    out: dict[str, float] = {}
-    for key, value in metrics.items():
-        if key == 'missed_steps':
-            continue
-        if isinstance(value, list):
-            out.update({f'{key}[{j}]': float(v) for j, v in enumerate(value)})
-        else:
-            out[key] = float(value)
-    return out
 
 
 @dataclass
@@ -525,10 +511,10 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
     inputs = campaign.draws(indices)
     result = BatchSimulation(campaign.batch_sections(indices, inputs), len(indices)).run()
     with np.errstate(all='ignore'):  # a diverged run's metrics overflow to inf: that is the result
-        metrics = batch_run_metrics(result, campaign.tol_deg)  # each run's result.metrics(j, tol)
+        metrics = batch_metric_columns(result, campaign.tol_deg)  # metric_columns(result.metrics(j, tol))
     rows = []
     for j, index in enumerate(indices):
-        columns = metric_columns(metrics[j])
+        columns = metrics[j]
         status, reason = 'ok', ''
         if result.failure[j]:
             status, reason = 'failed', result.failure[j]
