@@ -157,3 +157,19 @@ def test_euler_angles_on_the_band_and_near_gimbal_lock(tol):
                               angles[..., 1])
     angles[:, -3:] = rng.uniform(-tol, tol, size=(R, 3, 3)) * 0.999   # most runs settle
     _same(_euler_batch(rng, angles), tol)
+
+
+@pytest.mark.parametrize('tol', [0.5, 2e-7, 30.0, 50.0])
+def test_eigenaxis_errors_on_the_band(tol):
+    """Rotation angles a few ulp to 1e-7 (relative) from the band: runs whose last samples cannot be
+    told from numpy's arctan2 take it at every sample, the others at their last exit and end only."""
+    rng = np.random.default_rng(int(tol * 100) + 5)
+    R, n = 16, 40
+    angle = tol * (1.0 + rng.choice([-1, 1], size=(R, n)) * 10.0 ** rng.uniform(-16, -7, size=(R, n)))
+    angle[::2, n // 2:] = tol * rng.uniform(0.0, 0.99, size=(R // 2, n - n // 2))   # even runs settle
+    angle[1::4, -1] = tol * 1.5
+    angle[3, -5:] = np.nan
+    with np.errstate(invalid='ignore'):
+        q = _quaternions(rng, angle)
+    batch = _result(q, rng.normal(size=(R, n - 1, 3)), rng.normal(size=(R, n, 3)), np.array([0.0, 0.0, 0.0, 1.0]))
+    _same(batch, tol)

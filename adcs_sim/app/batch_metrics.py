@@ -99,10 +99,20 @@ def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.
     u = np.ascontiguousarray(result.u[take])
     speed = (np.ascontiguousarray(result.wheel_speed[take]) if result.wheel_names and result.wheel_speed.shape[-1]
              else np.zeros((rows.size, K + 1, 0)))
-    vn, aq, cols = np.empty(q.shape[:2]), np.empty(q.shape[:2]), np.empty((rows.size, mk.N_COLUMNS))
-    mk.first_pass(q, np.ascontiguousarray(q_ref, dtype=float), u, speed, t, zoh_durations(t[:K], t_end),
-                  float(tol_deg), mk.euler_bands(float(tol_deg)), vn, aq, cols)
-    mk.second_pass(np.arctan2(vn, aq), t, float(tol_deg), cols)   # numpy's arctan2, as eigenaxis_angle
+    q_ref = np.ascontiguousarray(q_ref, dtype=float)
+    eigen, gv, ga = np.empty((rows.size, 2), np.int64), np.empty((rows.size, 3)), np.empty((rows.size, 3))
+    cols = np.empty((rows.size, mk.N_COLUMNS))
+    mk.first_pass(q, q_ref, u, speed, t, zoh_durations(t[:K], t_end), float(tol_deg),
+                  mk.euler_bands(float(tol_deg)), eigen, gv, ga, cols)
+    # the eigenaxis angle: numpy's arctan2 (as eigenaxis_angle), at the samples the settling time and
+    # final value need; of every sample for a run with one too close to the band to tell
+    mk.eigen_columns(np.arctan2(gv, ga), eigen, t, float(tol_deg), cols)
+    every = np.flatnonzero(eigen[:, 1])
+    if every.size:
+        qe, vn, sub = np.empty((every.size,) + q.shape[1:]), np.empty((every.size, K + 1)), cols[every]
+        error_quaternions(np.ascontiguousarray(q[every]), np.ascontiguousarray(q_ref[every]), qe, vn)
+        mk.second_pass(np.arctan2(vn, np.abs(qe[..., 3])), t, float(tol_deg), sub)
+        cols[every] = sub
     out = {
         'duration_s': cols[:, mk.DURATION],
         f'settling_eigenaxis_{tol_deg:g}deg_s': cols[:, mk.SETTLE_EIGEN],
@@ -116,7 +126,7 @@ def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.
     }
     if result.faults:
         qe = np.empty(q.shape)
-        error_quaternions(q, np.ascontiguousarray(q_ref, dtype=float), qe, vn)
+        error_quaternions(q, q_ref, qe, np.empty(q.shape[:2]))
         out.update(_fault_columns(result, t, qe, (u[..., 0], u[..., 1], u[..., 2]), t_end))
     if result.pointing is not None:
         sigma, tau = result.pointing

@@ -4,10 +4,13 @@
 of every full run of a batch at once. Written with numpy over ``(runs, samples)`` arrays it made
 ~40 passes over the history (error quaternions, Euler angles, degrees, absolute values, maxima,
 settling masks, reversed ``argmax``, products and sums), each allocating its result. Here
-:func:`first_pass` computes, run by run in one pass over its samples, everything but the eigenaxis
-angle; numpy's ``arctan2`` gives the angle (its vectorised loop is not the C library's ``atan2``:
-it stays numpy's call, on the same contiguous arrays as before); :func:`second_pass` takes the
-settling time and final value of the angle. Every value is the numpy code's bit for bit:
+:func:`first_pass` computes, run by run in one pass over its samples, every column; of the
+eigenaxis angle ``degrees(2 arctan2(|q_v|, |q4|))`` it finds which samples are outside the band
+(``|q_v| <= tan(band / 2) |q4|``, with the margins below) and numpy's ``arctan2`` (numpy's own
+element-wise loop, which need not be the C library's ``atan2``) is then called on the three
+samples a run needs (its last exit, the next sample, its last one: :func:`eigen_columns`), or on
+all of a run's samples (:func:`second_pass`) when one after its last certain exit is too close to
+the band to tell. Every value is the numpy code's bit for bit:
 
 * the error quaternion and ``|q_v|``: :func:`adcs_sim.app.batch_metrics.error_quaternions`' own
   operations; the 2-1-3 Euler angles: :func:`adcs_core.euler_kernel.euler_213_row`;
@@ -51,11 +54,11 @@ MARGIN = 1e-10   # what _euler_sides leaves to the exact computation: ~1e5 times
 
 def euler_bands(tol_deg: float) -> np.ndarray:
     """_euler_sides' bounds for a band of tol_deg: tan and sin of the band, each 1e-9 (relative) in
-    and out, and whether to use them at all (below 45 degrees)."""
+    and out, whether to use them at all (below 45 degrees), and _eigen_side's tan of half the band."""
     band = math.radians(tol_deg)
-    tan, sin = math.tan(band), math.sin(band)
+    tan, sin, half = math.tan(band), math.sin(band), math.tan(band / 2)
     return np.array([tan * (1 - 1e-9), tan * (1 + 1e-9), sin * (1 - 1e-9), sin * (1 + 1e-9),
-                     1.0 if tol_deg < 45.0 else 0.0])
+                     1.0 if tol_deg < 45.0 else 0.0, half * (1 - 1e-9), half * (1 + 1e-9)])
 
 
 @njit(**_INNER)
@@ -201,6 +204,25 @@ def _euler_sides(e0, e1, e2, e3, bands, side):
 
 
 @njit(**_INNER)
+def _eigen_side(vn, aq, bands):
+    """Whether the eigenaxis error degrees(2 arctan2(vn, aq)) is certainly inside the band (0),
+    outside (1), or too close to tell (2: numpy's arctan2 decides); vn, aq >= 0."""
+    if bands[4] > 0.0:
+        return _side(vn, aq, vn + aq, bands[5], bands[6])
+    return 2
+
+
+@njit(**_INNER)
+def _eigen_samples(q, r, p0, p1, p2, p3, last, gv, ga):
+    """gv[r], ga[r] = |q_v|, |q4| of the samples numpy's arctan2 is needed at: the last exit from
+    the band, the next one, and the final sample (as error_quaternions computes them)."""
+    n = q.shape[1]
+    for j, k in enumerate((max(last, 0), min(last + 1, n - 1), n - 1)):
+        e0, e1, e2, e3 = _error(q, r, k, p0, p1, p2, p3)
+        gv[r, j], ga[r, j] = np.sqrt((e0 * e0 + e1 * e1) + e2 * e2), abs(e3)
+
+
+@njit(**_INNER)
 def _euler_value(q, r, k, p0, p1, p2, p3, axis, eul):
     """Sample k's absolute Euler error about ``axis`` (3: the largest, NaN first), degrees."""
     e0, e1, e2, e3 = _error(q, r, k, p0, p1, p2, p3)
@@ -226,14 +248,19 @@ def _euler_settling(q, r, p0, p1, p2, p3, axis, last, t, tol, eul):
 
 
 @njit(**_INNER)
-def _attitude_columns(q, r, p0, p1, p2, p3, t, tol, bands, vn, aq, out):
-    """Run r's |q_v| and |q4| (into vn, aq) and Euler settling times: each sample's angles are
-    computed only when :func:`_euler_sides` cannot tell, and at the last exits."""
+def _attitude_columns(q, r, p0, p1, p2, p3, t, tol, bands, eigen, gv, ga, out):
+    """Run r's Euler settling times (each sample's angles computed only when :func:`_euler_sides`
+    cannot tell, and at the last exits) and its eigenaxis error's last exit: eigen[r] = (last
+    sample certainly outside, 1 if a later sample was too close to tell), gv, ga (_eigen_samples)."""
     last, side, eul = np.full(3, -1), np.empty(3, np.int64), np.empty((1, 3))
+    last_e, unknown_e = -1, -1
     for k in range(q.shape[1]):
         e0, e1, e2, e3 = _error(q, r, k, p0, p1, p2, p3)
-        vn[r, k] = np.sqrt((e0 * e0 + e1 * e1) + e2 * e2)
-        aq[r, k] = abs(e3)
+        se = _eigen_side(np.sqrt((e0 * e0 + e1 * e1) + e2 * e2), abs(e3), bands)
+        if se == 1:
+            last_e = k
+        elif se == 2:
+            unknown_e = k
         _euler_sides(e0, e1, e2, e3, bands, side)
         if side[0] == 2 or side[1] == 2 or side[2] == 2:
             _exact_euler(e0, e1, e2, e3, eul)
@@ -246,6 +273,8 @@ def _attitude_columns(q, r, p0, p1, p2, p3, t, tol, bands, vn, aq, out):
                                            t, tol, eul)
     for i in range(3):
         out[r, SETTLE_AXIS + i] = _euler_settling(q, r, p0, p1, p2, p3, i, last[i], t, tol, eul)
+    eigen[r, 0], eigen[r, 1] = last_e, 1 if unknown_e > last_e else 0
+    _eigen_samples(q, r, p0, p1, p2, p3, last_e, gv, ga)
 
 
 @njit(**_INNER)
@@ -264,14 +293,15 @@ def _torque_columns(u, r, zoh, held, out):
 
 
 @njit(parallel=True, cache=True, error_model='numpy', nogil=True)
-def first_pass(q, q_ref, u, speed, t, zoh, tol, bands, vn, aq, out):
+def first_pass(q, q_ref, u, speed, t, zoh, tol, bands, eigen, gv, ga, out):
     """Every column of run_metrics but the eigenaxis ones, for each run r of q (R, K + 1, 4) (its
     target q_ref[r], torques u (R, K, 3), wheel speeds (R, K + 1, n), n >= 1; or n = 0: NaN) on times
-    t (K + 1,) with hold durations zoh (K,); vn[r], aq[r]: |q_v| and |q4| of the error quaternions;
-    bands: :func:`euler_bands` of the settling band."""
+    t (K + 1,) with hold durations zoh (K,); bands: :func:`euler_bands` of the settling band;
+    eigen (R, 2) int, gv, ga (R, 3): what :func:`eigen_columns` needs (_attitude_columns)."""
     R, n = q.shape[0], q.shape[1]
     for r in prange(R):
-        _attitude_columns(q, r, -q_ref[r, 0], -q_ref[r, 1], -q_ref[r, 2], q_ref[r, 3], t, tol, bands, vn, aq, out)
+        _attitude_columns(q, r, -q_ref[r, 0], -q_ref[r, 1], -q_ref[r, 2], q_ref[r, 3], t, tol, bands, eigen, gv, ga,
+                          out)
         out[r, DURATION] = t[n - 1]
         _torque_columns(u, r, zoh, np.empty((2, zoh.shape[0])), out)
         peak = np.nan
@@ -297,3 +327,23 @@ def second_pass(half_angle, t, tol, out):
             _track(st, 0, k, e, tol)
         out[r, SETTLE_EIGEN] = _settling(st, 0, t, tol)
         out[r, FINAL_EIGEN] = e
+
+
+@njit(cache=True, error_model='numpy', nogil=True)
+def eigen_columns(half_angle, eigen, t, tol, out):
+    """The eigenaxis error's settling time and final value of each run r with eigen[r, 1] == 0 (its
+    last exit eigen[r, 0] known) from numpy's arctan2 at its _eigen_samples, half_angle (R, 3)."""
+    n = t.shape[0]
+    for r in range(half_angle.shape[0]):
+        if eigen[r, 1]:
+            continue
+        last = eigen[r, 0]
+        out[r, FINAL_EIGEN] = (2.0 * half_angle[r, 2]) * DEG
+        if last < 0:
+            out[r, SETTLE_EIGEN] = t[0]
+        elif last == n - 1:
+            out[r, SETTLE_EIGEN] = math.inf
+        else:
+            e0, e1 = (2.0 * half_angle[r, 0]) * DEG, (2.0 * half_angle[r, 1]) * DEG
+            out[r, SETTLE_EIGEN] = t[last + 1] if not np.isfinite(e0) else \
+                t[last] + (e0 - tol) / (e0 - e1) * (t[last + 1] - t[last])
