@@ -129,8 +129,9 @@ def print_comparison(times: dict[str, list[dict]], old: Path, bsk: dict | None) 
               f'{statistics.median(total):.3f} s [{min(total):.3f}-{max(total):.3f}]; CPU load '
               f'{m["load_cpu"]:.3f} s, chunks {m["chunks_cpu"]:.3f} s')
     new_total, old_total = (med[k]['load'] + med[k]['chunks'] for k in ('new', 'old'))
+    new_cpu, old_cpu = (med[k]['load_cpu'] + med[k]['chunks_cpu'] for k in ('new', 'old'))
     print(f'  old/new: chunks {med["old"]["chunks"] / med["new"]["chunks"]:.2f}x, with the load '
-          f'{old_total / new_total:.2f}x (wall); CPU {(med["old"]["load_cpu"] + med["old"]["chunks_cpu"]) / (med["new"]["load_cpu"] + med["new"]["chunks_cpu"]):.2f}x')
+          f'{old_total / new_total:.2f}x (wall); CPU {old_cpu / new_cpu:.2f}x')
     if bsk is not None:
         wall, cpu = bsk['s_per_run'] * n, bsk.get('cpu_s_per_run', math.nan) * n
         for name in ('new', 'old'):
