@@ -63,6 +63,7 @@ from adcs_sim.app.batch_metrics import batch_metric_columns, metric_columns
 from adcs_sim.app.estimation import estimation_metric_names
 from adcs_sim.app.registry import NODES
 from adcs_sim.app.scenario_files import RunError, config_dirs, resolve_scenario, validate_scenario
+from adcs_sim.app.seeding import run_generators
 
 DISTRIBUTIONS = {
     'normal': ({'std'}, {'mean', 'link'}),
@@ -387,8 +388,7 @@ class Campaign:
         bits as drawing run by run)."""
         samplers = [d.sampler(self._nominal_value(d.section, d.key)) for d in self.dispersions]
         raws: list[list] = [[] for _ in samplers]
-        for index in indices:
-            rng = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(index,)))
+        for index, rng in zip(indices, run_generators(self.seed, indices)):   # default_rng(SeedSequence)'s
             for (raw, _), out in zip(samplers, raws):
                 out.append(raw(rng, index))
         if not indices:
