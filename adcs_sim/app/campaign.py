@@ -468,14 +468,18 @@ class Campaign:
             runs = [self.run_sections(i, d) for i, d in zip(indices, inputs)]
             return {name: NODES[name].schema.stack([r[name] for r in runs]) for name in runs[0]
                     if NODES[name].role != 'recorder'}
-        per_run = [self._changes(d) for d in inputs]
+        stacked: dict[str, dict[str, list]] = {}   # _changes of every run, a list over the runs per key
+        for d, column in zip(self.dispersions, zip(*[list(d.values()) for d in inputs])):
+            stacked.setdefault(d.section, {})[d.key] = list(column)
+            for section, key in d.links:
+                stacked.setdefault(section, {})[key] = [list(v) if isinstance(v, list) else v for v in column]
         out = {}
         for section in self.nominal:
             if NODES[section].role == 'recorder':
                 continue
             out[section] = values = dict(self.defaults[section])
-            for key in per_run[0].get(section, {}):
-                values[key] = NODES[section].schema.stack_values(key, [changes[section][key] for changes in per_run])
+            for key, column in stacked.get(section, {}).items():
+                values[key] = NODES[section].schema.stack_values(key, column)
         return out
 
     def scenario_text(self, index: int) -> str:
