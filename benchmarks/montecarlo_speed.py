@@ -22,11 +22,23 @@ attTrackingError, mrpFeedback as PD, rwMotorTorque at the control period), a tim
 (process CPU time, all threads: on a shared, loaded machine the wall times of two measurements taken
 a minute apart can differ several-fold, the CPU times much less); the Basilisk ratio also with
 ``Campaign.load`` (reading the files and validating every run's draw, once per campaign) added to ours.
+
+``--compare OLD_TREE`` (e.g. ``git archive <commit> | tar -x -C /tmp/old``): the campaign as
+``adcs-montecarlo --scheduler none`` runs it (``Campaign.load``, then every chunk), this tree and the
+old one alternately ``--repeat`` times, each in its own persistent child process (cwd and
+``PYTHONPATH`` = its tree; warmed up first), wall and CPU time of the load and of the chunks; the
+rows of both trees compared (a hash of their ``repr``: the same bits). With ``--basilisk``, the
+Basilisk ratio of both (median totals). ``--fused-only`` skips (b) and (c) (e.g. for the seed 003
+Table 1 campaign, whose numpy path takes minutes).
 """
 from __future__ import annotations
 
 import argparse
+import json
 import math
+import os
+import statistics
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -60,6 +72,78 @@ def timed_campaign(campaign: Campaign, compiled: bool, fused: bool = True) -> tu
         kernel.ENABLED = fused_loop.ENABLED = True
 
 
+CHILD = r"""
+import hashlib, json, sys, time
+from adcs_sim.app.campaign import Campaign, run_chunk
+path, runs = sys.argv[1], None if sys.argv[2] == 'all' else int(sys.argv[2])
+warm = Campaign.load(path, runs=2)
+[run_chunk(warm, chunk) for chunk in warm.chunks()]
+for _ in sys.stdin:
+    t0, c0 = time.perf_counter(), time.process_time()
+    campaign = Campaign.load(path, runs=runs)
+    t1, c1 = time.perf_counter(), time.process_time()
+    rows = [row for chunk in campaign.chunks() for row in run_chunk(campaign, chunk)]
+    t2, c2 = time.perf_counter(), time.process_time()
+    print(json.dumps({'load': t1 - t0, 'chunks': t2 - t1, 'load_cpu': c1 - c0, 'chunks_cpu': c2 - c1,
+                      'runs': campaign.runs, 'rows': hashlib.sha256(repr(rows).encode()).hexdigest()}), flush=True)
+"""
+
+
+def compare_trees(campaign: Path, runs: int | None, old: Path, repeat: int) -> dict[str, list[dict]]:
+    """Each tree's timings (module docstring), the two children asked in turn."""
+    children = {}
+    for name, tree in (('new', ROOT), ('old', old.resolve())):
+        env = dict(os.environ, PYTHONPATH=str(tree))
+        children[name] = subprocess.Popen([sys.executable, '-c', CHILD, str(campaign.resolve()),
+                                           'all' if runs is None else str(runs)], cwd=tree, env=env,
+                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    out: dict[str, list[dict]] = {'new': [], 'old': []}
+    try:
+        for i in range(repeat):
+            for name in (('new', 'old') if i % 2 == 0 else ('old', 'new')):
+                child = children[name]
+                child.stdin.write('go\n')
+                child.stdin.flush()
+                line = child.stdout.readline()
+                if not line:
+                    raise RuntimeError(f'the {name} tree\'s child died (exit {child.wait()})')
+                out[name].append(json.loads(line))
+    finally:
+        for child in children.values():
+            child.stdin.close()
+            child.wait()
+    return out
+
+
+def print_comparison(times: dict[str, list[dict]], old: Path, bsk: dict | None) -> bool:
+    """Print medians (and ranges) of both trees; whether their rows are the same."""
+    med = {name: {k: statistics.median(t[k] for t in ts) for k in ('load', 'chunks', 'load_cpu', 'chunks_cpu')}
+           for name, ts in times.items()}
+    n = times['new'][0]['runs']
+    print(f'--compare {old}: {len(times["new"])} alternated measurements each (median, [min-max]), {n} runs')
+    for name in ('new', 'old'):
+        ts, m = times[name], med[name]
+        total = [t['load'] + t['chunks'] for t in ts]
+        print(f'  {name}: Campaign.load {m["load"]:.3f} s, chunks {m["chunks"]:.3f} s '
+              f'[{min(t["chunks"] for t in ts):.3f}-{max(t["chunks"] for t in ts):.3f}], total '
+              f'{statistics.median(total):.3f} s [{min(total):.3f}-{max(total):.3f}]; CPU load '
+              f'{m["load_cpu"]:.3f} s, chunks {m["chunks_cpu"]:.3f} s')
+    new_total, old_total = (med[k]['load'] + med[k]['chunks'] for k in ('new', 'old'))
+    new_cpu, old_cpu = (med[k]['load_cpu'] + med[k]['chunks_cpu'] for k in ('new', 'old'))
+    print(f'  old/new: chunks {med["old"]["chunks"] / med["new"]["chunks"]:.2f}x, with the load '
+          f'{old_total / new_total:.2f}x (wall); CPU {old_cpu / new_cpu:.2f}x')
+    if bsk is not None:
+        wall, cpu = bsk['s_per_run'] * n, bsk.get('cpu_s_per_run', math.nan) * n
+        for name in ('new', 'old'):
+            m = med[name]
+            print(f'  Basilisk ({wall:.1f} s wall, {cpu:.1f} s CPU) / {name}: {wall / m["chunks"]:.1f}x by wall, '
+                  f'{wall / (m["load"] + m["chunks"]):.1f}x counting Campaign.load; CPU '
+                  f'{cpu / (m["load_cpu"] + m["chunks_cpu"]):.1f}x counting the load  (target >= 100)')
+    same = {t['rows'] for ts in times.values() for t in ts}
+    print('  rows: the same bits in both trees' if len(same) == 1 else f'  MISMATCH: {len(same)} different row sets')
+    return len(same) == 1
+
+
 def basilisk_per_run(campaign: Campaign, sample: int) -> tuple[dict | None, str]:
     python, why = basilisk_python()
     if python is None:
@@ -90,7 +174,22 @@ def main() -> int:
     parser.add_argument('--runs', type=int, default=None, help='first N runs only (default: all)')
     parser.add_argument('--basilisk', action='store_true', help='also time a sample of bsk 2.12.1 runs')
     parser.add_argument('--bsk-sample', type=int, default=5)
+    parser.add_argument('--compare', type=Path, default=None, metavar='OLD_TREE',
+                        help='also time the campaign in an old tree, alternated with this one')
+    parser.add_argument('--repeat', type=int, default=5, help='--compare: measurements of each tree')
+    parser.add_argument('--fused-only', action='store_true', help='skip the (b) kernel and (c) numpy paths')
     args = parser.parse_args()
+    if args.compare is not None:
+        times = compare_trees(args.campaign, args.runs, args.compare, args.repeat)
+        bsk = None
+        if args.basilisk:
+            bsk, why = basilisk_per_run(Campaign.load(args.campaign, runs=args.runs), args.bsk_sample)
+            if bsk is None:
+                print(f'Basilisk: not measured ({why})')
+        if not print_comparison(times, args.compare, bsk):
+            return 1
+        if args.fused_only:
+            return 0
     t0, c0 = time.perf_counter(), time.process_time()
     campaign = Campaign.load(args.campaign, runs=args.runs)
     load = time.perf_counter() - t0   # reading the files and validating every run's draw, once
@@ -99,6 +198,9 @@ def main() -> int:
     timed_campaign(warm, True)
     timed_campaign(warm, True, fused=False)
     fast, rows = timed_campaign(campaign, True)
+    if args.fused_only:
+        print(f'{args.campaign.name}: {campaign.runs} runs, Campaign.load {load:.2f} s, chunks {fast:.2f} s')
+        return 0
     step, rows_step = timed_campaign(campaign, True, fused=False)
     slow, rows_numpy = timed_campaign(campaign, False, fused=False)
     if not repr(rows) == repr(rows_step) == repr(rows_numpy):

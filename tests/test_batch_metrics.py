@@ -15,7 +15,8 @@ from conftest import make_scenario
 from test_batch import batch_of
 
 from adcs_sim.app.analysis import first_entry_time, settling_time
-from adcs_sim.app.batch_metrics import batch_run_metrics, first_entry_times, settling_times
+from adcs_sim.app.batch_metrics import (batch_metric_columns, batch_run_metrics, first_entry_times, metric_columns,
+                                        settling_times)
 
 T = np.arange(6, dtype=float) * 0.5
 ERRORS = np.array([
@@ -39,6 +40,8 @@ def same_metrics(result, tol: float = 0.5) -> None:
     batch = batch_run_metrics(result, tol)
     loop = [result.metrics(j, tol) for j in range(result.n_runs)]
     assert repr(batch) == repr(loop)
+    # a campaign's rows: the scalar columns straight from the batch arrays
+    assert repr(batch_metric_columns(result, tol)) == repr([metric_columns(m) for m in loop])
 
 
 def test_batch_metrics_equal_run_metrics_with_early_ends_and_divergence(tmp_path):

@@ -95,3 +95,23 @@ def test_a_checked_campaigns_batch_sections_are_its_validated_runs_stacked(tmp_p
         alone = campaign.batch_sections([5], [inputs[2]])   # one run: nothing stacked
         campaign.checked = True
         _same_sections(alone, campaign.batch_sections([5], [inputs[2]]))
+
+
+def test_draws_reuse_the_loads_draws_and_only_for_the_same_seed_and_dispersions(tmp_path):
+    """Campaign.load draws every run once (check_runs); draws() takes a chunk's rows from those, the
+    same values as drawing the chunk's runs again, and draws afresh once the seed, the run count or
+    a dispersion changed (or for an index beyond the runs)."""
+    campaign = Campaign.load(write_campaign(tmp_path, runs=9, dispersions=DISPERSIONS))
+    assert campaign._drawn is not None
+    fresh = lambda c, idx: [dict(zip([d.target for d in c.dispersions], row))  # noqa: E731
+                            for row in zip(*[col.tolist() for col in c.draw_columns(idx)])]
+    for indices in ([0, 1, 2], [8, 3, 4], [], [5]):
+        assert repr(campaign.draws(indices)) == repr(fresh(campaign, indices)) == repr(
+            [campaign.draw(i) for i in indices])
+    assert repr(campaign.draws([9, 10])) == repr([campaign.draw(i) for i in (9, 10)])
+    cached = repr(campaign.draws([2]))
+    campaign.seed += 1
+    assert repr(campaign.draws([2])) == repr([campaign.draw(2)]) != cached
+    campaign.seed -= 1
+    campaign.dispersions[2].args['plus_minus'] = np.asarray(0.02)
+    assert repr(campaign.draws([2])) == repr([campaign.draw(2)]) != cached

@@ -21,6 +21,7 @@ import numpy as np
 from numba import njit, prange
 
 from adcs_core.attitude import euler_213, pointing_error
+from adcs_sim.app import metrics_kernel as mk
 from adcs_sim.app.analysis import POINTING_BANDS_DEG, run_metrics, zoh_durations
 from adcs_sim.app.estimation import estimation_metrics, series_from_batch
 
@@ -88,7 +89,53 @@ def _pointing_columns(t: np.ndarray, error_deg: np.ndarray, bands) -> dict[str, 
 
 def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.ndarray]:
     """The metrics of runs ``rows`` (each simulated over the whole grid), one array per metric
-    (a list-valued metric: an array (runs, n)), in :func:`run_metrics`' order."""
+    (a list-valued metric: an array (runs, n)), in :func:`run_metrics`' order: the compiled passes of
+    :mod:`adcs_sim.app.metrics_kernel` (:func:`full_run_columns_numpy`'s numbers bit for bit)."""
+    K = result.t.size - 1
+    t, t_end = result.t, float(result.t[K])
+    take = slice(None) if rows.size == result.n_runs else rows   # every run: views, not copies
+    q = np.ascontiguousarray(result.q[take])
+    q_ref = result.q_ref[take] if result.q_ref.ndim == 2 else np.broadcast_to(result.q_ref, (rows.size, 4))
+    u = np.ascontiguousarray(result.u[take])
+    speed = (np.ascontiguousarray(result.wheel_speed[take]) if result.wheel_names and result.wheel_speed.shape[-1]
+             else np.zeros((rows.size, K + 1, 0)))
+    q_ref = np.ascontiguousarray(q_ref, dtype=float)
+    eigen, gv, ga = np.empty((rows.size, 2), np.int64), np.empty((rows.size, 3)), np.empty((rows.size, 3))
+    cols = np.empty((rows.size, mk.N_COLUMNS))
+    mk.first_pass(q, q_ref, u, speed, t, zoh_durations(t[:K], t_end), float(tol_deg),
+                  mk.euler_bands(float(tol_deg)), eigen, gv, ga, cols)
+    # the eigenaxis angle: numpy's arctan2 (as eigenaxis_angle), at the samples the settling time and
+    # final value need; of every sample for a run with one too close to the band to tell
+    mk.eigen_columns(np.arctan2(gv, ga), eigen, t, float(tol_deg), cols)
+    every = np.flatnonzero(eigen[:, 1])
+    if every.size:
+        qe, vn, sub = np.empty((every.size,) + q.shape[1:]), np.empty((every.size, K + 1)), cols[every]
+        error_quaternions(np.ascontiguousarray(q[every]), np.ascontiguousarray(q_ref[every]), qe, vn)
+        mk.second_pass(np.arctan2(vn, np.abs(qe[..., 3])), t, float(tol_deg), sub)
+        cols[every] = sub
+    out = {
+        'duration_s': cols[:, mk.DURATION],
+        f'settling_eigenaxis_{tol_deg:g}deg_s': cols[:, mk.SETTLE_EIGEN],
+        f'settling_euler213_{tol_deg:g}deg_s': cols[:, mk.SETTLE_EULER],
+        'settling_euler213_per_axis_s': cols[:, mk.SETTLE_AXIS:mk.SETTLE_AXIS + 3],
+        'final_eigenaxis_error_deg': cols[:, mk.FINAL_EIGEN],
+        'integrated_torque_Nms': cols[:, mk.TORQUE],
+        'control_energy_N2m2s': cols[:, mk.ENERGY],
+        'peak_torque_Nm': cols[:, mk.PEAK_TORQUE:mk.PEAK_TORQUE + 3],
+        'peak_wheel_speed_rad_s': cols[:, mk.PEAK_SPEED],
+    }
+    if result.faults:
+        qe = np.empty(q.shape)
+        error_quaternions(q, q_ref, qe, np.empty(q.shape[:2]))
+        out.update(_fault_columns(result, t, qe, (u[..., 0], u[..., 1], u[..., 2]), t_end))
+    if result.pointing is not None:
+        sigma, tau = result.pointing
+        out.update(_pointing_columns(t, np.degrees(pointing_error(q, sigma, tau)), POINTING_BANDS_DEG))
+    return out
+
+
+def full_run_columns_numpy(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.ndarray]:
+    """:func:`_full_run_columns` in numpy over the batch axis (the reference of the compiled passes)."""
     K = result.t.size - 1
     t, t_u, t_end = result.t, result.t[:K], float(result.t[K])
     take = slice(None) if rows.size == result.n_runs else rows   # every run: views, not copies
@@ -176,3 +223,41 @@ def batch_run_metrics(result, tol_deg: float = 0.5) -> list[dict]:
         if result.estimate is not None:   # as BatchResult.metrics: the estimation metrics too
             metrics[j].update(estimation_metrics(series_from_batch(result, j)))
     return metrics
+
+
+def metric_columns(metrics: dict) -> dict[str, float]:
+    """A run's metrics as scalar columns: lists become ``name[0]``, ``name[1]``, ...; ``missed_steps``
+    (a graph-only quantity) is left out."""
+    out: dict[str, float] = {}
+    for key, value in metrics.items():
+        if key == 'missed_steps':
+            continue
+        if isinstance(value, list):
+            out.update({f'{key}[{j}]': float(v) for j, v in enumerate(value)})
+        else:
+            out[key] = float(value)
+    return out
+
+
+def batch_metric_columns(result, tol_deg: float = 0.5) -> list[dict[str, float]]:
+    """``[metric_columns(m) for m in batch_run_metrics(result, tol_deg)]`` (a campaign's rows), the full
+    runs' columns taken from the batch arrays directly instead of through a dict of lists per run."""
+    K = result.t.size - 1
+    full = (result.n_steps == K) & np.array([f is None for f in result.failure], dtype=bool)
+    rows = np.flatnonzero(full)
+    if K < 1 or result.estimate is not None or not rows.size:
+        return [metric_columns(m) for m in batch_run_metrics(result, tol_deg)]
+    with np.errstate(all='ignore'):
+        columns = _full_run_columns(result, rows, tol_deg)
+    flat = []
+    for key, values in columns.items():
+        if values.ndim == 2:
+            flat += [(f'{key}[{i}]', values[:, i].tolist()) for i in range(values.shape[1])]
+        else:
+            flat.append((key, np.asarray(values, dtype=float).tolist()))
+    out: list = [None] * result.n_runs
+    for r, j in enumerate(rows.tolist()):
+        out[j] = {name: values[r] for name, values in flat}
+    for j in np.flatnonzero(~full).tolist():
+        out[j] = metric_columns(run_metrics(result.run_data(j), tol_deg))
+    return out

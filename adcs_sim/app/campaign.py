@@ -59,10 +59,11 @@ from adcs_msgs_py.params import ParameterError, unflatten
 from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.app.analysis import RunData, attitude_errors_deg, pointing_error_deg, run_metrics
 from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.batch_metrics import batch_run_metrics
+from adcs_sim.app.batch_metrics import batch_metric_columns, metric_columns
 from adcs_sim.app.estimation import estimation_metric_names
 from adcs_sim.app.registry import NODES
 from adcs_sim.app.scenario_files import RunError, config_dirs, resolve_scenario, validate_scenario
+from adcs_sim.app.seeding import run_generators
 
 DISTRIBUTIONS = {
     'normal': ({'std'}, {'mean', 'link'}),
@@ -87,20 +88,6 @@ def metric_names(tol_deg: float, pointing: bool = False) -> list[str]:
                     t_u=t[:1], u=np.zeros((1, 3)), missed_steps=0,
                     pointing=(np.array([1.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0])) if pointing else None)
     return list(metric_columns(run_metrics(dummy, tol_deg)))
-
-
-def metric_columns(metrics: dict) -> dict[str, float]:
-    """A run's metrics as scalar columns: lists become ``name[0]``, ``name[1]``, ...; ``missed_steps``
-    (a graph-only quantity) is left out."""
-    out: dict[str, float] = {}
-    for key, value in metrics.items():
-        if key == 'missed_steps':
-            continue
-        if isinstance(value, list):
-            out.update({f'{key}[{j}]': float(v) for j, v in enumerate(value)})
-        else:
-            out[key] = float(value)
-    return out
 
 
 @dataclass
@@ -275,6 +262,9 @@ class Campaign:
     dispersions: list[Dispersion]
     series_every: int = 0   # keep each run's error series every this many steps (0: none)
     checked: bool = False   # every run's draw validated (check_runs): run_chunk need not repeat it
+    # check_runs' draws of every run, with what they were drawn from (seed, dispersions): draws()
+    # takes a chunk's rows from them instead of seeding each run's generator again
+    _drawn: tuple | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def load(cls, path, runs: int | None = None) -> 'Campaign':
@@ -378,8 +368,14 @@ class Campaign:
                 for d in self.dispersions}
 
     def draws(self, indices: list[int]) -> list[dict[str, Any]]:
-        """``[self.draw(i) for i in indices]`` (:meth:`draw_columns`, one row per run)."""
-        columns = [c.tolist() for c in self.draw_columns(indices)]
+        """``[self.draw(i) for i in indices]`` (:meth:`draw_columns`, one row per run; the rows of
+        :meth:`check_runs`' draws of every run when they are of this seed and these dispersions)."""
+        drawn = self._drawn
+        if drawn is not None and drawn[0] == self._draw_key() and all(0 <= i < self.runs for i in indices):
+            rows = np.asarray(indices, dtype=np.int64)
+            columns = [c[rows].tolist() for c in drawn[1]]
+        else:
+            columns = [c.tolist() for c in self.draw_columns(indices)]
         if not columns:
             return [{} for _ in indices]
         targets = [d.target for d in self.dispersions]
@@ -392,13 +388,16 @@ class Campaign:
         bits as drawing run by run)."""
         samplers = [d.sampler(self._nominal_value(d.section, d.key)) for d in self.dispersions]
         raws: list[list] = [[] for _ in samplers]
-        for index in indices:
-            rng = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(index,)))
+        for index, rng in zip(indices, run_generators(self.seed, indices)):   # default_rng(SeedSequence)'s
             for (raw, _), out in zip(samplers, raws):
                 out.append(raw(rng, index))
         if not indices:
             return [np.zeros(0) for _ in samplers]
         return [values(np.array(r)) for (_, values), r in zip(samplers, raws)]
+
+    def _draw_key(self) -> tuple:
+        """What the draws depend on besides the run index (seed, dispersions, run count)."""
+        return self.seed, self.runs, repr(self.dispersions)
 
     def run_given(self, index: int, inputs: dict[str, Any] | None = None) -> dict[str, dict[str, Any]]:
         """The scenario of run ``index`` as written parameters: nominal + draws (+ links).
@@ -444,6 +443,7 @@ class Campaign:
         run; the others are, run after run, so that an impossible draw raises the same error
         (:meth:`run_sections`': the first bad run, its section and key) either way."""
         columns = self.draw_columns(list(range(self.runs)))
+        self._drawn = (self._draw_key(), columns)
         targets = [d.target for d in self.dispersions]
         first = self._changes(dict(zip(targets, [c[0].tolist() for c in columns])))
         stacked = self._changes(dict(zip(targets, columns)))
@@ -468,14 +468,18 @@ class Campaign:
             runs = [self.run_sections(i, d) for i, d in zip(indices, inputs)]
             return {name: NODES[name].schema.stack([r[name] for r in runs]) for name in runs[0]
                     if NODES[name].role != 'recorder'}
-        per_run = [self._changes(d) for d in inputs]
+        stacked: dict[str, dict[str, list]] = {}   # _changes of every run, a list over the runs per key
+        for d, column in zip(self.dispersions, zip(*[list(d.values()) for d in inputs])):
+            stacked.setdefault(d.section, {})[d.key] = list(column)
+            for section, key in d.links:
+                stacked.setdefault(section, {})[key] = [list(v) if isinstance(v, list) else v for v in column]
         out = {}
         for section in self.nominal:
             if NODES[section].role == 'recorder':
                 continue
             out[section] = values = dict(self.defaults[section])
-            for key in per_run[0].get(section, {}):
-                values[key] = NODES[section].schema.stack_values(key, [changes[section][key] for changes in per_run])
+            for key, column in stacked.get(section, {}).items():
+                values[key] = NODES[section].schema.stack_values(key, column)
         return out
 
     def scenario_text(self, index: int) -> str:
@@ -511,10 +515,10 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
     inputs = campaign.draws(indices)
     result = BatchSimulation(campaign.batch_sections(indices, inputs), len(indices)).run()
     with np.errstate(all='ignore'):  # a diverged run's metrics overflow to inf: that is the result
-        metrics = batch_run_metrics(result, campaign.tol_deg)  # each run's result.metrics(j, tol)
+        metrics = batch_metric_columns(result, campaign.tol_deg)  # metric_columns(result.metrics(j, tol))
     rows = []
     for j, index in enumerate(indices):
-        columns = metric_columns(metrics[j])
+        columns = metrics[j]
         status, reason = 'ok', ''
         if result.failure[j]:
             status, reason = 'failed', result.failure[j]

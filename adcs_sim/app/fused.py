@@ -27,6 +27,7 @@ no environment torque, no noise, sensors, estimator or fault schedule, and no ``
 """
 from __future__ import annotations
 
+import functools
 import os
 
 import numba
@@ -103,6 +104,16 @@ def closed_loop(x0, n_steps, t_k, times, h, law, inertia, q_ref, w_ref, shortest
                 hs[r, i + 1, j] = np.nan
 
 
+@functools.lru_cache(maxsize=8)
+def _grid(period_ns: int, K: int, max_step: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """The control steps' times t_k (K,), their RK4 stage times (K, n, 3) and step h, as the general
+    path computes them step by step; kept for the next chunk of a campaign (read, never written)."""
+    period = period_ns / NS_PER_S
+    t_k = np.array([(k * period_ns) / NS_PER_S for k in range(K)])
+    grids = [stage_times(t, period, max_step) for t in t_k]
+    return t_k, (np.stack([g[0] for g in grids]) if K else np.zeros((0, 1, 3))), (grids[0][1] if K else period)
+
+
 class FusedLoop:
     """A batch's arguments of :func:`closed_loop` (built by :func:`plan`)."""
 
@@ -123,12 +134,7 @@ class FusedLoop:
         wheel_index = [a.name for a in plant.kernel.actuators].index(sim.wheels.name)
         self.cw = int(self.plant_args[5][wheel_index])
         self.sw = plant.slices[sim.wheels.name].start
-        period = sim.period_ns / NS_PER_S
-        K = int(sim.n_steps.max())
-        self.t_k = np.array([(k * sim.period_ns) / NS_PER_S for k in range(K)])
-        grids = [stage_times(t, period, sim.max_step) for t in self.t_k]
-        self.times = np.stack([g[0] for g in grids]) if K else np.zeros((0, 1, 3))
-        self.h = grids[0][1] if K else period
+        self.t_k, self.times, self.h = _grid(int(sim.period_ns), int(sim.n_steps.max()), float(sim.max_step))
 
     def run(self, sim, x0: np.ndarray, hist: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Simulate into ``hist`` (sim._history's arrays); (done steps, failed, final states) per run."""
