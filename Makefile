@@ -12,6 +12,7 @@ $(VENV)/.installed: requirements.txt requirements-dev.txt setup.py setup.cfg pyp
 	$(PY) -c 'import numpy; from adcs_sim.truth.plant import Plant; Plant(numpy.eye(3))'  # compile the plant kernel into its cache
 	# compile the campaigns' fused PD loop and batch-metrics kernels (~60 s once; cached beside their modules)
 	$(PY) -c 'from adcs_sim.app.campaign import Campaign, run_chunk; c = Campaign.load("config/campaigns/pd_slew_30deg.yaml", runs=2); [r for ch in c.chunks() for r in run_chunk(c, ch)]'
+	$(PY) -c 'from adcs_sim.app.metrics_kernel import compile_rare_kernels; compile_rare_kernels()'
 	touch $@
 
 .PHONY: install run test bench
