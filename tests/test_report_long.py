@@ -33,15 +33,19 @@ from adcs_sim.app.run_data import RunData, TooLong
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 
 
-def streamed_indices(t: np.ndarray, ys: list, cuts, columns: int) -> np.ndarray:
-    """kept_indices of ``ys`` fed to an EnvelopeStream in the chunks ``cuts`` delimit."""
+def streamed_indices(t: np.ndarray, ys: list, cuts, columns: int, many: bool = False) -> np.ndarray:
+    """kept_indices of ``ys`` fed to an EnvelopeStream in the chunks ``cuts`` delimit (``many``: all
+    series in one call)."""
     env = EnvelopeStream(t[0], t[-1] - t[0], columns)
     bounds = [0, *sorted(set(cuts)), t.size]
     for a, b in zip(bounds[:-1], bounds[1:]):
         column = env.column(t[a:b])
         env.ends(column, a)
-        for j, y in enumerate(ys):
-            env.add(j, column, a, y[a:b])
+        if many:
+            env.add_many(list(range(len(ys))), column, a, np.column_stack([y[a:b] for y in ys]))
+        else:
+            for j, y in enumerate(ys):
+                env.add(j, column, a, y[a:b])
     return env.indices()
 
 
@@ -57,7 +61,8 @@ def test_streamed_envelope_is_the_whole_arrays_envelope(data):
     t = np.cumsum(steps) + data.draw(st.sampled_from([0.0, -3.0, 1e6]))   # ties, one sample, span 0
     ys = [np.array(data.draw(st.lists(values, min_size=n, max_size=n))) for _ in range(data.draw(st.integers(1, 3)))]
     cuts = data.draw(st.lists(st.integers(1, max(1, n - 1)), max_size=10)) if n > 1 else []
-    assert np.array_equal(streamed_indices(t, ys, cuts, columns), kept_indices(t, *ys, columns=columns))
+    many = data.draw(st.booleans(), label='many')
+    assert np.array_equal(streamed_indices(t, ys, cuts, columns, many), kept_indices(t, *ys, columns=columns))
 
 
 def test_streamed_envelope_of_a_day():
@@ -72,7 +77,7 @@ def test_streamed_envelope_of_a_day():
     z = np.round(np.cos(t / 5000), 2)         # long runs of equal values: first of the ties kept
     cuts = np.cumsum(rng.integers(1, 9000, 400))
     cuts = cuts[cuts < n]
-    assert np.array_equal(streamed_indices(t, [y, z], cuts, envelope.COLUMNS), kept_indices(t, y, z))
+    assert np.array_equal(streamed_indices(t, [y, z], cuts, envelope.COLUMNS, many=True), kept_indices(t, y, z))
 
 
 def test_derived_series_per_chunk_are_the_whole_arrays():

@@ -100,24 +100,33 @@ class EnvelopeStream:
     def add(self, name, column: np.ndarray, i0: int, y: np.ndarray) -> np.ndarray:
         """Samples ``i0 ..`` (their columns ``column``) of series ``name``; returns the indices
         that became a column's smallest, largest or first NaN."""
-        if not column.size:
+        return self.add_many([name], column, i0, np.asarray(y, dtype=float).reshape(-1, 1))
+
+    def add_many(self, names: list, column: np.ndarray, i0: int, ys: np.ndarray) -> np.ndarray:
+        """:meth:`add` of several series at once: ``ys`` (n, len(names)), one series a column."""
+        n = column.size
+        if not n:
             return np.zeros(0, dtype=np.int64)
-        y = np.asarray(y, dtype=float)
         starts = np.flatnonzero(np.r_[True, column[1:] != column[:-1]])
-        lengths = np.diff(np.r_[starts, column.size])
+        lengths = np.diff(np.r_[starts, n])
         cols = column[starts]
-        nan = np.isnan(y)
+        nan = np.isnan(ys)
+        at = np.arange(n)[:, None]
         new = []
         for slot, sign in (('min', 1.0), ('max', -1.0)):
-            v = np.where(nan, np.inf, sign * y)
-            low = np.minimum.reduceat(v, starts)
-            first = _first_per_column(np.flatnonzero(v == np.repeat(low, lengths)), starts)
-            new.append(self._update((name, slot), cols, low, first + i0, strict=True))
-        where = np.flatnonzero(nan)
-        if where.size:
-            first = _first_per_column(where, starts)
-            seg = np.searchsorted(starts, first, side='right') - 1
-            new.append(self._update((name, 'nan'), cols[seg], np.zeros(first.size), first + i0, strict=False))
+            v = np.where(nan, np.inf, sign * ys)
+            low = np.minimum.reduceat(v, starts, axis=0)
+            # the first sample of each column at its smallest value (every column has one)
+            first = np.minimum.reduceat(np.where(v == np.repeat(low, lengths, axis=0), at, n), starts, axis=0)
+            for j, name in enumerate(names):
+                new.append(self._update((name, slot), cols, low[:, j], first[:, j] + i0, strict=True))
+        if nan.any():
+            first = np.minimum.reduceat(np.where(nan, at, n), starts, axis=0)
+            for j, name in enumerate(names):
+                has = first[:, j] < n
+                if has.any():
+                    new.append(self._update((name, 'nan'), cols[has], np.zeros(int(has.sum())),
+                                            first[has, j] + i0, strict=False))
         return np.concatenate(new)
 
     def _update(self, key, cols, values, index, strict: bool) -> np.ndarray:

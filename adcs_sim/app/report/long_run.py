@@ -107,7 +107,8 @@ def release_memory() -> None:
 
 def _target(run: RunData, kind) -> np.ndarray:
     """The constant reference of a run the streamed report covers (kinds.reference_attitude's
-    without a slew), which must be the scenario's target (comparison_rows measure against it)."""
+    without a slew); a regulation run's must be the scenario's target (its comparison rows, from
+    the same band tracks, measure against that)."""
     if kind.kind not in STREAM_KINDS:
         raise Unstreamable(f'a {kind.kind} run')
     if actuator_fault(run, kind):
@@ -118,7 +119,7 @@ def _target(run: RunData, kind) -> np.ndarray:
         raise Unstreamable('thrusters')
     target = _unit(param_value(kind.params, 'target.attitude', [0.0, 0.0, 0.0, 1.0]))
     target = run.q_ref if target is None else target
-    if not np.array_equal(target, run.q_ref):
+    if kind.kind == 'regulation' and not np.array_equal(target, run.q_ref):
         raise Unstreamable('the controller\'s target is not the scenario\'s')
     return target
 
@@ -210,7 +211,9 @@ class _Series:
         self.extra += list(more)
         if self.long:
             column = self.env.column(t)
-            new = [self.env.ends(column, i0)] + [self.env.add(name, column, i0, y) for name, y in ys.items()]
+            new = [self.env.ends(column, i0)]
+            if ys:
+                new.append(self.env.add_many(list(ys), column, i0, np.column_stack(list(ys.values()))))
             more = np.asarray(more, dtype=np.int64)
             pinned = np.arange(i0 + (-i0) % self.stride, i1, self.stride)
             idx = np.unique(np.concatenate([pinned, more[more >= i0], [i1 - 1], *new]))
@@ -273,22 +276,27 @@ class _Status:
         self.changes: dict = defaultdict(list)   # key -> indices where its text changes
         self.last: dict = {}            # key -> the latest value text
         self.finite: dict = {}          # key -> first sample with a finite value
-        self.read = 0
 
     def add(self, batch) -> None:
         stamps, messages = decode_diagnostics(batch)
         i0 = self.series.i0
         if len(messages) != len(batch):
             raise Unstreamable(f'{batch.topic}: a message that does not decode')
-        if any(len(m) != 1 for m in messages):
-            raise Unstreamable(f'{batch.topic}: not one status a message')
-        layout = (messages[0][0][1], tuple(messages[0][0][4])) if messages else self.layout
+        if not messages:
+            return
         if self.layout is None:
-            self.layout = layout
-        if any((m[0][1], tuple(m[0][4])) != self.layout for m in messages):
-            raise Unstreamable(f'{batch.topic}: the status layout changes')
+            self.layout = (messages[0][0][1], tuple(messages[0][0][4]))
         name, keys = self.layout
-        texts = {k: np.array([m[0][4][k] for m in messages], dtype=object) for k in keys}
+        # one status a message, of one name and one set of keys (their order does not matter to
+        # the report: the keys are listed in the order they first appear)
+        statuses = [m[0] for m in messages if len(m) == 1 and m[0][1] == name]
+        values = [s[4] for s in statuses if len(s[4]) == len(keys)]
+        if len(values) != len(messages):
+            raise Unstreamable(f'{batch.topic}: the status layout changes')
+        try:
+            texts = {k: np.array([v[k] for v in values], dtype=object) for k in keys}
+        except KeyError:
+            raise Unstreamable(f'{batch.topic}: the status layout changes') from None
         ys, more = {}, []
         for k, raw in texts.items():
             ys.update(self._key(k, raw, i0, more))

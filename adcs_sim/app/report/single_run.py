@@ -263,7 +263,8 @@ def draw_figures(report: Report, figures, level: str = '###') -> list[str]:
         save_figure(fig, report.out, name)
         lines += [f'![{title}]({name}.png)', '', f'{caption} ([SVG]({name}.svg))', '']
         del fig, result
-        gc.collect()   # a figure (and its renderer) is a cycle: freed now, not with the next ones alive
+        if report.run.long is not None:   # a long run's report, within its memory bound: a figure (and
+            gc.collect()                  # its renderer) is a cycle, freed now rather than beside the next
     return lines
 
 
