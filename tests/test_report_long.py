@@ -195,3 +195,14 @@ def test_damaged_long_bags_fail_or_recover_as_in_memory(tmp_path, small_limits):
         assert streamed == whole, (how, k)
         seen.add(whole[0])
     assert seen == {'error', 'read'}
+
+
+def test_a_status_text_changing_too_often_is_read_whole(tmp_path, small_limits, monkeypatch):
+    """Each change of a status text keeps two records: past MAX_TEXT_CHANGES the run is read whole."""
+    bag = write_synthetic(tmp_path / 'run' / 'bag', **RUNS['run_b'])
+    assert load_run(bag).long is not None                # one change of `mode`: streamed
+    monkeypatch.setattr(long_run, 'MAX_TEXT_CHANGES', 0)
+    with pytest.raises(long_run.Unstreamable, match='changes'):
+        long_run.load_long(bag)
+    run = load_run(bag)
+    assert run.long is None and run.data.t.size == run.samples
