@@ -12,7 +12,9 @@ work), ``--repeat`` times:
   ``svg.hashsalt``): identical PNG and SVG bytes and ``report.md`` expected;
 * **long** (``--hours H``, default 24; ``--hours 0`` skips it): a synthetic H-hour run at
   ``--rate`` Hz written as ``benchmarks/analysis_speed.py`` writes it (or ``--bag DIR``, an
-  existing one): the report's time and peak memory (the target: <= 300 MB at 24 h, 10 Hz).
+  existing one): the report's time and peak memory (the target: <= 300 MB at 24 h, 10 Hz; this
+  tree streams it, :mod:`adcs_sim.app.report.long_run`); with ``--compare``, both trees' reports
+  compared file by file too.
 
 Prints best-of-``--repeat`` wall and CPU times (user + system: less disturbed by a loaded
 machine) and peaks, and their ratios (old / new). Not a test (minutes).
@@ -121,6 +123,8 @@ def main(argv=None) -> int:
                 print(f'long bag: {args.hours:g} h at {args.rate:g} Hz, {written} messages '
                       f'(written in {time.perf_counter() - t0:.0f} s)')
             alternate('long', bag, args.compare, args.long_repeat, tmp, env)
+            if args.compare is not None:
+                print(f'long      reports identical (old vs new): {same_reports(tmp / "long" / "old", tmp / "long" / "new")}')
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return 0

@@ -32,7 +32,7 @@ import os
 import sys
 from pathlib import Path
 
-from adcs_sim.app.analysis import format_metrics, jsonable_metrics, run_metrics
+from adcs_sim.app.analysis import format_metrics, jsonable_metrics
 from adcs_sim.app.layouts import LayoutError, write_layouts
 from adcs_sim.app.report.kinds import run_kind
 from adcs_sim.app.report.loading import BagError, default_report_dir, load_run
@@ -45,13 +45,15 @@ def _report_dir(out: Path | None, path: str, name: str, several: bool) -> Path:
     return out / name if several else out
 
 
-def _load(paths: list[str]) -> tuple[dict, int]:
-    """The runs that load ({path: Run}) and the exit status; one line on stderr per failure or warning."""
+def _load(paths: list[str], args) -> tuple[dict, int]:
+    """The runs that load ({path: Run}) and the exit status; one line on stderr per failure or warning.
+    A long run is streamed (its report never holds the whole run) unless the runs are compared."""
     runs = {}
     status = 0
     for path in paths:
         try:
-            runs[path] = run = load_run(path)
+            runs[path] = run = load_run(path, tol_deg=args.tolerance_deg, eigen_tol_deg=args.eigen_tolerance_deg,
+                                        stream=not args.compare)
         except BagError as exc:
             print(f'adcs-analyze: {path}: {exc}', file=sys.stderr)
             status = 1
@@ -130,8 +132,8 @@ def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     if args.foxglove_layout is not None or args.plotjuggler_layout is not None:
         return _layouts(args)
-    runs, status = _load(args.bags)
-    results = {p: run_metrics(r.data, args.tolerance_deg, args.eigen_tolerance_deg) for p, r in runs.items()}
+    runs, status = _load(args.bags, args)
+    results = {p: r.metrics(args.tolerance_deg, args.eigen_tolerance_deg) for p, r in runs.items()}
     status = max(status, _warn_compromised(runs))
     if args.json:
         print(json.dumps({p: jsonable_metrics(m) for p, m in results.items()}, indent=2))

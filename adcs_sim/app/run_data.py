@@ -83,7 +83,7 @@ class RunData:
         return float(self.t[-1]) if self.t.size else 0.0
 
     @classmethod
-    def from_bag(cls, path, namespace: str | None = None) -> 'RunData':
+    def from_bag(cls, path, namespace: str | None = None, max_samples: int | None = None) -> 'RunData':
         """Read a bag of the graph into arrays: ours or any rosbag2 bag with the graph's topics.
 
         MCAP (complete or truncated: everything up to the last whole chunk) or sqlite3 storage.
@@ -94,23 +94,24 @@ class RunData:
         numpy from their CDR bytes (:func:`adcs_sim.bag.columns.decode_batch`).
 
         Raises ValueError (not a bag, no ``state`` messages) or OSError (no such path), each with
-        a one-line message.
+        a one-line message; :class:`TooLong` as soon as a ``state`` topic has more than
+        ``max_samples`` messages (None: no limit; a long run's report streams instead).
         """
         # The status records are millions of small acyclic objects on a long run: the cyclic
         # garbage collector, triggered again and again by their allocation, doubled the time.
         gc_enabled = gc.isenabled()
         gc.disable()
         try:
-            return cls._from_bag(path, namespace)
+            return cls._from_bag(path, namespace, max_samples)
         finally:
             if gc_enabled:
                 gc.enable()
 
     @classmethod
-    def _from_bag(cls, path, namespace: str | None = None) -> 'RunData':
+    def _from_bag(cls, path, namespace: str | None = None, max_samples: int | None = None) -> 'RunData':
         fixed = namespace_prefix(namespace)
         reader = ColumnReader(path, topic_selector(fixed, READ_TYPES))
-        columns, diagnostics, status_records = _read(reader)
+        columns, diagnostics, status_records = _read(reader, max_samples)
         counts = {name: n for name, n in reader.topic_counts.items() if n}
         ns = fixed if fixed is not None else _namespace(counts, reader.topics)
         state_topic = ns + topics.STATE
@@ -129,24 +130,36 @@ class RunData:
         _set_wheels(run, columns.pop(ns + topics.WHEELS_STATE, []))
         _set_thrusters(run, columns.pop(ns + topics.THRUSTERS_STATE, []))
         columns.clear()
-        run.missed_steps = _missed_steps(diagnostics.get(ns + topics.DYNAMICS_STATUS, []))
         if ns + topics.CONTROLLER_STATUS in status_records:
             run.controller_status = status_records[ns + topics.CONTROLLER_STATUS].freeze()
-        run.missed_at = _missed_at(diagnostics.get(ns + topics.DYNAMICS_STATUS, []))
-        run.faults = [(stamp, int(s[0]), s[1], s[2]) for stamp, statuses in
-                      _merged_statuses(diagnostics.get(ns + topics.FAULTS, [])) for s in statuses]
-        run.intrusions = _recorded_intrusions(diagnostics)
-        run.topic_counts = {_relative(name, ns): n for name, n in counts.items()}
-        run.truncated = reader.truncated
-        run.problem, run.damaged = reader.problem, reader.damaged
-        run.message_count = reader.message_count
-        run.missing_topics = [rel for rel in REPORTED_TOPICS if not counts.get(ns + rel)]
-        run.namespace = ns
-        run.scenario = _scenario(reader.metadata.get('scenario', {}).get('text'))
-        if run.scenario is not None:
-            run.q_ref = target_attitude(run.scenario)
-            run.pointing = pointing_request(run.scenario)
+        set_recording(run, reader, diagnostics, ns)
         return run
+
+
+class TooLong(Exception):
+    """A ``state`` topic has more messages than :meth:`RunData.from_bag` was allowed to hold."""
+
+
+def set_recording(run: RunData, reader: ColumnReader, diagnostics: dict, ns: str) -> None:
+    """The fields of ``run`` that are not time series, from a finished pass of ``reader`` over the
+    bag and its decoded diagnostics (``{topic: [(stamps, statuses)]}``) under namespace ``ns``:
+    missed steps, faults, intruders, counts, how the bag was read, the scenario and its target."""
+    counts = {name: n for name, n in reader.topic_counts.items() if n}
+    run.missed_steps = _missed_steps(diagnostics.get(ns + topics.DYNAMICS_STATUS, []))
+    run.missed_at = _missed_at(diagnostics.get(ns + topics.DYNAMICS_STATUS, []))
+    run.faults = [(stamp, int(s[0]), s[1], s[2]) for stamp, statuses in
+                  _merged_statuses(diagnostics.get(ns + topics.FAULTS, [])) for s in statuses]
+    run.intrusions = _recorded_intrusions(diagnostics)
+    run.topic_counts = {_relative(name, ns): n for name, n in counts.items()}
+    run.truncated = reader.truncated
+    run.problem, run.damaged = reader.problem, reader.damaged
+    run.message_count = reader.message_count
+    run.missing_topics = [rel for rel in REPORTED_TOPICS if not counts.get(ns + rel)]
+    run.namespace = ns
+    run.scenario = _scenario(reader.metadata.get('scenario', {}).get('text'))
+    if run.scenario is not None:
+        run.q_ref = target_attitude(run.scenario)
+        run.pointing = pointing_request(run.scenario)
 
 
 def namespace_prefix(namespace: str | None) -> str | None:
@@ -167,10 +180,11 @@ def topic_selector(fixed: str | None, read_types: dict):
     return select
 
 
-def _read(reader: ColumnReader) -> tuple[dict, dict, dict]:
+def _read(reader: ColumnReader, max_samples: int | None = None) -> tuple[dict, dict, dict]:
     """Every batch of ``reader``, decoded: ``(columns, diagnostics, status records)`` by topic;
     columns as ``[(first row number, Columns)]``, diagnostics as ``[(stamps, statuses)]``, the
-    controller status compact (:class:`StatusRecords`, not yet frozen)."""
+    controller status compact (:class:`StatusRecords`, not yet frozen). :class:`TooLong` when an
+    Odometry topic passes ``max_samples`` messages."""
     columns: dict[str, list] = defaultdict(list)
     diagnostics: dict[str, list] = defaultdict(list)
     status_records: dict[str, StatusRecords] = defaultdict(StatusRecords)
@@ -183,6 +197,8 @@ def _read(reader: ColumnReader) -> tuple[dict, dict, dict]:
         else:
             columns[batch.topic].extend((seen[batch.topic], _kept(c, batch.type_name)) for c in decode_batch(batch))
         seen[batch.topic] += len(batch)
+        if max_samples is not None and batch.type_name == ODOMETRY and seen[batch.topic] > max_samples:
+            raise TooLong(f'{batch.topic}: more than {max_samples} messages')
     return columns, diagnostics, status_records
 
 

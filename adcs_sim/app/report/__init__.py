@@ -1,10 +1,14 @@
 """Reports of recorded runs: one run -> ``report.md`` with figures; several runs -> a comparison.
 
 Pure package (no rclpy): the time series come from :meth:`adcs_sim.app.analysis.RunData.from_bag`
-(one streaming pass over the bag) and the numbers from :mod:`adcs_sim.app.analysis`. Figures are
+(one streaming pass over the bag) and the numbers from :mod:`adcs_sim.app.analysis`; a long run
+(more state samples than :data:`.envelope.MAX_POINTS`) is streamed instead (:mod:`.long_run`: two
+passes, only the samples its figures draw kept, the same report byte for byte). Figures are
 drawn with :class:`matplotlib.figure.Figure` (no pyplot, no GUI backend) and saved as PNG and SVG.
 One module per job:
 
+* :mod:`.long_run` — a long run's report within a bounded memory (issue #18: a day at 10 Hz);
+  :mod:`.envelope` — long series drawn from their envelope, built whole or chunk by chunk;
 * :mod:`.loading` — a bag -> a :class:`~.loading.Run` (one-line :class:`~.loading.BagError` for
   what is not a readable bag), where reports go, and the series derived from a run (controller
   status values, commanded torque, fault events, missing topics); no matplotlib;

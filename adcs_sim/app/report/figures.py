@@ -15,7 +15,7 @@ from matplotlib.ticker import MaxNLocator
 
 from adcs_msgs_py import names as topics
 from adcs_sim.app.analysis import RunData
-from adcs_sim.app.report.envelope import reduced
+from adcs_sim.app.report.envelope import log_positive, reduced
 from adcs_sim.app.report.kinds import UNKNOWN, RunKind
 from adcs_sim.app.report.loading import commanded_torque, thruster_topics
 
@@ -115,13 +115,6 @@ def step_plot(ax, t, y, t_end: float | None = None, **kw):
     return ax.step(t, y, where='post', **kw)
 
 
-def log_positive(y: np.ndarray) -> np.ndarray:
-    """Values for a log axis: non-positive ones masked (NaN)."""
-    y = np.asarray(y, dtype=float).copy()
-    y[~(y > 0)] = np.nan
-    return y
-
-
 # --- the figures of one run --------------------------------------------------------------------
 # Each builder returns (Figure, caption) or a string: why the figure is skipped.
 
@@ -138,6 +131,9 @@ class Context:
     reference_text: str = ''
     phases: list = field(default_factory=list)   # (t0, t1, label)
     lead: list = field(default_factory=list)     # lead.Metric of the kind, with the paper's values
+    # (series, band) -> settling time of the whole run, computed while it was streamed (a long run:
+    # ``run`` holds the samples drawn, long_run); empty: computed from ``run``
+    settled: dict = field(default_factory=dict)
 
 
 def fig_attitude_error(c: Context):

@@ -26,6 +26,13 @@ from adcs_sim.app.report.kinds import param_value, section_params, vector
 from adcs_sim.app.report.lead import SPIN_RATE_BAND_RAD_S, SPIN_THETA_BAND_RAD, TRACKING_BAND_DEG, status_array
 
 
+def _settling(c: Context, series: str, band: float, t: np.ndarray, error: np.ndarray) -> float:
+    """settling_time of ``error``, or the whole run's when it was streamed (``c.settled``)."""
+    if (series, band) in c.settled:
+        return c.settled[series, band]
+    return settling_time(t, error, band)
+
+
 def _published(c: Context, key: str) -> float | None:
     return next((m.paper for m in c.lead if m.key == key and m.paper is not None), None)
 
@@ -41,7 +48,7 @@ def fig_reference_error(c: Context):
     ax.plot(*reduced(c.run.t, log_positive(eigen)), color='C0', label='error to the reference')
     ax.set_yscale('log')
     ax.axhline(tol, color='0.3', linestyle=':', label=f'band {tol:g}°')
-    ts = settling_time(c.run.t, eigen, tol)
+    ts = _settling(c, 'eigen', tol, c.run.t, eigen)
     if math.isfinite(ts):
         ax.axvline(ts, color='C2', linestyle='-.', linewidth=1, label=f'settled to {tol:g}° at {ts:.1f} s')
     paper = _published(c, f'settling_eigenaxis_{tol:g}deg_s')
@@ -166,14 +173,14 @@ def fig_euler_settling(c: Context):
     (circles) and the paper's (crosses, Table I), and all three within ±0.5° (III.F: verticals)."""
     _, _, euler = c.errors
     fig, axes = new_figure(rows=3, height=1.7)
-    all_ours = settling_time(c.run.t, np.abs(euler).max(axis=1), 0.5)
+    all_ours = _settling(c, 'euler_all', 0.5, c.run.t, np.abs(euler).max(axis=1))
     all_paper = _published(c, 'settling_euler213_all_0.5deg_s')
     for k, (ax, (name, i, label)) in enumerate(zip(axes, EULER_NAMES)):
         ax.plot(*reduced(c.run.t, log_positive(np.abs(euler[:, i]))), color='C0', label=f'|{label}|')
         ax.set_yscale('log')
         for band, colour in ((1.0, 'C1'), (0.5, 'C3')):
             ax.axhline(band, color=colour, linestyle=':', linewidth=1)
-            ts = settling_time(c.run.t, np.abs(euler[:, i]), band)
+            ts = _settling(c, f'euler_{i}', band, c.run.t, np.abs(euler[:, i]))
             if math.isfinite(ts):
                 ax.plot(ts, band, 'o', color=colour, label=f'ours ±{band:g}°: {ts:.1f} s')
             paper = _published(c, f'settling_euler213_{name}_{band:g}deg_s')

@@ -93,9 +93,12 @@ def paper_values(name: str, docs: Path = DOCS) -> tuple[str, dict]:
     return '', {}
 
 
-def lead_metrics(run: RunData, rk: RunKind, q_ref: np.ndarray | None) -> list[Metric]:
-    """The kind's own metrics of ``run`` (no published values yet: :func:`with_paper`)."""
-    builder = {'regulation': _regulation, 'tracking': _tracking, 'spin': _spin, 'pointing': _pointing}.get(rk.kind)
+def lead_metrics(run: RunData, rk: RunKind, q_ref: np.ndarray | None, rows: dict | None = None) -> list[Metric]:
+    """The kind's own metrics of ``run`` (no published values yet: :func:`with_paper`). ``rows``:
+    the run's :func:`comparison_rows` when computed elsewhere (a streamed long run)."""
+    if rk.kind == 'regulation':
+        return _regulation(run, rk, q_ref, rows)
+    builder = {'tracking': _tracking, 'spin': _spin, 'pointing': _pointing}.get(rk.kind)
     return builder(run, rk, q_ref) if builder else []
 
 
@@ -106,10 +109,12 @@ def with_paper(metrics: list[Metric], published: dict) -> list[Metric]:
     return metrics
 
 
-def _torque(run: RunData) -> list[Metric]:
+def _torque(run: RunData, value: float | None = None) -> list[Metric]:
+    """∫‖u‖dt of the run (``value``: already computed, e.g. by run_metrics)."""
     if not run.u.size:
         return [Metric('integrated_torque_Nms', None, 'N·m·s', 'not available: no applied torque recorded')]
-    return [Metric('integrated_torque_Nms', integrated_norm(run.t_u, run.u, run.t_end), 'N·m·s',
+    value = integrated_norm(run.t_u, run.u, run.t_end) if value is None else value
+    return [Metric('integrated_torque_Nms', value, 'N·m·s',
                    '∫‖u‖dt of the applied body torque over the run (zero-order hold)')]
 
 
@@ -121,10 +126,11 @@ def actuator_fault(run: RunData, rk: RunKind) -> bool:
     return any(level >= 2 and name in own for _, level, name, _ in run.faults)
 
 
-def _regulation(run: RunData, rk: RunKind, q_ref) -> list[Metric]:
+def _regulation(run: RunData, rk: RunKind, q_ref, rows: dict | None = None) -> list[Metric]:
     if actuator_fault(run, rk):
         return _after_fault(run, q_ref)
-    rows = comparison_rows(run)
+    streamed = rows is not None
+    rows = comparison_rows(run) if rows is None else rows
     out = []
     for key, value in rows.items():
         if key.startswith('settling_euler213_theta'):
@@ -136,7 +142,7 @@ def _regulation(run: RunData, rk: RunKind, q_ref) -> list[Metric]:
                       'time after which all three 2-1-3 Euler angles stay within ±0.5° (seed 004 III.F)'))
     out.append(Metric('final_eigenaxis_error_deg', rows['final_eigenaxis_error_deg'], 'deg',
                       'eigenaxis angle of q_ref* ⊗ q at the end of the run'))
-    out += _torque(run)
+    out += _torque(run, rows['integrated_torque_Nms'] if streamed else None)
     for a in 'xyz':
         out.append(Metric(f'peak_torque_{a}_Nm', rows[f'peak_torque_{a}_Nm'], 'N·m',
                           f'max |u_{a}| of the applied torque (the paper prints it signed)'))

@@ -12,7 +12,9 @@ import numpy as np
 from mcap.exceptions import McapError
 
 from adcs_msgs_py import names as topics
-from adcs_sim.app.analysis import RunData
+from adcs_sim.app.analysis import RunData, run_metrics
+from adcs_sim.app.report import envelope
+from adcs_sim.app.run_data import TooLong
 from adcs_sim.app.status_records import status_keys, status_names, status_values
 
 ERROR_LEVEL = 2  # diagnostic_msgs/DiagnosticStatus.ERROR
@@ -60,11 +62,32 @@ def default_report_dir(path) -> Path:
 
 @dataclass
 class Run:
-    """A loaded run: the bag, its name and its time series."""
+    """A loaded run: the bag, its name and its time series.
+
+    A long run (more state samples than :data:`~.envelope.MAX_POINTS`) is streamed
+    (:mod:`.long_run`): ``data`` then holds the samples its report draws, and ``long`` the
+    whole-run numbers (its metrics at the tolerances it was loaded with, its sample count)."""
 
     path: Path
     name: str
     data: RunData
+    long: object = None     # long_run.LongSummary, or None: ``data`` holds the whole run
+
+    @property
+    def samples(self) -> int:
+        """State samples of the whole run."""
+        return int(self.data.t.size) if self.long is None else self.long.samples
+
+    def metrics(self, tol_deg: float = 0.5, eigen_tol_deg: float | None = None) -> dict:
+        """:func:`~adcs_sim.app.analysis.run_metrics` of the whole run."""
+        eigen_tol_deg = tol_deg if eigen_tol_deg is None else eigen_tol_deg
+        if self.long is None:
+            return run_metrics(self.data, tol_deg, eigen_tol_deg)
+        if self.long.tol != (tol_deg, eigen_tol_deg):   # streamed again at these tolerances
+            from adcs_sim.app.report.long_run import load_long, release_memory
+            self.data, self.long = load_long(self.path, tol_deg, eigen_tol_deg)
+            release_memory()
+        return self.long.metrics
 
     @property
     def complete(self) -> bool:
@@ -81,15 +104,38 @@ class BagError(Exception):
     """An input that is not a readable bag of the graph (the message is one line)."""
 
 
-def load_run(path, name: str | None = None) -> Run:
-    """Check and read a bag; raises :class:`BagError` (one-line message) if it cannot be used."""
+def load_run(path, name: str | None = None, tol_deg: float = 0.5, eigen_tol_deg: float | None = None,
+             stream: bool = True) -> Run:
+    """Check and read a bag; raises :class:`BagError` (one-line message) if it cannot be used.
+
+    ``stream``: a long run is streamed (:class:`Run`; its metrics at ``tol_deg``,
+    ``eigen_tol_deg``), unless the report needs what that does not cover (then it is read whole);
+    False: always read whole (a comparison overlays whole series)."""
+    long = None
     try:
-        data = RunData.from_bag(path)
+        try:
+            data = RunData.from_bag(path, max_samples=envelope.MAX_POINTS if stream else None)
+        except TooLong:
+            data = None    # (streamed below: out of this block, the partial reading's frames let go)
+        if data is None:
+            data, long = _load_long(path, tol_deg, eigen_tol_deg)
     except BAG_ERRORS as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         reason = reason[len(str(path)) + 2:] if reason.startswith(f'{path}: ') else reason
         raise BagError(reason) from None
-    return Run(Path(path), name or run_name(path), data)
+    return Run(Path(path), name or run_name(path), data, long)
+
+
+def _load_long(path, tol_deg: float, eigen_tol_deg: float | None):
+    """(data, summary) of a long run streamed, or (the whole run, None) where streaming does not
+    cover it (long_run.Unstreamable)."""
+    from adcs_sim.app.report.long_run import Unstreamable, load_long, release_memory
+    try:
+        return load_long(path, tol_deg, eigen_tol_deg)
+    except Unstreamable:
+        return RunData.from_bag(path), None
+    finally:
+        release_memory()
 
 
 # --- derived series ---------------------------------------------------------------------------

@@ -8,6 +8,7 @@ every metric, the other figures and the scenario.
 """
 from __future__ import annotations
 
+import gc
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -64,15 +65,19 @@ def register_section(name: str, builder: Callable[[Report], list]) -> None:
     EXTRA_SECTIONS[:] = [s for s in EXTRA_SECTIONS if s[0] != name] + [(name, builder)]
 
 
-def build_context(data: RunData, name: str, tol_deg: float, eigen_tol_deg: float) -> tuple[Context, str]:
+def build_context(data: RunData, name: str, tol_deg: float, eigen_tol_deg: float,
+                  long=None) -> tuple[Context, str]:
     """What the figures and sections of run ``name`` need (its kind, reference, phases, lead metrics
-    with the paper's values) and where the paper's values come from ('' without any)."""
+    with the paper's values) and where the paper's values come from ('' without any). ``long``: the
+    whole-run numbers of a streamed long run (``data`` then holds the samples drawn: long_run)."""
     kind = run_kind(data.scenario)
     q_ref, ref_text = reference_attitude(data, kind)
     source, published = paper_values(name)
-    lead = with_paper(lead_metrics(data, kind, q_ref), published)
-    ctx = Context(data, fault_events(data), tol_deg, eigen_tol_deg, run_metrics(data, tol_deg, eigen_tol_deg),
-                  attitude_errors(data, q_ref), kind, q_ref, ref_text, phases(data, kind), lead)
+    lead = with_paper(lead_metrics(data, kind, q_ref, long.rows if long is not None else None), published)
+    metrics = long.metrics if long is not None else run_metrics(data, tol_deg, eigen_tol_deg)
+    ctx = Context(data, fault_events(data), tol_deg, eigen_tol_deg, metrics,
+                  attitude_errors(data, q_ref), kind, q_ref, ref_text, phases(data, kind), lead,
+                  long.settled if long is not None else {})
     return ctx, source
 
 
@@ -81,7 +86,9 @@ def write_report(run: Run, out, tol_deg: float = 0.5, eigen_tol_deg: float | Non
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     eigen_tol_deg = tol_deg if eigen_tol_deg is None else eigen_tol_deg
-    ctx, source = build_context(run.data, run.name, tol_deg, eigen_tol_deg)
+    if run.long is not None:
+        run.metrics(tol_deg, eigen_tol_deg)   # (a long run streamed at other tolerances: again at these)
+    ctx, source = build_context(run.data, run.name, tol_deg, eigen_tol_deg, run.long)
     report = Report(run, out, ctx, source)
     lines = []
     for _, builder in SECTIONS[:2] + EXTRA_SECTIONS + SECTIONS[2:]:
@@ -105,7 +112,7 @@ def _recording_lines(report: Report) -> list[str]:
     else:
         lines.append(f'| recording | **recovered from a truncated file** (no MCAP summary: the recorder did '
                      f'not close the bag); {run.message_count} messages recovered |')
-    lines += [f'| simulated time | {data.t[0]:g} s to {data.t_end:g} s ({data.t.size} state samples) |',
+    lines += [f'| simulated time | {data.t[0]:g} s to {data.t_end:g} s ({run.samples} state samples) |',
               f'| attitude | {"true state (truth/state)" if data.topic_counts.get(topics.TRUTH_STATE) else "state"} |',
               '']
     if not run.complete:
@@ -255,6 +262,9 @@ def draw_figures(report: Report, figures, level: str = '###') -> list[str]:
         fig, caption = result
         save_figure(fig, report.out, name)
         lines += [f'![{title}]({name}.png)', '', f'{caption} ([SVG]({name}.svg))', '']
+        del fig, result
+        if report.run.long is not None:   # a long run's report, within its memory bound: a figure (and
+            gc.collect()                  # its renderer) is a cycle, freed now rather than beside the next
     return lines
 
 
