@@ -42,6 +42,7 @@ import numpy as np
 from numba import njit, prange
 
 from adcs_core.euler_kernel import euler_213_row
+from adcs_sim.truth.kernel import _max as _nanmax   # np.maximum: a NaN operand wins (the first one)
 
 _INNER = dict(cache=True, error_model='numpy', nogil=True, inline='always')
 DEG = 180.0 / math.pi   # numpy's rad2deg factor (180.0 / NPY_PI)
@@ -119,16 +120,6 @@ def pairwise_sum(a, lo, n):
                 los[sp], ns[sp], phase[sp] = los[sp - 1] + n2, ns[sp - 1] - n2, 0
                 break
             v = left[sp] + v
-
-
-@njit(**_INNER)
-def _nanmax(a, b):
-    """np.maximum(a, b) / max: a NaN operand wins (the first one)."""
-    if a != a:
-        return a
-    if b != b:
-        return b
-    return a if a >= b else b
 
 
 @njit(**_INNER)
