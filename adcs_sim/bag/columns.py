@@ -173,12 +173,20 @@ def _gather(buf: np.ndarray, starts: np.ndarray, nbytes: int) -> np.ndarray:
     return buf[starts[:, None] + np.arange(nbytes)]
 
 
+def header_time(buf: np.ndarray, starts: np.ndarray, e: str) -> tuple[np.ndarray, np.ndarray]:
+    """int64 ``(sec, nanosec)`` of the ``builtin_interfaces/Time`` that follows the 4-byte
+    encapsulation of each message starting at ``starts`` in ``buf`` (byte order ``e``: '<' or '>'),
+    the stamp of every header-first message."""
+    stamp = _gather(buf, starts + 4, 8)
+    sec = stamp[:, :4].copy().view(e + 'i4')[:, 0].astype(np.int64)
+    nsec = stamp[:, 4:].copy().view(e + 'u4')[:, 0].astype(np.int64)
+    return sec, nsec
+
+
 def _columns(batch: TopicBatch, rows: np.ndarray, layout: _Layout) -> Columns:
     starts = batch.starts[rows]
     e = '<' if layout.little else '>'
-    stamp = _gather(batch.buf, starts + 4, 8)
-    sec = stamp[:, :4].copy().view(e + 'i4')[:, 0].astype(np.int64)
-    nsec = stamp[:, 4:].copy().view(e + 'u4')[:, 0].astype(np.int64)
+    sec, nsec = header_time(batch.buf, starts, e)
     fields = {}
     for name, (off, n) in layout.fields.items():
         if n:
@@ -390,9 +398,7 @@ def _diagnostics_like(batch: TopicBatch, rows: np.ndarray, encapsulation: bytes,
     except UnicodeDecodeError:
         return done
     picked = rows[walk.sel]
-    st = _gather(batch.buf, walk.start[walk.sel] + 4, 8)
-    sec = st[:, :4].copy().view(walk.e + 'i4')[:, 0].astype(np.int64)
-    nsec = st[:, 4:].copy().view(walk.e + 'u4')[:, 0].astype(np.int64)
+    sec, nsec = header_time(batch.buf, walk.start[walk.sel], walk.e)
     stamps[picked] = sec + nsec * 1e-9
     if not per_status:
         lists = [[] for _ in range(picked.size)]

@@ -47,7 +47,7 @@ from adcs_sim.app.report.loading import TORQUE_KEYS
 from adcs_sim.app.run_data import RunData
 from adcs_sim.app.status_records import StatusRecords
 from adcs_sim.bag.batches import ColumnReader
-from adcs_sim.bag.columns import decode_batch, decode_diagnostics
+from adcs_sim.bag.columns import decode_batch, decode_diagnostics, header_time
 
 Unstreamable = sm.Unstreamable
 STREAM_KINDS = ('unknown', 'regulation')
@@ -130,15 +130,14 @@ def header_stamps(batch) -> np.ndarray:
     that it decodes every message, to the same stamps)."""
     if np.any(batch.sizes < 12):
         raise Unstreamable(f'{batch.topic}: a message shorter than its header')
-    head = batch.buf[batch.starts[:, None] + np.arange(12)]
-    if np.all(head[:, 1] == 1):
+    order = batch.buf[batch.starts + 1]   # the encapsulation's byte-order flag
+    if np.all(order == 1):
         e = '<'
-    elif np.all(head[:, 1] == 0):
+    elif np.all(order == 0):
         e = '>'
     else:
         raise Unstreamable(f'{batch.topic}: mixed byte orders')
-    sec = head[:, 4:8].copy().view(e + 'i4')[:, 0].astype(np.int64)
-    nsec = head[:, 8:12].copy().view(e + 'u4')[:, 0].astype(np.int64)
+    sec, nsec = header_time(batch.buf, batch.starts, e)
     return sec + nsec * 1e-9
 
 
