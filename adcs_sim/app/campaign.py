@@ -426,13 +426,16 @@ class Campaign:
         except ParameterError as exc:
             raise CampaignError(f'run {index}: drawn {exc} (inputs: {inputs})') from None
 
-    def _changes(self, inputs: dict[str, Any]) -> dict[str, dict[str, Any]]:
-        """``{section: {key: value}}`` a run's draws (and links) set, in :meth:`run_given`'s order."""
+    def _changes(self, inputs: dict[str, Any], per_run: bool = False) -> dict[str, dict[str, Any]]:
+        """``{section: {key: value}}`` a run's draws (and links) set, in :meth:`run_given`'s order.
+        ``per_run``: each input is a list of the runs' values (a link gets its own copy of each)."""
+        def own(value):
+            return list(value) if isinstance(value, list) else value
         changes: dict[str, dict[str, Any]] = {}
         for d, value in zip(self.dispersions, inputs.values()):
             changes.setdefault(d.section, {})[d.key] = value
             for section, key in d.links:
-                changes.setdefault(section, {})[key] = list(value) if isinstance(value, list) else value
+                changes.setdefault(section, {})[key] = [own(v) for v in value] if per_run else own(value)
         return changes
 
     def check_runs(self) -> None:
@@ -468,11 +471,8 @@ class Campaign:
             runs = [self.run_sections(i, d) for i, d in zip(indices, inputs)]
             return {name: NODES[name].schema.stack([r[name] for r in runs]) for name in runs[0]
                     if NODES[name].role != 'recorder'}
-        stacked: dict[str, dict[str, list]] = {}   # _changes of every run, a list over the runs per key
-        for d, column in zip(self.dispersions, zip(*[list(d.values()) for d in inputs])):
-            stacked.setdefault(d.section, {})[d.key] = list(column)
-            for section, key in d.links:
-                stacked.setdefault(section, {})[key] = [list(v) if isinstance(v, list) else v for v in column]
+        targets = [d.target for d in self.dispersions]   # _changes of every run, a list over the runs per key
+        stacked = self._changes(dict(zip(targets, map(list, zip(*[list(d.values()) for d in inputs])))), per_run=True)
         out = {}
         for section in self.nominal:
             if NODES[section].role == 'recorder':
