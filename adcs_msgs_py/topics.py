@@ -7,20 +7,21 @@ QoS choices
 -----------
 * **Lockstep data** (state, wheel and thruster states/commands, torque commands, applied
   torque): RELIABLE,
-  VOLATILE, KEEP_LAST depth :data:`DEPTH` (200). Lockstep must not lose a state or a command (a
+  VOLATILE, KEEP_LAST depth :data:`DEPTH` (500). Lockstep must not lose a state or a command (a
   lost one costs a wall-clock timeout and a missed step). The controllers answer every state, but
   the recorder only acknowledges: a RELIABLE KEEP_LAST writer drops a sample it has not had
   acknowledged once ``depth`` newer ones are written, so a recorder that falls behind (seen under
   CPU load with depth 10: five states missing from a 4 500-step bag) would lose data. Hence, when
   a recorder is expected (``startup.expect_recorder``, set by the runner), the publishers of every
-  recorded per-step topic wait for all acknowledgements every :data:`ACK_INTERVAL` (100) steps: a
-  reader is then never more than ~100 steps behind, inside the writer's depth with a 2x margin, and
+  recorded per-step topic wait for all acknowledgements every :data:`ACK_INTERVAL` (250) steps: a
+  reader is then never more than ~250 steps behind, inside the writer's depth with a 2x margin, and
   the wait (one heartbeat/acknowledgement round, up to ~10 ms: fastdds_profile.xml) is paid once
-  per 100 steps instead of at every step. The dynamics node waits at the steps k with
+  per 250 steps instead of at every step (issue 18: a wait is ~8 ms, ~80 µs a step when it came
+  every 100 steps, ~9 % of the showcase's loop). The dynamics node waits at the steps k with
   k % ACK_INTERVAL == 0, once it has step k's commands; the controllers and estimators at the same
-  k, after they have answered state k, so that the two waits overlap instead of adding up. Memory stays bounded (200 messages per topic).
+  k, after they have answered state k, so that the two waits overlap instead of adding up. Memory stays bounded (500 messages per topic).
   A reliable reader acknowledges what DDS has put in its history, not what the node has taken:
-  the recorder's readers hold at most 500 untaken messages a topic (adcs_sim/nodes/recorder_fastdds.xml),
+  the recorder's readers hold at most 1000 untaken messages a topic (adcs_sim/nodes/recorder_fastdds.xml),
   so a full one acknowledges nothing more and the waits hold the loop until the recorder catches
   up. A wait that times out (``lockstep.timeout`` per publisher) is logged: a recorder stalled
   that long could be overwritten two intervals later. The nodes' own subscriptions keep
@@ -81,9 +82,9 @@ from adcs_msgs_py.names import (  # noqa: F401
     WHEELS_STATE,
 )
 
-DEPTH = 200        # writers' history of the per-step topics (messages)
+DEPTH = 500        # writers' history of the per-step topics (messages)
 SUB_DEPTH = 10     # the nodes' own readers of those topics
-ACK_INTERVAL = 100  # steps between two waits for every reader's acknowledgement (< DEPTH)
+ACK_INTERVAL = 250  # steps between two waits for every reader's acknowledgement (< DEPTH)
 
 QOS_LOCKSTEP = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=DEPTH,

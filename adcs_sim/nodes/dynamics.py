@@ -306,11 +306,9 @@ class DynamicsNode(AdcsNode):
         # The state first: the controllers start computing while the rest goes out.
         q_m, w_m = self.measurement.measure(q, w)
         self.pub_state.publish(self._state_cdr.encode(t_ns, q_m, w_m))   # state_to_msg's bytes
-        # The rest is for recording and observers: not even built when nobody subscribes.
-        if self.pub_clock.get_subscription_count():
-            self.pub_clock.publish(self._clock_cdr.encode(t_ns))
-        if self.pub_truth is not None and self.pub_truth.get_subscription_count():
-            self.pub_truth.publish(self._state_cdr.encode(t_ns, q, w))
+        # Then what other controllers and estimators answer from (a wheel-momentum law pairs the
+        # state with wheels/state), then what is only recorded or observed: not even built when
+        # nobody subscribes.
         if self.wheels is not None and self.pub_wheels.get_subscription_count():
             xa = x[self.plant.slices['wheels']]
             n = self.wheels.count
@@ -318,6 +316,10 @@ class DynamicsNode(AdcsNode):
             torque = self.wheels.motor_torque(speed, self.commands['wheels'])
             self.pub_wheels.publish(self._wheels_cdr.encode(t_ns, self.wheels.names, xa[n:], speed, torque))
         self.publish_sensors(t_ns, q, w)
+        if self.pub_clock.get_subscription_count():
+            self.pub_clock.publish(self._clock_cdr.encode(t_ns))
+        if self.pub_truth is not None and self.pub_truth.get_subscription_count():
+            self.pub_truth.publish(self._state_cdr.encode(t_ns, q, w))
         if self.visual is not None:
             self.publish_visual_state(t_ns, q)
 

@@ -46,7 +46,7 @@ READY_LINE = 'recorder: ready'
 DRAIN_MAX_S = 10.0  # < the runner's stop timeout (adcs_sim.app.graph.STOP_TIMEOUT_S)
 PROFILES_ENV = 'FASTRTPS_DEFAULT_PROFILES_FILE'
 RECORDER_PROFILE = Path(__file__).resolve().parent / 'recorder_fastdds.xml'
-MAX_UNTAKEN = 500   # messages a topic DDS holds for the recorder (recorder_fastdds.xml's max_samples)
+MAX_UNTAKEN = 1000  # messages a topic DDS holds for the recorder (recorder_fastdds.xml's max_samples)
 
 
 def use_recorder_profile(environ=os.environ) -> None:
