@@ -49,6 +49,7 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, MagneticField
+from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
 from adcs_msgs_py.names import (  # noqa: F401
@@ -77,6 +78,8 @@ from adcs_msgs_py.names import (  # noqa: F401
     THRUSTERS_STATE,
     TORQUE_CMD,
     TRUTH_STATE,
+    RECORDED_VISUAL_TOPICS,
+    VISUAL_CONFIG,
     VISUAL_TOPICS,
     WHEELS_CMD,
     WHEELS_STATE,
@@ -203,6 +206,10 @@ TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in (
               'x: eigenaxis angle (deg) of the true attitude relative to the target; y, z: 0'),
     TopicSpec(ERROR_EULER_213, Vector3Stamped, QOS_LOCKSTEP,
               '2-1-3 Euler angles (deg) of the attitude error: x, y, z = the rotations about body x, y, z'),
+    TopicSpec(VISUAL_CONFIG, String, QOS_LATCHED,
+              'published once before t = 0: what the viewer messages are built from (JSON: target, axis '
+              'length, wheel and thruster geometry, orbit, the attitude topic); the recorder writes '
+              'frames/*, error/* and markers into the bag from it and the recorded state'),
 )}
 
 

@@ -9,6 +9,10 @@ What Foxglove's 3D panel and RViz draw, and what a plot panel plots without comp
   to inertial axes, the tf convention) and ``orbit`` (:func:`adcs_core.orbit.orbit_frame_attitude`).
   No translation: attitude only, every frame at one origin. The recorder also writes them into
   the bag as ``/tf`` (``tf2_msgs/TFMessage``: :mod:`adcs_sim.bag.tf`).
+
+The per-step ones (``frames/*``, ``markers``, ``error/*``) go out only to live subscribers: the
+recorder builds them itself, from :attr:`VisualMessages.config` (published once on
+``visualization/config``) and the messages it records (:mod:`adcs_msgs_py.visual_record`).
 * ``markers/static`` (``visualization_msgs/MarkerArray``, latched, published once at t = 0):
   a translucent body box and the body axes (frame ``body``, ``frame_locked``: they move with the
   transform) and the target attitude's axes (frame ``inertial``, oriented by the target).
@@ -29,6 +33,7 @@ seven markers, would otherwise cost every step).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 
@@ -53,6 +58,10 @@ BOX_SIZE = 0.5         # edge of the body box, of axis_length
 
 def _color(rgb, alpha: float = 1.0) -> ColorRGBA:
     return ColorRGBA(r=float(rgb[0]), g=float(rgb[1]), b=float(rgb[2]), a=float(alpha))
+
+
+def _listed(values) -> list | None:
+    return None if values is None else np.asarray(values, dtype=float).tolist()
 
 
 def _point(v) -> Point:
@@ -95,6 +104,13 @@ class VisualMessages:
 
     def __init__(self, target, axis_length: float = 1.0, wheel_axes=None, spin_inertia=None, max_speed=None,
                  thruster_positions=None, thruster_directions=None, orbit: CircularOrbit | None = None) -> None:
+        # What builds these messages, as JSON-able numbers (float repr round-trips: the recorder's
+        # copy, adcs_msgs_py.visual_record, is built from the very same values)
+        self.config = {'target': _listed(target), 'axis_length': float(axis_length),
+                       'wheel_axes': _listed(wheel_axes), 'spin_inertia': _listed(spin_inertia),
+                       'max_speed': _listed(max_speed), 'thruster_positions': _listed(thruster_positions),
+                       'thruster_directions': _listed(thruster_directions),
+                       'orbit': dataclasses.asdict(orbit) if orbit is not None else None}
         self.target = np.asarray(target, dtype=float) / np.linalg.norm(target)
         self.length = float(axis_length)
         self.body = transform_msg(INERTIAL_FRAME, BODY_FRAME)

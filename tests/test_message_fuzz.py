@@ -230,16 +230,34 @@ def _tf(topic: str, data: bytes) -> bytes:
 @FUZZ
 @given(msg=transforms(), garbage=st.binary(max_size=60))
 def test_recorder_writes_tf_only_from_valid_transforms(graphs, msg, garbage):
-    """frames/body is recorded when its stamp is valid (as every topic); it goes on /tf only when
-    it is a well-formed transform (frame ids, finite, unit rotation), else it is counted, once."""
+    """A frames/body message (the recorder writes them itself since issue 18: ``_write_tf`` of
+    every one it writes) goes on /tf only when it is a well-formed transform (frame ids, finite,
+    unit rotation), else it is counted, once."""
     _, nodes, _, _ = graphs
     rec = nodes['recorder']
     topic = '/frames/body'
     for data in (serialize_message(msg), garbage):
         tf_before = rec.bag.topics['/tf'].count if '/tf' in rec.bag.topics else 0
-        feed(rec, rec.subs[topic], data, lambda: _tf(topic, data))
+        before = rec.rejects.total
+        if refused(lambda: cv.checked_cdr_stamp(topic, data)):
+            continue   # the recorder writes no frame without a valid stamp
+        rec._write_tf(topic, data)
         tf_after = rec.bag.topics['/tf'].count if '/tf' in rec.bag.topics else 0
         assert tf_after - tf_before == (not refused(lambda: _tf(topic, data)))
+        assert rec.rejects.total == before + refused(lambda: _tf(topic, data))
+
+
+@FUZZ
+@given(text=st.one_of(st.text(max_size=200), st.binary(max_size=200).map(lambda b: b.decode('latin-1'))))
+def test_recorder_counts_a_hostile_viewer_config_and_keeps_recording(graphs, text):
+    """visualization/config with anything in it: recorded, and counted when it is not a config the
+    recorder can build the viewer topics from; nothing escapes its callback."""
+    from std_msgs.msg import String
+    _, nodes, _, _ = graphs
+    rec = nodes['recorder']
+    before, viewer = rec.rejects.total, rec.viewer
+    feed(rec, rec.subs['/visualization/config'], String(data=text))
+    assert rec.viewer is viewer or rec.rejects.total == before
 
 
 def test_the_fuzzed_graph_runs_to_the_end(graphs):

@@ -49,6 +49,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from std_msgs.msg import String
 
 from adcs_core.faults import FaultTracker, split_snapshot
 from adcs_msgs_py import cdr
@@ -62,11 +63,14 @@ from adcs_msgs_py.names import (
     FRAMES_ORBIT,
     MARKERS,
     MARKERS_STATIC,
+    RECORDED_VISUAL_TOPICS,
+    VISUAL_CONFIG,
     VISUAL_TOPICS,
 )
 from adcs_msgs_py.guard import IntrusionDetected
 from adcs_msgs_py.node import AdcsNode, RunStopped, main_for
 from adcs_msgs_py.visual import VisualMessages
+from adcs_msgs_py.visual_record import config_text
 from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.link_faults import DELAY, FATE_NAMES, OK, LinkFaults
 from adcs_sim.truth.plant import ReactionWheels, WheelCommand
@@ -177,7 +181,10 @@ class DynamicsNode(AdcsNode):
         skip = {FRAMES_ORBIT} if orbit is None else set()
         if not visual.markers.markers:
             skip.add(MARKERS)   # nothing moves but the body (torquers only)
-        return visual, {t: self.publisher(t) for t in VISUAL_TOPICS if t not in skip}
+        publishers = {t: self.publisher(t) for t in (*VISUAL_TOPICS, VISUAL_CONFIG) if t not in skip}
+        attitude = topics.TRUTH_STATE if self.pub_truth is not None else topics.STATE   # the true one
+        self._visual_config = config_text(visual, attitude, [t for t in RECORDED_VISUAL_TOPICS if t in publishers])
+        return visual, publishers
 
     # --- faults -----------------------------------------------------------------------------
 
@@ -359,8 +366,10 @@ class DynamicsNode(AdcsNode):
         if state_subs < 0:
             state_subs = (1 if self.awaited else 0) + recorder
         required = {self.pub_state: state_subs}
+        # the recorder writes the per-step viewer topics itself (adcs_msgs_py/visual_record.py)
+        visual = [pub for t, pub in self.pub_visual.items() if t not in RECORDED_VISUAL_TOPICS]
         for pub in (self.pub_clock, self.pub_truth, self.pub_wheels, self.pub_applied, self.pub_status,
-                    self.pub_thrusters, *self.pub_visual.values()):
+                    self.pub_thrusters, *visual):
             if pub is not None:
                 required[pub] = max(required.get(pub, 0), recorder)
         sensor_subs = p['startup.sensor_subscribers']
@@ -381,8 +390,12 @@ class DynamicsNode(AdcsNode):
             f'{self.params["mode"]} run: {self.n_steps} steps of {self.period:g} s, '
             f'waiting for {self.awaited or "no commands"}')
         self.publish_status()
-        if MARKERS_STATIC in self.pub_visual:   # latched: once, before t = 0
+        if self.visual is not None:   # latched: once, before t = 0; the recorder has both before state 0
             self.pub_visual[MARKERS_STATIC].publish(self.visual.static_markers(0))
+            self.pub_visual[VISUAL_CONFIG].publish(String(data=self._visual_config))
+            if self.params['startup.expect_recorder']:
+                self.wait_acked([self.pub_visual[MARKERS_STATIC], self.pub_visual[VISUAL_CONFIG]],
+                                self.params['startup.timeout'])
         timeout = self.params['lockstep.timeout']
         pace = self.period / self.params['real_time_factor']
         wall0 = time.monotonic()

@@ -31,11 +31,14 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.experimental import EventsExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
+from std_msgs.msg import String
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import names, topics
+from adcs_msgs_py.cdr import deserialized
 from adcs_msgs_py.guard import Intruder
 from adcs_msgs_py.node import FASTDDS_PROFILE, AdcsNode, main_for
+from adcs_msgs_py.visual_record import ViewerRecording, parse_config
 from adcs_sim.bag.schema import RECORDER_SCHEMA
 from adcs_sim.bag.tf import TF_TYPE, tf_message_cdr
 from adcs_sim.bag.writer import STAMP_FIRST_TYPES, BagWriter, qos_dicts
@@ -113,8 +116,17 @@ class RecorderNode(AdcsNode):
         self.tf_topic = self.resolve_topic_name(names.TF)   # written from frames/* (adcs_sim.bag.tf)
         wanted = p['topics']
         self.record_all = 'all' in wanted
-        for spec in topics.TOPICS.values():
-            if self.record_all or spec.name in wanted:
+        # The per-step viewer topics are written from the recorded state (adcs_msgs_py/visual_record.py):
+        # never subscribed, so that the dynamics node sends them only to a live viewer.
+        self.viewer: ViewerRecording | None = None
+        self.viewer_topics = {t for t in names.RECORDED_VISUAL_TOPICS if self.record_all or t in wanted}
+        self.derived = {self.resolve_topic_name(t) for t in names.RECORDED_VISUAL_TOPICS}
+        # the config first: an executor that takes ready subscriptions in their order takes it
+        # before a state that arrived with it (the events executor takes them as they arrive)
+        for spec in sorted(topics.TOPICS.values(), key=lambda s: s.name != names.VISUAL_CONFIG):
+            if spec.name in names.RECORDED_VISUAL_TOPICS:
+                continue
+            if self.record_all or spec.name in wanted or (spec.name == names.VISUAL_CONFIG and self.viewer_topics):
                 self._subscribe(spec.name, spec.msg_type, topics.recorder_qos(spec.qos), spec.qos)
         self.create_timer(p['flush_period'], self.bag.flush)
         if self.record_all:
@@ -123,25 +135,65 @@ class RecorderNode(AdcsNode):
             self.create_timer(p['discovery_period'], self._sweep)
         print(READY_LINE, flush=True)
 
-    def _subscribe(self, name: str, msg_type, qos: QoSProfile, offered: QoSProfile) -> None:
+    def _subscribe(self, name: str, msg_type, qos: QoSProfile, offered: QoSProfile, record: bool = True) -> None:
+        """Record topic ``name`` (``record`` False: only take it, as a source of the viewer topics)."""
         resolved = self.resolve_topic_name(name)
         if resolved in self.subs:
             return
         type_name = topics.type_name(msg_type)
-        self.bag.add_topic(resolved, type_name, qos_dicts(offered))
+        if record:
+            self.bag.add_topic(resolved, type_name, qos_dicts(offered))
         stamped = type_name in STAMP_FIRST_TYPES
         derive_tf = name in names.FRAME_TOPICS
+        relative = name   # a topic of the interface by its relative name (a discovered one: resolved)
 
         def on_message(data: bytes, topic=resolved) -> None:
             # the stamp is the log time: a negative or out-of-range one is rejected (counted)
             if stamped and self.rejects.accept(topic, lambda: cv.checked_cdr_stamp(topic, data)) is None:
                 return
-            self.bag.write(topic, data)
-            self.received += 1
-            if derive_tf:
-                self._write_tf(topic, data)
+            if record:
+                self.bag.write(topic, data)
+                self.received += 1
+                if derive_tf:
+                    self._write_tf(topic, data)
+            if relative == names.VISUAL_CONFIG:
+                self._on_visual_config(topic, data)
+            elif self.viewer is not None and relative in self.viewer.sources:
+                self._write_viewer(topic, relative, data)
 
         self.subs[resolved] = self.subscription(name, on_message, qos=qos, msg_type=msg_type, raw=True)
+
+    def _on_visual_config(self, topic: str, data: bytes) -> None:
+        """The dynamics node's viewer config: from now on the viewer topics are written from the
+        recorded messages (a repeat of the same config changes nothing; a different one is refused)."""
+        def parse():
+            text = deserialized(data, String, topic).data
+            if self.viewer is not None:
+                if text != self.viewer_text:
+                    raise cv.InvalidMessage(f'{topic}: a second, different config (the first one stays)')
+                return None
+            return text, ViewerRecording(parse_config(text))
+        parsed = self.rejects.accept(topic, parse)
+        if not parsed:
+            return
+        self.viewer_text, self.viewer = parsed
+        for name in self.viewer.topics:
+            if name in self.viewer_topics:
+                spec = topics.TOPICS[name]
+                self.bag.add_topic(self.resolve_topic_name(name), spec.type_name, qos_dicts(spec.qos))
+        for name in self.viewer.sources:   # what the config needs and this recorder does not record
+            spec = topics.TOPICS[name]
+            self._subscribe(name, spec.msg_type, topics.recorder_qos(spec.qos), spec.qos, record=False)
+
+    def _write_viewer(self, topic: str, relative: str, data: bytes) -> None:
+        """The viewer messages that ``data`` (recorded on ``topic``) completes, into the bag."""
+        derived = self.rejects.accept(topic, lambda: self.viewer.derive(relative, data))
+        for name, message in derived or ():
+            if name in self.viewer_topics:
+                resolved = self.resolve_topic_name(name)
+                self.bag.write(resolved, message)
+                if name in names.FRAME_TOPICS:
+                    self._write_tf(resolved, message)
 
     def _write_tf(self, topic: str, data: bytes) -> None:
         """The transform just recorded on ``topic``, also on ``/tf`` as a TFMessage (a malformed one
@@ -161,7 +213,8 @@ class RecorderNode(AdcsNode):
         ns = self.get_namespace().rstrip('/') + '/'
         reserved = (self.resolve_topic_name(names.INTRUSIONS), ns + names.QUARANTINE_PREFIX + '/')
         for name, types in self.get_topic_names_and_types():
-            if (name in self.subs or name in self.skipped or name in IGNORED_TOPICS or not name.startswith(ns)
+            if (name in self.subs or name in self.skipped or name in IGNORED_TOPICS or name in self.derived
+                    or not name.startswith(ns)
                     or len(types) != 1 or name.startswith(reserved) or name == self.tf_topic):
                 continue
             try:

@@ -1,0 +1,224 @@
+"""The per-step viewer topics written by the recorder, from what it records (issue 18).
+
+``frames/body``, ``frames/orbit``, ``error/eigenaxis``, ``error/euler_213`` and ``markers``
+(:data:`adcs_msgs_py.names.RECORDED_VISUAL_TOPICS`) are functions of the true attitude, the wheel
+speeds and the thrusters' on-times, which the bag already holds. Sending them through DDS cost
+the lockstep loop four of its eight messages a step, in the dynamics node's publishing and in the
+recorder's taking (the loop's longest path). So the dynamics node publishes once, latched, on
+``visualization/config`` (:data:`~adcs_msgs_py.names.VISUAL_CONFIG`, ``std_msgs/String``) the
+JSON of what builds them (:attr:`adcs_msgs_py.visual.VisualMessages.config`, plus which topic
+holds the true attitude and which viewer topics it has), and publishes the viewer topics only to
+subscribers (a live viewer); the recorder builds the same
+:class:`~adcs_msgs_py.visual.VisualMessages` from that config and writes, for each recorded
+message, the viewer messages the dynamics node would have sent: the same bytes
+(``tests/test_viewer_record.py``), the same stamps and so the same log times.
+
+* ``frames/*``, ``error/*`` of step ``t``: from the attitude message of ``t`` (``truth/state``
+  when the dynamics node publishes one, else ``state``, which is then the true state). The
+  quaternion is taken as sent (not renormalised, which could move its last bit), after the
+  checks the graph applies (finite, unit within
+  :data:`~adcs_msgs_py.conversions.UNIT_QUATERNION_TOLERANCE`).
+* ``markers`` of step ``t`` (the wheel momentum at its start, the thrusters that fire in it): once
+  the step is integrated, i.e. when ``actuators/torque`` of ``t``, ``wheels/state`` of ``t`` (with
+  wheels) and ``thrusters/state`` of ``t`` (with thrusters) are all here, in whatever order they
+  arrive; at most :data:`MAX_PENDING` incomplete steps are held (the oldest is forgotten: the
+  last step's wheels/state, whose step is never integrated, stays until then).
+
+Everything here is untrusted input: a config that is not exactly what the dynamics node sends
+(keys, types, finite numbers, sizes), or a source message that does not check, raises
+:class:`~adcs_msgs_py.conversions.InvalidMessage` (the recorder counts it and keeps recording).
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from nav_msgs.msg import Odometry
+
+from adcs_core.orbit import R_EARTH, CircularOrbit
+from adcs_msgs_py import conversions as cv
+from adcs_msgs_py.cdr import JointStateCodec, StateCodec, deserialized
+from adcs_msgs_py.names import (
+    APPLIED_TORQUE,
+    ERROR_EIGENAXIS,
+    ERROR_EULER_213,
+    FRAMES_BODY,
+    FRAMES_ORBIT,
+    MARKERS,
+    RECORDED_VISUAL_TOPICS,
+    STATE,
+    THRUSTERS_STATE,
+    TRUTH_STATE,
+    WHEELS_STATE,
+)
+from adcs_msgs_py.visual import VisualMessages
+
+MAX_CONFIG_CHARS = 65536
+MAX_ACTUATORS = 64   # wheels, thrusters
+MAX_PENDING = 32     # steps whose markers wait for an input
+ATTITUDE_TOPICS = (TRUTH_STATE, STATE)
+KEYS = ('target', 'axis_length', 'wheel_axes', 'spin_inertia', 'max_speed', 'thruster_positions',
+        'thruster_directions', 'orbit', 'attitude_topic', 'topics')
+ORBIT_KEYS = tuple(f.name for f in CircularOrbit.__dataclass_fields__.values())
+
+
+def config_text(visual: VisualMessages, attitude_topic: str, topics) -> str:
+    """The ``visualization/config`` message's text for ``visual`` (the dynamics node's)."""
+    return json.dumps({**visual.config, 'attitude_topic': attitude_topic, 'topics': list(topics)})
+
+
+@dataclass(frozen=True)
+class VisualConfig:
+    """A checked ``visualization/config``: the :class:`VisualMessages` arguments and what to derive."""
+
+    arguments: dict
+    attitude_topic: str
+    topics: tuple[str, ...]
+
+
+def parse_config(text) -> VisualConfig:
+    """``visualization/config`` text -> :class:`VisualConfig`; InvalidMessage naming what is wrong."""
+    if not isinstance(text, str) or len(text) > MAX_CONFIG_CHARS:
+        raise cv.InvalidMessage(f'visualization/config: not a text of at most {MAX_CONFIG_CHARS} characters')
+    try:
+        raw = json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise cv.InvalidMessage(f'visualization/config: not JSON ({exc})') from None
+    if not isinstance(raw, dict) or set(raw) != set(KEYS):
+        raise cv.InvalidMessage(f'visualization/config: not an object with exactly the keys {list(KEYS)}')
+    wheels, thrusters = _count(raw, 'wheel_axes'), _count(raw, 'thruster_positions')
+    args = {'target': _numbers(raw, 'target', (4,)), 'axis_length': _number(raw['axis_length'], 'axis_length'),
+            'wheel_axes': _numbers(raw, 'wheel_axes', (wheels, 3)),
+            'spin_inertia': _numbers(raw, 'spin_inertia', (wheels,)),
+            'max_speed': _numbers(raw, 'max_speed', (wheels,), infinite=True),
+            'thruster_positions': _numbers(raw, 'thruster_positions', (thrusters, 3)),
+            'thruster_directions': _numbers(raw, 'thruster_directions', (thrusters, 3)),
+            'orbit': _orbit(raw['orbit'])}
+    if not math.hypot(*args['target']) > 0 or not args['axis_length'] > 0:
+        raise cv.InvalidMessage('visualization/config: a zero target quaternion or a non-positive axis length')
+    topics = raw['topics']
+    if (raw['attitude_topic'] not in ATTITUDE_TOPICS or not isinstance(topics, list)
+            or not all(t in RECORDED_VISUAL_TOPICS for t in topics) or len(set(topics)) != len(topics)
+            or (FRAMES_ORBIT in topics and args['orbit'] is None)):
+        raise cv.InvalidMessage(f'visualization/config: attitude_topic must be one of {list(ATTITUDE_TOPICS)} '
+                                f'and topics distinct ones of {list(RECORDED_VISUAL_TOPICS)} '
+                                '(frames/orbit with an orbit)')
+    return VisualConfig(args, raw['attitude_topic'], tuple(topics))
+
+
+def _count(raw: dict, key: str) -> int:
+    value = raw[key]
+    if value is None:
+        return 0
+    if not isinstance(value, list) or not 0 < len(value) <= MAX_ACTUATORS:
+        raise cv.InvalidMessage(f'visualization/config: {key} must be null or a list of 1 to {MAX_ACTUATORS} rows')
+    return len(value)
+
+
+def _number(value, key: str, infinite: bool = False) -> float:
+    if type(value) not in (int, float) or math.isnan(value) or (math.isinf(value) and not infinite):
+        raise cv.InvalidMessage(f'visualization/config: {key} holds {str(value)[:40]!r}, not a finite number')
+    return float(value)
+
+
+def _numbers(raw: dict, key: str, shape: tuple[int, ...], infinite: bool = False):
+    """``raw[key]``: a (nested) list of numbers of ``shape`` (None for no actuators)."""
+    value = raw[key]
+    if shape[0] == 0:
+        if value is not None:
+            raise cv.InvalidMessage(f'visualization/config: {key} given without the actuators it belongs to')
+        return None
+    rows = value if len(shape) == 2 else [value]
+    width = shape[-1]
+    if not isinstance(value, list) or len(value) != shape[0] or not all(
+            isinstance(r, list) and len(r) == width for r in rows):
+        raise cv.InvalidMessage(f'visualization/config: {key} must have shape {list(shape)}')
+    out = [[_number(v, key, infinite) for v in r] for r in rows]
+    return out if len(shape) == 2 else out[0]
+
+
+def _orbit(value) -> CircularOrbit | None:
+    if value is None:
+        return None
+    if not isinstance(value, dict) or set(value) != set(ORBIT_KEYS):
+        raise cv.InvalidMessage(f'visualization/config: orbit must be null or have exactly the keys {list(ORBIT_KEYS)}')
+    orbit = CircularOrbit(**{k: _number(value[k], f'orbit.{k}') for k in ORBIT_KEYS})
+    if not (orbit.mu > 0 and orbit.altitude > -R_EARTH):
+        raise cv.InvalidMessage('visualization/config: orbit needs mu > 0 and a positive radius')
+    return orbit
+
+
+class ViewerRecording:
+    """The viewer messages of the recorded messages, as the dynamics node of ``config`` builds them."""
+
+    def __init__(self, config: VisualConfig) -> None:
+        self.config = config
+        self.visual = VisualMessages(**config.arguments)
+        self.topics = config.topics
+        self.wheels = len(config.arguments['wheel_axes'] or ())
+        self.thrusters = len(config.arguments['thruster_positions'] or ())
+        self._state = StateCodec(config.attitude_topic)
+        self._joints = {WHEELS_STATE: JointStateCodec(WHEELS_STATE), THRUSTERS_STATE: JointStateCodec(THRUSTERS_STATE)}
+        self.marker_inputs = frozenset()
+        if MARKERS in self.topics:
+            self.marker_inputs = frozenset({APPLIED_TORQUE} | ({WHEELS_STATE} if self.wheels else set())
+                                           | ({THRUSTERS_STATE} if self.thrusters else set()))
+        attitude = {config.attitude_topic} if set(self.topics) - {MARKERS} else set()
+        self.sources = frozenset(attitude | self.marker_inputs)
+        self._pending: dict[int, dict] = {}
+
+    def derive(self, topic: str, data: bytes) -> list[tuple[str, bytes]]:
+        """The viewer messages (topic, CDR bytes as a subscriber receives them: DDS pads a message to
+        a multiple of 4 bytes with zeros) that the message ``data`` on ``topic`` completes."""
+        return [(name, message + bytes(-len(message) % 4)) for name, message in self._derive(topic, data)]
+
+    def _derive(self, topic: str, data: bytes) -> list[tuple[str, bytes]]:
+        out = []
+        if topic == self.config.attitude_topic and set(self.topics) - {MARKERS}:
+            t_ns, q = self._attitude(data)
+            if FRAMES_BODY in self.topics:
+                out.append((FRAMES_BODY, self.visual.body_frame_cdr(t_ns, q)))
+            if FRAMES_ORBIT in self.topics:
+                out.append((FRAMES_ORBIT, self.visual.orbit_frame_cdr(t_ns)))
+            if ERROR_EIGENAXIS in self.topics or ERROR_EULER_213 in self.topics:
+                for name, msg in zip((ERROR_EIGENAXIS, ERROR_EULER_213), self.visual.errors_cdr(t_ns, q)):
+                    if name in self.topics:
+                        out.append((name, msg))
+        if topic in self.marker_inputs:
+            out += self._markers(topic, data)
+        return out
+
+    def _attitude(self, data: bytes) -> tuple[int, tuple]:
+        """Stamp and quaternion of an attitude message, as sent (checked, not renormalised)."""
+        v = self._state.template.decode(data)
+        if v is None:   # another layout of an Odometry: read it whole
+            msg = deserialized(data, Odometry, self.config.attitude_topic)
+            o = msg.pose.pose.orientation
+            v = (None, None, o.x, o.y, o.z, o.w)
+        t_ns = cv.checked_cdr_stamp(self.config.attitude_topic, data)
+        q = tuple(v[2:6])
+        cv.checked_quaternion(f'{self.config.attitude_topic} orientation', q)
+        return t_ns, q
+
+    def _markers(self, topic: str, data: bytes) -> list[tuple[str, bytes]]:
+        t_ns = cv.checked_cdr_stamp(topic, data)
+        value = None
+        if topic in self._joints:
+            msg = self._joints[topic].message(data)
+            value = tuple(float(v) for v in msg.velocity)   # wheel speeds / thruster on-times
+            count = self.wheels if topic == WHEELS_STATE else self.thrusters
+            if len(value) != count or not all(math.isfinite(v) for v in value):
+                raise cv.InvalidMessage(f'{topic}: {len(value)} velocities, not {count} finite ones')
+        entry = self._pending.get(t_ns)
+        if entry is None:
+            if len(self._pending) >= MAX_PENDING:   # a step that never completes: forget the oldest
+                del self._pending[min(self._pending)]
+            entry = self._pending[t_ns] = {}
+        entry[topic] = value
+        if not self.marker_inputs <= entry.keys():
+            return []
+        del self._pending[t_ns]
+        speed = np.array(entry[WHEELS_STATE]) if self.wheels else None
+        return [(MARKERS, self.visual.marker_array_cdr(t_ns, speed, entry.get(THRUSTERS_STATE, ())))]

@@ -1,0 +1,234 @@
+"""The viewer topics the recorder writes from what it records (adcs_msgs_py/visual_record.py).
+
+The dynamics node publishes ``frames/*``, ``error/*`` and ``markers`` only to live subscribers and
+sends the recorder their config once (``visualization/config``); the recorder's messages must be
+the dynamics node's, byte for byte as a subscriber receives them (zero-padded to 4 bytes), for
+every kind of spacecraft (wheels, thrusters, both, an orbit or none, truth/state or state), in
+whatever order the sources arrive. The config and the sources are untrusted: anything else is
+an InvalidMessage (counted by the recorder), never another exception, and the pending steps are
+bounded. In a graph: the bag's viewer topics equal what a live subscriber received in the same run.
+"""
+from __future__ import annotations
+
+import json
+import math
+import random
+
+import numpy as np
+import pytest
+from conftest import InProcessGraph, make_scenario
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from adcs_core.orbit import CircularOrbit
+from adcs_msgs_py import cdr, names
+from adcs_msgs_py.conversions import InvalidMessage
+from adcs_msgs_py.visual import VisualMessages
+from adcs_msgs_py.visual_record import MAX_PENDING, ViewerRecording, config_text, parse_config
+
+SETTINGS = settings(max_examples=300, derandomize=True, deadline=None,
+                    suppress_health_check=[HealthCheck.too_slow])
+PERIOD_NS = 500_000_000
+AXES = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.5773502691896258] * 3]
+THRUSTERS = ([[0.3, 0.1, -0.2], [-0.3, 0.1, 0.2]], [[0.0, 1.0, 0.0], [0.0, -1.0, 0.0]])
+ALL = list(names.RECORDED_VISUAL_TOPICS)
+
+
+def _visual(wheels: bool, thrusters: bool, orbit: bool) -> VisualMessages:
+    return VisualMessages([0.1, -0.2, 0.3, 0.9], 1.7, *((AXES, [0.01, 0.02, 0.01, 0.03],
+                                                        [523.6, math.inf, 300.0, 100.0]) if wheels else (None,) * 3),
+                          *(THRUSTERS if thrusters else (None, None)),
+                          orbit=CircularOrbit(7.0e5, 1.7, 0.3, 0.1) if orbit else None)
+
+
+def _topics(visual: VisualMessages) -> list[str]:
+    skip = {names.FRAMES_ORBIT} if visual.orbit is None else set()
+    if not visual.markers.markers:
+        skip.add(names.MARKERS)
+    return [t for t in ALL if t not in skip]
+
+
+def _padded(data: bytes) -> bytes:
+    return data + bytes(-len(data) % 4)
+
+
+def _run(visual: VisualMessages, attitude: str, steps: int, rng: np.random.Generator):
+    """What the dynamics node sends for ``steps`` steps (the sources, in its order) and the viewer
+    messages it publishes, as a subscriber receives them."""
+    state, joints, vector = cdr.StateCodec(), cdr.JointStateCodec('x'), cdr.VectorCodec()
+    n_w, n_t = len(visual.spin), len(visual._plume_ends) if visual.plumes is not None else 0
+    sources, viewer = [], []
+    for k in range(steps + 1):
+        t = k * PERIOD_NS
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        speed = rng.normal(scale=100.0, size=n_w)
+        sources.append((attitude, state.encode(t, q, rng.normal(size=3))))
+        if n_w:
+            sources.append((names.WHEELS_STATE, joints.encode(t, [f'w{i}' for i in range(n_w)], speed, speed, speed)))
+        viewer += [(names.FRAMES_BODY, visual.body_frame_cdr(t, q))]
+        if visual.orbit is not None:
+            viewer.append((names.FRAMES_ORBIT, visual.orbit_frame_cdr(t)))
+        viewer += list(zip((names.ERROR_EIGENAXIS, names.ERROR_EULER_213), visual.errors_cdr(t, q)))
+        if k == steps:   # the last state: no step is integrated from it
+            break
+        on = np.where(rng.random(n_t) < 0.5, rng.random(n_t), 0.0)
+        sources.append((names.APPLIED_TORQUE, vector.encode(t, rng.normal(size=3))))
+        if n_t:
+            sources.append((names.THRUSTERS_STATE, joints.encode(t, ['a', 'b'], on, on, on)))
+        if visual.markers.markers:
+            viewer.append((names.MARKERS, visual.marker_array_cdr(t, speed if n_w else None, on if n_t else ())))
+    return sources, [(topic, _padded(data)) for topic, data in viewer]
+
+
+@pytest.mark.parametrize('wheels, thrusters, orbit', [(True, False, False), (False, True, True),
+                                                      (True, True, True), (False, False, True)])
+@pytest.mark.parametrize('attitude', [names.STATE, names.TRUTH_STATE])
+def test_the_recorded_viewer_messages_are_the_dynamics_nodes_in_any_arrival_order(wheels, thrusters, orbit, attitude):
+    visual = _visual(wheels, thrusters, orbit)
+    sources, expected = _run(visual, attitude, 40, np.random.default_rng(7))
+    config = parse_config(config_text(visual, attitude, _topics(visual)))
+    recording = ViewerRecording(config)
+    out = [m for topic, data in sources for m in recording.derive(topic, data)]
+    assert out == expected   # the dynamics' order, the same bytes
+    shuffled = list(sources)   # messages of different topics may be reordered; a topic's never is
+    random.Random(3).shuffle(shuffled)
+    order = {}
+    for topic, data in sources:
+        order.setdefault(topic, []).append(data)
+    reordered = [(topic, order[topic].pop(0)) for topic, _ in shuffled]
+    recording = ViewerRecording(parse_config(config_text(visual, attitude, _topics(visual))))
+    out = [m for topic, data in reordered for m in recording.derive(topic, data)]
+    assert sorted(out) == sorted(expected)
+
+
+def test_only_the_listed_topics_are_derived_and_only_their_sources_are_needed():
+    visual = _visual(True, False, False)
+    sources, expected = _run(visual, names.STATE, 5, np.random.default_rng(1))
+    recording = ViewerRecording(parse_config(config_text(visual, names.STATE, [names.MARKERS])))
+    assert recording.sources == {names.APPLIED_TORQUE, names.WHEELS_STATE}
+    out = [m for topic, data in sources for m in recording.derive(topic, data)]
+    assert out == [m for m in expected if m[0] == names.MARKERS]
+    recording = ViewerRecording(parse_config(config_text(visual, names.STATE, [names.ERROR_EULER_213])))
+    assert recording.sources == {names.STATE}
+
+
+def test_the_config_round_trips_every_number_exactly():
+    visual = _visual(True, True, True)
+    config = parse_config(config_text(visual, names.TRUTH_STATE, ALL))
+    again = VisualMessages(**config.arguments)
+    assert again.config == visual.config
+    assert np.array_equal(again.target, visual.target) and again.momentum_scale == visual.momentum_scale
+    assert config.attitude_topic == names.TRUTH_STATE and config.topics == tuple(ALL)
+
+
+VALID = json.loads(config_text(_visual(True, True, True), names.STATE, ALL))
+BAD = [
+    '', 'null', '[]', '{}', '{"target": 1}', 'NaN', '[' * 100_000, '{"a": ' * 5000,
+    json.dumps({**VALID, 'extra': 1}), json.dumps({k: v for k, v in VALID.items() if k != 'orbit'}),
+    json.dumps({**VALID, 'target': [0.0, 0.0, 0.0, 0.0]}), json.dumps({**VALID, 'target': [1.0, 0.0, 0.0]}),
+    json.dumps({**VALID, 'target': [True, 0.0, 0.0, 1.0]}), json.dumps({**VALID, 'axis_length': -1.0}),
+    json.dumps({**VALID, 'axis_length': 'long'}), json.dumps({**VALID, 'spin_inertia': [0.01] * 3}),
+    json.dumps({**VALID, 'wheel_axes': [[1.0, 0.0]] * 4}), json.dumps({**VALID, 'wheel_axes': [[1.0, 0.0, 0.0]] * 65}),
+    json.dumps({**VALID, 'wheel_axes': None}), json.dumps({**VALID, 'thruster_directions': None}),
+    json.dumps({**VALID, 'orbit': {**VALID['orbit'], 'mu': -1.0}}), json.dumps({**VALID, 'orbit': {'altitude': 1.0}}),
+    json.dumps({**VALID, 'orbit': None}),   # frames/orbit listed without an orbit
+    json.dumps({**VALID, 'attitude_topic': '/evil'}), json.dumps({**VALID, 'topics': ['markers', 'markers']}),
+    json.dumps({**VALID, 'topics': ['/clock']}), json.dumps({**VALID, 'topics': 'markers'}),
+    json.dumps({**VALID, 'target': [1e308, 1e308, 0.0, 0.0]}).replace('1e+308', '1e999'),
+    'x' * 70_000,
+]
+
+
+@pytest.mark.parametrize('text', BAD, ids=range(len(BAD)))
+def test_a_config_that_is_not_what_the_dynamics_node_sends_is_an_invalid_message(text):
+    with pytest.raises(InvalidMessage, match='visualization/config'):
+        parse_config(text)
+
+
+JSON = st.recursive(st.none() | st.booleans() | st.floats(allow_nan=True) | st.integers() | st.text(max_size=8),
+                    lambda kids: st.lists(kids, max_size=5) | st.dictionaries(st.text(max_size=8), kids, max_size=5),
+                    max_leaves=30)
+
+
+@SETTINGS
+@given(key=st.sampled_from(sorted(VALID)), value=JSON)
+def test_fuzzed_configs_either_build_the_viewer_or_are_invalid_messages(key, value):
+    text = json.dumps({**VALID, key: value})
+    try:
+        config = parse_config(text)
+    except InvalidMessage:
+        return
+    ViewerRecording(config)   # whatever passes builds
+
+
+@SETTINGS
+@given(topic=st.sampled_from([names.STATE, names.WHEELS_STATE, names.APPLIED_TORQUE, names.THRUSTERS_STATE]),
+       data=st.binary(max_size=400), cut=st.integers(0, 400))
+def test_fuzzed_sources_derive_or_are_invalid_messages(topic, data, cut):
+    visual = _visual(True, True, True)
+    recording = ViewerRecording(parse_config(config_text(visual, names.STATE, ALL)))
+    good = dict(_run(visual, names.STATE, 1, np.random.default_rng(0))[0])[topic]
+    for candidate in (data, good[:cut] + data[:len(good) - cut], good[:cut]):
+        try:
+            recording.derive(topic, candidate)
+        except InvalidMessage:
+            pass
+
+
+def test_a_non_unit_or_non_finite_attitude_is_refused_not_renormalised():
+    visual = _visual(False, False, False)
+    recording = ViewerRecording(parse_config(config_text(visual, names.STATE, _topics(visual))))
+    for q in ([0.0, 0.0, 0.0, 1.0 + 1e-5], [0.0, 0.0, 0.0, math.nan], [0.0, 0.0, math.inf, 1.0]):
+        with pytest.raises(InvalidMessage):
+            recording.derive(names.STATE, cdr.StateCodec().encode(0, q, [0.0, 0.0, 0.0]))
+
+
+def test_steps_that_never_complete_are_bounded():
+    visual = _visual(True, False, False)
+    recording = ViewerRecording(parse_config(config_text(visual, names.STATE, _topics(visual))))
+    codec = cdr.JointStateCodec('x')
+    for k in range(10 * MAX_PENDING):   # wheel states whose steps are never integrated
+        assert recording.derive(names.WHEELS_STATE, codec.encode(k, list('abcd'), [0.0] * 4, [1.0] * 4, [0.0] * 4)) == []
+    assert len(recording._pending) == MAX_PENDING
+    with pytest.raises(InvalidMessage):   # a wheel count that is not the config's
+        recording.derive(names.WHEELS_STATE, codec.encode(0, ['a'], [0.0], [1.0], [0.0]))
+
+
+def test_in_a_graph_the_bag_holds_what_a_live_viewer_received(tmp_path, ros_domain):
+    """Dynamics + PD + recorder, and a live viewer subscribed to every viewer topic: the dynamics
+    node publishes them to the viewer only, the recorder writes its own, and both are the same."""
+    from adcs_controllers.nodes.pd_controller import PdController
+    from adcs_sim.bag.reader import read_raw
+    from adcs_sim.nodes.dynamics import DynamicsNode
+    from adcs_sim.nodes.recorder import RecorderNode
+
+    n = 30
+    bag_dir = tmp_path / 'bag'
+    scenario = make_scenario(tmp_path, {
+        'dynamics': {'duration': float(n), 'startup.expect_recorder': True},
+        'pd_controller': {'startup.expect_recorder': True}, 'recorder': {'output': str(bag_dir)}})
+    live = {t: [] for t in (names.FRAMES_BODY, names.ERROR_EIGENAXIS, names.ERROR_EULER_213, names.MARKERS)}
+    with InProcessGraph(scenario) as graph:
+        viewer = graph.plain('live_viewer')
+        from adcs_msgs_py import topics
+        subs = [viewer.create_subscription(topics.TOPICS[t].msg_type, t, lambda data, t=t: live[t].append(data),
+                                           topics.recorder_qos(topics.TOPICS[t].qos), raw=True) for t in live]
+        rec = graph.add(RecorderNode)
+        dyn = graph.add(DynamicsNode)
+        graph.spin_until(lambda: all(dyn.pub_visual[t].get_subscription_count() >= 1 for t in live))
+        pd = graph.add(PdController)
+        pd.connect()
+        dyn.run(graph.executor)
+        graph.spin_until(lambda: all(len(m) == n + (t != names.MARKERS) for t, m in live.items())
+                         and rec.bag.topics['/state'].count == n + 1 and '/markers' in rec.bag.topics
+                         and rec.bag.topics['/markers'].count == n)
+        rec.close()
+        del subs
+    recorded = {}
+    for topic, _, _, data in read_raw(bag_dir):
+        recorded.setdefault(topic, []).append(bytes(data))
+    for t, messages in live.items():
+        assert recorded['/' + t] == [_padded(bytes(m)) for m in messages], t
+    assert len(recorded['/tf']) == n + 1 and len(recorded['/visualization/config']) == 1
+    assert rec.rejects.total == 0
