@@ -278,12 +278,11 @@ QOS_RATIONALE: dict[str, str] = {
     DYNAMICS_STATUS: 'RELIABLE: missed steps and their times come from it (the metrics and the '
                      'gap of a crashed controller). VOLATILE, KEEP_LAST status depth, as '
                      'controller/status.',
-    # for viewers: nobody in the loop acts on them; what they cost is kept off the controllers'
-    # critical path (published after the state, built only when subscribed)
-    FRAMES_BODY: 'RELIABLE: recorded every step (the bag\'s /tf is made from it, a lost one is a '
-                 'frame missing in the replay). VOLATILE: a viewer that joins late wants the '
-                 'current attitude, not the past. KEEP_LAST lockstep depth, paced with the '
-                 'recorder like every recorded per-step topic.',
+    # for viewers: nobody in the loop acts on them; built and sent only to live subscribers (the
+    # recorder writes its own from visualization/config and the state: adcs_msgs_py/visual_record.py)
+    FRAMES_BODY: 'RELIABLE: a live viewer replays every step (as the bag, whose /tf is made from '
+                 'it: a lost one is a frame missing). VOLATILE: a viewer that joins late wants the '
+                 'current attitude, not the past. KEEP_LAST lockstep depth, as every per-step topic.',
     FRAMES_ORBIT: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as frames/body.',
     MARKERS: 'RELIABLE: each array carries every moving marker (a viewer that seeks or joins late '
              'needs only the latest), recorded every step. VOLATILE, KEEP_LAST lockstep depth, as '
@@ -296,4 +295,8 @@ QOS_RATIONALE: dict[str, str] = {
     ERROR_EIGENAXIS: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth: a plotted series, one sample a '
                      'step, recorded; a hole would show as a gap in the plot.',
     ERROR_EULER_213: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as error/eigenaxis.',
+    VISUAL_CONFIG: 'RELIABLE and TRANSIENT_LOCAL: sent once before t = 0 and needed by a recorder '
+                   'that joins late (it cannot build a viewer message without it; the dynamics node '
+                   'also waits for the acknowledgement before t = 0). KEEP_LAST depth 100 as faults '
+                   '(one message).',
 }
