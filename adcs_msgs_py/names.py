@@ -39,11 +39,12 @@ MARKERS_STATIC = 'markers/static'    # visualization_msgs/MarkerArray, latched: 
 ERROR_EIGENAXIS = 'error/eigenaxis'  # geometry_msgs/Vector3Stamped: x = eigenaxis error (deg)
 ERROR_EULER_213 = 'error/euler_213'  # geometry_msgs/Vector3Stamped: 2-1-3 Euler errors about x, y, z (deg)
 VISUAL_TOPICS = (FRAMES_BODY, FRAMES_ORBIT, MARKERS, MARKERS_STATIC, ERROR_EIGENAXIS, ERROR_EULER_213)
-# The per-step viewer topics the recorder writes into the bag itself, from what it records and the
-# dynamics node's latched VISUAL_CONFIG (adcs_msgs_py/visual_record.py): the dynamics node
-# publishes them only to live subscribers (a viewer), not to the recorder (issue 18).
+# The per-step viewer topics the recorder writes into the bag itself (with /clock), from what it
+# records and the dynamics node's latched RECORDING_CONFIG (adcs_msgs_py/recorded_topics.py): the
+# dynamics node publishes them only to live subscribers (a viewer), not to the recorder (issue 18).
 RECORDED_VISUAL_TOPICS = (FRAMES_BODY, FRAMES_ORBIT, MARKERS, ERROR_EIGENAXIS, ERROR_EULER_213)
-VISUAL_CONFIG = 'visualization/config'   # std_msgs/String, latched: what builds the viewer messages (JSON)
+RECORDED_TOPICS = (CLOCK, *RECORDED_VISUAL_TOPICS)
+RECORDING_CONFIG = 'dynamics/recording'   # std_msgs/String, latched: what the recorder writes itself (JSON)
 FRAME_TOPICS = (FRAMES_BODY, FRAMES_ORBIT)
 # Written by the recorder into the bag only: the transforms received on FRAME_TOPICS as
 # tf2_msgs/TFMessage (no tf2_msgs wheel for Jazzy on PyPI: it cannot be published here), the
@@ -66,7 +67,7 @@ PUBLISHER_ROLES: dict[str, tuple[str, ...]] = {
     CONTROLLER_STATUS: ('controller',), FAULTS: ('faults',), REFERENCE: (),
     SENSOR_IMU: ('dynamics',), SENSOR_STAR_TRACKER: ('dynamics',), SENSOR_SUN: ('dynamics',),
     SENSOR_MAGNETOMETER: ('dynamics',), ESTIMATE_STATE: ('estimator',), ESTIMATOR_STATUS: ('estimator',),
-    **{topic: ('dynamics',) for topic in (*VISUAL_TOPICS, VISUAL_CONFIG)},
+    **{topic: ('dynamics',) for topic in (*VISUAL_TOPICS, RECORDING_CONFIG)},
 }
 
 

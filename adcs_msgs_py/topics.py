@@ -78,8 +78,9 @@ from adcs_msgs_py.names import (  # noqa: F401
     THRUSTERS_STATE,
     TORQUE_CMD,
     TRUTH_STATE,
+    RECORDED_TOPICS,
     RECORDED_VISUAL_TOPICS,
-    VISUAL_CONFIG,
+    RECORDING_CONFIG,
     VISUAL_TOPICS,
     WHEELS_CMD,
     WHEELS_STATE,
@@ -206,10 +207,10 @@ TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in (
               'x: eigenaxis angle (deg) of the true attitude relative to the target; y, z: 0'),
     TopicSpec(ERROR_EULER_213, Vector3Stamped, QOS_LOCKSTEP,
               '2-1-3 Euler angles (deg) of the attitude error: x, y, z = the rotations about body x, y, z'),
-    TopicSpec(VISUAL_CONFIG, String, QOS_LATCHED,
-              'published once before t = 0: what the viewer messages are built from (JSON: target, axis '
-              'length, wheel and thruster geometry, orbit, the attitude topic); the recorder writes '
-              'frames/*, error/* and markers into the bag from it and the recorded state'),
+    TopicSpec(RECORDING_CONFIG, String, QOS_LATCHED,
+              'published once before t = 0: what the recorder writes itself (JSON: /clock from the '
+              'state stamps; the viewer messages\' target, axis length, wheel and thruster geometry, '
+              'orbit, attitude topic): adcs_msgs_py/recorded_topics.py'),
 )}
 
 
@@ -246,8 +247,9 @@ QOS_RATIONALE: dict[str, str] = {
     TORQUE_CMD: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, for the reasons of wheels/cmd.',
     APPLIED_TORQUE: 'RELIABLE: the metrics integrate the applied torque of every step. VOLATILE, '
                     'KEEP_LAST lockstep depth: for the recorder; nobody acts on it.',
-    CLOCK: 'RELIABLE: the recorder keeps every tick (rclpy\'s time source subscribes best effort, '
-           'which matches a reliable writer). VOLATILE: the past clock is meaningless to a late '
+    CLOCK: 'RELIABLE: a subscriber keeps every tick (the fault injector, the runner\'s progress; the '
+           'recorder writes its own from the state: adcs_msgs_py/recorded_topics.py; rclpy\'s time '
+           'source subscribes best effort, which matches a reliable writer). VOLATILE: the past clock is meaningless to a late '
            'joiner. KEEP_LAST lockstep depth: one tick per step.',
     REFERENCE: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, like the state it is compared with.',
     FAULTS: 'RELIABLE and TRANSIENT_LOCAL: the whole fault schedule is published once at start '
@@ -279,7 +281,7 @@ QOS_RATIONALE: dict[str, str] = {
                      'gap of a crashed controller). VOLATILE, KEEP_LAST status depth, as '
                      'controller/status.',
     # for viewers: nobody in the loop acts on them; built and sent only to live subscribers (the
-    # recorder writes its own from visualization/config and the state: adcs_msgs_py/visual_record.py)
+    # recorder writes its own from dynamics/recording and the state: adcs_msgs_py/recorded_topics.py)
     FRAMES_BODY: 'RELIABLE: a live viewer replays every step (as the bag, whose /tf is made from '
                  'it: a lost one is a frame missing). VOLATILE: a viewer that joins late wants the '
                  'current attitude, not the past. KEEP_LAST lockstep depth, as every per-step topic.',
@@ -295,8 +297,8 @@ QOS_RATIONALE: dict[str, str] = {
     ERROR_EIGENAXIS: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth: a plotted series, one sample a '
                      'step, recorded; a hole would show as a gap in the plot.',
     ERROR_EULER_213: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as error/eigenaxis.',
-    VISUAL_CONFIG: 'RELIABLE and TRANSIENT_LOCAL: sent once before t = 0 and needed by a recorder '
-                   'that joins late (it cannot build a viewer message without it; the dynamics node '
+    RECORDING_CONFIG: 'RELIABLE and TRANSIENT_LOCAL: sent once before t = 0 and needed by a recorder '
+                   'that joins late (it cannot write /clock or a viewer message without it; the dynamics node '
                    'also waits for the acknowledgement before t = 0). KEEP_LAST depth 100 as faults '
                    '(one message).',
 }

@@ -12,7 +12,7 @@ What Foxglove's 3D panel and RViz draw, and what a plot panel plots without comp
 
 The per-step ones (``frames/*``, ``markers``, ``error/*``) go out only to live subscribers: the
 recorder builds them itself, from :attr:`VisualMessages.config` (published once on
-``visualization/config``) and the messages it records (:mod:`adcs_msgs_py.visual_record`).
+``dynamics/recording``) and the messages it records (:mod:`adcs_msgs_py.recorded_topics`).
 * ``markers/static`` (``visualization_msgs/MarkerArray``, latched, published once at t = 0):
   a translucent body box and the body axes (frame ``body``, ``frame_locked``: they move with the
   transform) and the target attitude's axes (frame ``inertial``, oriented by the target).
@@ -105,7 +105,7 @@ class VisualMessages:
     def __init__(self, target, axis_length: float = 1.0, wheel_axes=None, spin_inertia=None, max_speed=None,
                  thruster_positions=None, thruster_directions=None, orbit: CircularOrbit | None = None) -> None:
         # What builds these messages, as JSON-able numbers (float repr round-trips: the recorder's
-        # copy, adcs_msgs_py.visual_record, is built from the very same values)
+        # copy, adcs_msgs_py.recorded_topics, is built from the very same values)
         self.config = {'target': _listed(target), 'axis_length': float(axis_length),
                        'wheel_axes': _listed(wheel_axes), 'spin_inertia': _listed(spin_inertia),
                        'max_speed': _listed(max_speed), 'thruster_positions': _listed(thruster_positions),

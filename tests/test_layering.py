@@ -48,7 +48,7 @@ ROS_ROOTS = {'rclpy', 'rosgraph_msgs', 'nav_msgs', 'sensor_msgs', 'geometry_msgs
 ROS_ALLOWED = {'adcs_msgs_py.topics', 'adcs_msgs_py.node', 'adcs_msgs_py.executor', 'adcs_msgs_py.conversions',
                'adcs_msgs_py.cdr',
                'adcs_msgs_py.conversions_determination',
-               'adcs_msgs_py.rcl_params', 'adcs_msgs_py.visual', 'adcs_msgs_py.visual_record', 'adcs_sim.app.graph', 'adcs_sim.app.runner'}
+               'adcs_msgs_py.rcl_params', 'adcs_msgs_py.visual', 'adcs_msgs_py.recorded_topics', 'adcs_sim.app.graph', 'adcs_sim.app.runner'}
 # rcl's own params-file parser (through rclpy's C extension: no participant, no DDS). Scenario files
 # are read with it so that the runner sees what the nodes get; the pure modules reach it only
 # when they read a file (a function-level import, which the run-time check below confirms).

@@ -194,8 +194,9 @@ def test_fault_injector_survives_any_clock(graphs, clock):
 def test_recorder_survives_any_bytes_and_keeps_recording(graphs, msg, garbage):
     _, nodes, _, _ = graphs
     rec = nodes['recorder']
+    # (a clock message on a stamped topic: the recorder writes /clock itself, from the state)
     topic = {Odometry: '/state', JointState: '/wheels/cmd', Vector3Stamped: '/torque_cmd',
-             DiagnosticArray: '/dynamics/status', Clock: '/clock'}[type(msg)]
+             DiagnosticArray: '/dynamics/status', Clock: '/controller/status'}[type(msg)]
     data = serialize_message(msg)
     count = rec.bag.topics[topic].count
     feed(rec, rec.subs[topic], data, lambda: cv.checked_cdr_stamp(topic, data))
@@ -250,14 +251,14 @@ def test_recorder_writes_tf_only_from_valid_transforms(graphs, msg, garbage):
 @FUZZ
 @given(text=st.one_of(st.text(max_size=200), st.binary(max_size=200).map(lambda b: b.decode('latin-1'))))
 def test_recorder_counts_a_hostile_viewer_config_and_keeps_recording(graphs, text):
-    """visualization/config with anything in it: recorded, and counted when it is not a config the
+    """dynamics/recording with anything in it: recorded, and counted when it is not a config the
     recorder can build the viewer topics from; nothing escapes its callback."""
     from std_msgs.msg import String
     _, nodes, _, _ = graphs
     rec = nodes['recorder']
-    before, viewer = rec.rejects.total, rec.viewer
-    feed(rec, rec.subs['/visualization/config'], String(data=text))
-    assert rec.viewer is viewer or rec.rejects.total == before
+    before, recorded = rec.rejects.total, rec.recorded
+    feed(rec, rec.subs['/dynamics/recording'], String(data=text))
+    assert rec.recorded is recorded or rec.rejects.total == before
 
 
 def test_the_fuzzed_graph_runs_to_the_end(graphs):

@@ -64,13 +64,13 @@ from adcs_msgs_py.names import (
     MARKERS,
     MARKERS_STATIC,
     RECORDED_VISUAL_TOPICS,
-    VISUAL_CONFIG,
+    RECORDING_CONFIG,
     VISUAL_TOPICS,
 )
 from adcs_msgs_py.guard import IntrusionDetected
 from adcs_msgs_py.node import AdcsNode, RunStopped, main_for
 from adcs_msgs_py.visual import VisualMessages
-from adcs_msgs_py.visual_record import config_text
+from adcs_msgs_py.recorded_topics import config_text
 from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.link_faults import DELAY, FATE_NAMES, OK, LinkFaults
 from adcs_sim.truth.plant import ReactionWheels, WheelCommand
@@ -131,6 +131,8 @@ class DynamicsNode(AdcsNode):
                                self.n_steps)
         self._late = 0   # commands of the previous step that the link delayed past its deadline
 
+        # first: a recorder that discovers this node's /clock has seen that it writes its own
+        self.pub_recording = self.publisher(RECORDING_CONFIG)
         self.pub_clock = self.publisher(topics.CLOCK)
         self.pub_state = self.publisher(topics.STATE)
         truth = self.measurement.active or self.sensors is not None
@@ -146,6 +148,9 @@ class DynamicsNode(AdcsNode):
         self._step_publishers += list(self.pub_sensors.values())
         self._codecs()
         self.visual, self.pub_visual = self._visual_setup(p)
+        attitude = topics.TRUTH_STATE if self.pub_truth is not None else topics.STATE   # the true one
+        self._recording = config_text(topics.STATE, self.visual, attitude,
+                                      [t for t in RECORDED_VISUAL_TOPICS if t in self.pub_visual])
         self._visual_speed = None   # wheel speeds at the start of the step being integrated
 
         self.subs = {}
@@ -181,10 +186,7 @@ class DynamicsNode(AdcsNode):
         skip = {FRAMES_ORBIT} if orbit is None else set()
         if not visual.markers.markers:
             skip.add(MARKERS)   # nothing moves but the body (torquers only)
-        publishers = {t: self.publisher(t) for t in (*VISUAL_TOPICS, VISUAL_CONFIG) if t not in skip}
-        attitude = topics.TRUTH_STATE if self.pub_truth is not None else topics.STATE   # the true one
-        self._visual_config = config_text(visual, attitude, [t for t in RECORDED_VISUAL_TOPICS if t in publishers])
-        return visual, publishers
+        return visual, {t: self.publisher(t) for t in VISUAL_TOPICS if t not in skip}
 
     # --- faults -----------------------------------------------------------------------------
 
@@ -366,9 +368,9 @@ class DynamicsNode(AdcsNode):
         if state_subs < 0:
             state_subs = (1 if self.awaited else 0) + recorder
         required = {self.pub_state: state_subs}
-        # the recorder writes the per-step viewer topics itself (adcs_msgs_py/visual_record.py)
+        # /clock and the per-step viewer topics: the recorder writes its own (adcs_msgs_py/recorded_topics.py)
         visual = [pub for t, pub in self.pub_visual.items() if t not in RECORDED_VISUAL_TOPICS]
-        for pub in (self.pub_clock, self.pub_truth, self.pub_wheels, self.pub_applied, self.pub_status,
+        for pub in (self.pub_recording, self.pub_truth, self.pub_wheels, self.pub_applied, self.pub_status,
                     self.pub_thrusters, *visual):
             if pub is not None:
                 required[pub] = max(required.get(pub, 0), recorder)
@@ -390,12 +392,15 @@ class DynamicsNode(AdcsNode):
             f'{self.params["mode"]} run: {self.n_steps} steps of {self.period:g} s, '
             f'waiting for {self.awaited or "no commands"}')
         self.publish_status()
-        if self.visual is not None:   # latched: once, before t = 0; the recorder has both before state 0
+        # latched, once before t = 0: what the recorder writes itself, the static markers; it has
+        # them before the state of t = 0
+        self.pub_recording.publish(String(data=self._recording))
+        latched = [self.pub_recording]
+        if MARKERS_STATIC in self.pub_visual:
             self.pub_visual[MARKERS_STATIC].publish(self.visual.static_markers(0))
-            self.pub_visual[VISUAL_CONFIG].publish(String(data=self._visual_config))
-            if self.params['startup.expect_recorder']:
-                self.wait_acked([self.pub_visual[MARKERS_STATIC], self.pub_visual[VISUAL_CONFIG]],
-                                self.params['startup.timeout'])
+            latched.append(self.pub_visual[MARKERS_STATIC])
+        if self.params['startup.expect_recorder']:
+            self.wait_acked(latched, self.params['startup.timeout'])
         timeout = self.params['lockstep.timeout']
         pace = self.period / self.params['real_time_factor']
         wall0 = time.monotonic()

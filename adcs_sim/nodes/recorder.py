@@ -38,7 +38,7 @@ from adcs_msgs_py import names, topics
 from adcs_msgs_py.cdr import deserialized
 from adcs_msgs_py.guard import Intruder
 from adcs_msgs_py.node import FASTDDS_PROFILE, AdcsNode, main_for
-from adcs_msgs_py.visual_record import ViewerRecording, parse_config
+from adcs_msgs_py.recorded_topics import RecordedTopics, parse_config
 from adcs_sim.bag.schema import RECORDER_SCHEMA
 from adcs_sim.bag.tf import TF_TYPE, tf_message_cdr
 from adcs_sim.bag.writer import STAMP_FIRST_TYPES, BagWriter, qos_dicts
@@ -116,17 +116,21 @@ class RecorderNode(AdcsNode):
         self.tf_topic = self.resolve_topic_name(names.TF)   # written from frames/* (adcs_sim.bag.tf)
         wanted = p['topics']
         self.record_all = 'all' in wanted
-        # The per-step viewer topics are written from the recorded state (adcs_msgs_py/visual_record.py):
-        # never subscribed, so that the dynamics node sends them only to a live viewer.
-        self.viewer: ViewerRecording | None = None
-        self.viewer_topics = {t for t in names.RECORDED_VISUAL_TOPICS if self.record_all or t in wanted}
+        # /clock and the per-step viewer topics are written from the recorded state and the dynamics
+        # node's dynamics/recording (adcs_msgs_py/recorded_topics.py): not subscribed, so that the
+        # dynamics node sends them only to live subscribers.
+        self.recorded: RecordedTopics | None = None
+        self._own: dict[str, str] = {}   # the topics it writes: relative -> resolved name
+        self._written: set[str] = set()   # their resolved names, once the config has come
+        self.own_topics = {t for t in names.RECORDED_TOPICS if self.record_all or t in wanted}
         self.derived = {self.resolve_topic_name(t) for t in names.RECORDED_VISUAL_TOPICS}
+        self.config_topic = self.resolve_topic_name(names.RECORDING_CONFIG)
         # the config first: an executor that takes ready subscriptions in their order takes it
         # before a state that arrived with it (the events executor takes them as they arrive)
-        for spec in sorted(topics.TOPICS.values(), key=lambda s: s.name != names.VISUAL_CONFIG):
-            if spec.name in names.RECORDED_VISUAL_TOPICS:
+        for spec in sorted(topics.TOPICS.values(), key=lambda s: s.name != names.RECORDING_CONFIG):
+            if spec.name in names.RECORDED_TOPICS:
                 continue
-            if self.record_all or spec.name in wanted or (spec.name == names.VISUAL_CONFIG and self.viewer_topics):
+            if self.record_all or spec.name in wanted or (spec.name == names.RECORDING_CONFIG and self.own_topics):
                 self._subscribe(spec.name, spec.msg_type, topics.recorder_qos(spec.qos), spec.qos)
         self.create_timer(p['flush_period'], self.bag.flush)
         if self.record_all:
@@ -136,7 +140,7 @@ class RecorderNode(AdcsNode):
         print(READY_LINE, flush=True)
 
     def _subscribe(self, name: str, msg_type, qos: QoSProfile, offered: QoSProfile, record: bool = True) -> None:
-        """Record topic ``name`` (``record`` False: only take it, as a source of the viewer topics)."""
+        """Record topic ``name`` (``record`` False: only take it, as a source of what the recorder writes)."""
         resolved = self.resolve_topic_name(name)
         if resolved in self.subs:
             return
@@ -151,46 +155,50 @@ class RecorderNode(AdcsNode):
             # the stamp is the log time: a negative or out-of-range one is rejected (counted)
             if stamped and self.rejects.accept(topic, lambda: cv.checked_cdr_stamp(topic, data)) is None:
                 return
+            if topic in self._written:   # a /clock discovered before the config: the recorder writes it
+                return
             if record:
                 self.bag.write(topic, data)
                 self.received += 1
                 if derive_tf:
                     self._write_tf(topic, data)
-            if relative == names.VISUAL_CONFIG:
-                self._on_visual_config(topic, data)
-            elif self.viewer is not None and relative in self.viewer.sources:
-                self._write_viewer(topic, relative, data)
+            if relative == names.RECORDING_CONFIG:
+                self._on_recording_config(topic, data)
+            elif self.recorded is not None and relative in self.recorded.sources:
+                self._write_own(topic, relative, data)
 
         self.subs[resolved] = self.subscription(name, on_message, qos=qos, msg_type=msg_type, raw=True)
 
-    def _on_visual_config(self, topic: str, data: bytes) -> None:
-        """The dynamics node's viewer config: from now on the viewer topics are written from the
-        recorded messages (a repeat of the same config changes nothing; a different one is refused)."""
+    def _on_recording_config(self, topic: str, data: bytes) -> None:
+        """The dynamics node's dynamics/recording: from now on /clock and the viewer topics are
+        written from the recorded messages (a repeat of the same config changes nothing; a
+        different one is refused)."""
         def parse():
             text = deserialized(data, String, topic).data
-            if self.viewer is not None:
-                if text != self.viewer_text:
+            if self.recorded is not None:
+                if text != self.recording_text:
                     raise cv.InvalidMessage(f'{topic}: a second, different config (the first one stays)')
                 return None
-            return text, ViewerRecording(parse_config(text))
+            return text, RecordedTopics(parse_config(text))
         parsed = self.rejects.accept(topic, parse)
         if not parsed:
             return
-        self.viewer_text, self.viewer = parsed
-        for name in self.viewer.topics:
-            if name in self.viewer_topics:
-                spec = topics.TOPICS[name]
-                self.bag.add_topic(self.resolve_topic_name(name), spec.type_name, qos_dicts(spec.qos))
-        for name in self.viewer.sources:   # what the config needs and this recorder does not record
+        self.recording_text, self.recorded = parsed
+        self._own = {name: self.resolve_topic_name(name) for name in self.recorded.topics if name in self.own_topics}
+        for name, resolved in self._own.items():
+            spec = topics.TOPICS[name]
+            self.bag.add_topic(resolved, spec.type_name, qos_dicts(spec.qos))
+        self._written = set(self._own.values())
+        for name in self.recorded.sources:   # what the config needs and this recorder does not record
             spec = topics.TOPICS[name]
             self._subscribe(name, spec.msg_type, topics.recorder_qos(spec.qos), spec.qos, record=False)
 
-    def _write_viewer(self, topic: str, relative: str, data: bytes) -> None:
-        """The viewer messages that ``data`` (recorded on ``topic``) completes, into the bag."""
-        derived = self.rejects.accept(topic, lambda: self.viewer.derive(relative, data))
+    def _write_own(self, topic: str, relative: str, data: bytes) -> None:
+        """What ``data`` (recorded on ``topic``) completes of the recorder's own topics, into the bag."""
+        derived = self.rejects.accept(topic, lambda: self.recorded.derive(relative, data))
         for name, message in derived or ():
-            if name in self.viewer_topics:
-                resolved = self.resolve_topic_name(name)
+            resolved = self._own.get(name)
+            if resolved is not None:
                 self.bag.write(resolved, message)
                 if name in names.FRAME_TOPICS:
                     self._write_tf(resolved, message)
@@ -214,6 +222,8 @@ class RecorderNode(AdcsNode):
         reserved = (self.resolve_topic_name(names.INTRUSIONS), ns + names.QUARANTINE_PREFIX + '/')
         for name, types in self.get_topic_names_and_types():
             if (name in self.subs or name in self.skipped or name in IGNORED_TOPICS or name in self.derived
+                    or (name == names.CLOCK and (self.recorded.config.clock if self.recorded
+                                                 else self.count_publishers(self.config_topic)))
                     or not name.startswith(ns)
                     or len(types) != 1 or name.startswith(reserved) or name == self.tf_topic):
                 continue

@@ -1,12 +1,13 @@
-"""The viewer topics the recorder writes from what it records (adcs_msgs_py/visual_record.py).
+"""The topics the recorder writes from what it records (adcs_msgs_py/recorded_topics.py).
 
-The dynamics node publishes ``frames/*``, ``error/*`` and ``markers`` only to live subscribers and
-sends the recorder their config once (``visualization/config``); the recorder's messages must be
-the dynamics node's, byte for byte as a subscriber receives them (zero-padded to 4 bytes), for
-every kind of spacecraft (wheels, thrusters, both, an orbit or none, truth/state or state), in
+The dynamics node publishes ``/clock``, ``frames/*``, ``error/*`` and ``markers`` only to live
+subscribers and sends the recorder its ``dynamics/recording`` config once; the recorder's messages
+must be the dynamics node's, byte for byte as a subscriber receives them (zero-padded to 4 bytes),
+for every kind of spacecraft (wheels, thrusters, both, an orbit or none, truth/state or state), in
 whatever order the sources arrive. The config and the sources are untrusted: anything else is
 an InvalidMessage (counted by the recorder), never another exception, and the pending steps are
-bounded. In a graph: the bag's viewer topics equal what a live subscriber received in the same run.
+bounded. In a graph: the bag's /clock and viewer topics equal what a live subscriber received in
+the same run.
 """
 from __future__ import annotations
 
@@ -24,7 +25,7 @@ from adcs_core.orbit import CircularOrbit
 from adcs_msgs_py import cdr, names
 from adcs_msgs_py.conversions import InvalidMessage
 from adcs_msgs_py.visual import VisualMessages
-from adcs_msgs_py.visual_record import MAX_PENDING, ViewerRecording, config_text, parse_config
+from adcs_msgs_py.recorded_topics import MAX_PENDING, RecordedTopics, config_text, parse_config
 
 SETTINGS = settings(max_examples=300, derandomize=True, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow])
@@ -87,8 +88,8 @@ def _run(visual: VisualMessages, attitude: str, steps: int, rng: np.random.Gener
 def test_the_recorded_viewer_messages_are_the_dynamics_nodes_in_any_arrival_order(wheels, thrusters, orbit, attitude):
     visual = _visual(wheels, thrusters, orbit)
     sources, expected = _run(visual, attitude, 40, np.random.default_rng(7))
-    config = parse_config(config_text(visual, attitude, _topics(visual)))
-    recording = ViewerRecording(config)
+    config = parse_config(config_text(None, visual, attitude, _topics(visual)))
+    recording = RecordedTopics(config)
     out = [m for topic, data in sources for m in recording.derive(topic, data)]
     assert out == expected   # the dynamics' order, the same bytes
     shuffled = list(sources)   # messages of different topics may be reordered; a topic's never is
@@ -97,7 +98,7 @@ def test_the_recorded_viewer_messages_are_the_dynamics_nodes_in_any_arrival_orde
     for topic, data in sources:
         order.setdefault(topic, []).append(data)
     reordered = [(topic, order[topic].pop(0)) for topic, _ in shuffled]
-    recording = ViewerRecording(parse_config(config_text(visual, attitude, _topics(visual))))
+    recording = RecordedTopics(parse_config(config_text(None, visual, attitude, _topics(visual))))
     out = [m for topic, data in reordered for m in recording.derive(topic, data)]
     assert sorted(out) == sorted(expected)
 
@@ -105,44 +106,61 @@ def test_the_recorded_viewer_messages_are_the_dynamics_nodes_in_any_arrival_orde
 def test_only_the_listed_topics_are_derived_and_only_their_sources_are_needed():
     visual = _visual(True, False, False)
     sources, expected = _run(visual, names.STATE, 5, np.random.default_rng(1))
-    recording = ViewerRecording(parse_config(config_text(visual, names.STATE, [names.MARKERS])))
-    assert recording.sources == {names.APPLIED_TORQUE, names.WHEELS_STATE}
+    recording = RecordedTopics(parse_config(config_text(None, visual, names.STATE, [names.MARKERS])))
+    assert recording.sources == {names.APPLIED_TORQUE, names.WHEELS_STATE} and recording.topics == (names.MARKERS,)
     out = [m for topic, data in sources for m in recording.derive(topic, data)]
     assert out == [m for m in expected if m[0] == names.MARKERS]
-    recording = ViewerRecording(parse_config(config_text(visual, names.STATE, [names.ERROR_EULER_213])))
+    recording = RecordedTopics(parse_config(config_text(None, visual, names.STATE, [names.ERROR_EULER_213])))
     assert recording.sources == {names.STATE}
 
 
 def test_the_config_round_trips_every_number_exactly():
     visual = _visual(True, True, True)
-    config = parse_config(config_text(visual, names.TRUTH_STATE, ALL))
+    config = parse_config(config_text('state', visual, names.TRUTH_STATE, ALL)).viewer
     again = VisualMessages(**config.arguments)
     assert again.config == visual.config
     assert np.array_equal(again.target, visual.target) and again.momentum_scale == visual.momentum_scale
     assert config.attitude_topic == names.TRUTH_STATE and config.topics == tuple(ALL)
 
 
-VALID = json.loads(config_text(_visual(True, True, True), names.STATE, ALL))
+def test_the_clock_is_the_states_stamps_as_the_dynamics_node_publishes_it():
+    recorded = RecordedTopics(parse_config(config_text(names.STATE)))
+    assert recorded.topics == (names.CLOCK,) and recorded.sources == {names.STATE}
+    state, clock = cdr.StateCodec(), cdr.ClockCodec()
+    for t in (0, 1, 999_999_999, 123 * 10 ** 9 + 5):
+        data = state.encode(t, [0.0, 0.0, 0.6, 0.8], [0.0, 0.0, 0.0])
+        assert recorded.derive(names.STATE, data) == [(names.CLOCK, _padded(clock.encode(t)))]
+        assert recorded.derive(names.WHEELS_STATE, data) == []
+    with pytest.raises(InvalidMessage):   # a stamp simulated time never has
+        recorded.derive(names.STATE, bytes([0, 1, 0, 0]) + (-1).to_bytes(4, 'little', signed=True) + bytes(300))
+    both = RecordedTopics(parse_config(config_text(names.STATE, _visual(False, False, False), names.STATE,
+                                                   [names.FRAMES_BODY])))
+    out = both.derive(names.STATE, state.encode(7, [0.0, 0.0, 0.6, 0.8], [0.0, 0.0, 0.0]))
+    assert [t for t, _ in out] == [names.CLOCK, names.FRAMES_BODY]
+
+
+VALID = json.loads(config_text(None, _visual(True, True, True), names.STATE, ALL))['viewer']
 BAD = [
-    '', 'null', '[]', '{}', '{"target": 1}', 'NaN', '[' * 100_000, '{"a": ' * 5000,
-    json.dumps({**VALID, 'extra': 1}), json.dumps({k: v for k, v in VALID.items() if k != 'orbit'}),
-    json.dumps({**VALID, 'target': [0.0, 0.0, 0.0, 0.0]}), json.dumps({**VALID, 'target': [1.0, 0.0, 0.0]}),
-    json.dumps({**VALID, 'target': [True, 0.0, 0.0, 1.0]}), json.dumps({**VALID, 'axis_length': -1.0}),
-    json.dumps({**VALID, 'axis_length': 'long'}), json.dumps({**VALID, 'spin_inertia': [0.01] * 3}),
-    json.dumps({**VALID, 'wheel_axes': [[1.0, 0.0]] * 4}), json.dumps({**VALID, 'wheel_axes': [[1.0, 0.0, 0.0]] * 65}),
-    json.dumps({**VALID, 'wheel_axes': None}), json.dumps({**VALID, 'thruster_directions': None}),
-    json.dumps({**VALID, 'orbit': {**VALID['orbit'], 'mu': -1.0}}), json.dumps({**VALID, 'orbit': {'altitude': 1.0}}),
-    json.dumps({**VALID, 'orbit': None}),   # frames/orbit listed without an orbit
-    json.dumps({**VALID, 'attitude_topic': '/evil'}), json.dumps({**VALID, 'topics': ['markers', 'markers']}),
-    json.dumps({**VALID, 'topics': ['/clock']}), json.dumps({**VALID, 'topics': 'markers'}),
-    json.dumps({**VALID, 'target': [1e308, 1e308, 0.0, 0.0]}).replace('1e+308', '1e999'),
-    'x' * 70_000,
-]
+    '', 'null', '[]', '{}', '{"clock": null}', '{"clock": "state", "viewer": null, "x": 1}',
+    '{"clock": "/clock", "viewer": null}', '{"clock": 1, "viewer": null}', '{"clock": null, "viewer": []}',
+    '{"clock": null, "viewer": {"target": 1}}', 'NaN', '[' * 100_000, '{"a": ' * 5000, 'x' * 70_000,
+] + [json.dumps({'clock': None, 'viewer': viewer}) for viewer in (
+    {**VALID, 'extra': 1}, {k: v for k, v in VALID.items() if k != 'orbit'},
+    {**VALID, 'target': [0.0, 0.0, 0.0, 0.0]}, {**VALID, 'target': [1.0, 0.0, 0.0]},
+    {**VALID, 'target': [True, 0.0, 0.0, 1.0]}, {**VALID, 'axis_length': -1.0},
+    {**VALID, 'axis_length': 'long'}, {**VALID, 'spin_inertia': [0.01] * 3},
+    {**VALID, 'wheel_axes': [[1.0, 0.0]] * 4}, {**VALID, 'wheel_axes': [[1.0, 0.0, 0.0]] * 65},
+    {**VALID, 'wheel_axes': None}, {**VALID, 'thruster_directions': None},
+    {**VALID, 'orbit': {**VALID['orbit'], 'mu': -1.0}}, {**VALID, 'orbit': {'altitude': 1.0}},
+    {**VALID, 'orbit': None},   # frames/orbit listed without an orbit
+    {**VALID, 'attitude_topic': '/evil'}, {**VALID, 'topics': ['markers', 'markers']},
+    {**VALID, 'topics': ['/clock']}, {**VALID, 'topics': 'markers'},
+    {**VALID, 'target': [math.inf, 0.0, 0.0, 1.0]}, {**VALID, 'max_speed': [math.nan] * 4})]
 
 
 @pytest.mark.parametrize('text', BAD, ids=range(len(BAD)))
 def test_a_config_that_is_not_what_the_dynamics_node_sends_is_an_invalid_message(text):
-    with pytest.raises(InvalidMessage, match='visualization/config'):
+    with pytest.raises(InvalidMessage, match='dynamics/recording'):
         parse_config(text)
 
 
@@ -152,14 +170,14 @@ JSON = st.recursive(st.none() | st.booleans() | st.floats(allow_nan=True) | st.i
 
 
 @SETTINGS
-@given(key=st.sampled_from(sorted(VALID)), value=JSON)
-def test_fuzzed_configs_either_build_the_viewer_or_are_invalid_messages(key, value):
-    text = json.dumps({**VALID, key: value})
+@given(key=st.sampled_from(sorted(VALID)), value=JSON, clock=st.sampled_from([None, 'state']) | JSON)
+def test_fuzzed_configs_either_build_the_viewer_or_are_invalid_messages(key, value, clock):
+    text = json.dumps({'clock': clock, 'viewer': {**VALID, key: value}})
     try:
         config = parse_config(text)
     except InvalidMessage:
         return
-    ViewerRecording(config)   # whatever passes builds
+    RecordedTopics(config)   # whatever passes builds
 
 
 @SETTINGS
@@ -167,7 +185,7 @@ def test_fuzzed_configs_either_build_the_viewer_or_are_invalid_messages(key, val
        data=st.binary(max_size=400), cut=st.integers(0, 400))
 def test_fuzzed_sources_derive_or_are_invalid_messages(topic, data, cut):
     visual = _visual(True, True, True)
-    recording = ViewerRecording(parse_config(config_text(visual, names.STATE, ALL)))
+    recording = RecordedTopics(parse_config(config_text(None, visual, names.STATE, ALL)))
     good = dict(_run(visual, names.STATE, 1, np.random.default_rng(0))[0])[topic]
     for candidate in (data, good[:cut] + data[:len(good) - cut], good[:cut]):
         try:
@@ -178,7 +196,7 @@ def test_fuzzed_sources_derive_or_are_invalid_messages(topic, data, cut):
 
 def test_a_non_unit_or_non_finite_attitude_is_refused_not_renormalised():
     visual = _visual(False, False, False)
-    recording = ViewerRecording(parse_config(config_text(visual, names.STATE, _topics(visual))))
+    recording = RecordedTopics(parse_config(config_text(None, visual, names.STATE, _topics(visual))))
     for q in ([0.0, 0.0, 0.0, 1.0 + 1e-5], [0.0, 0.0, 0.0, math.nan], [0.0, 0.0, math.inf, 1.0]):
         with pytest.raises(InvalidMessage):
             recording.derive(names.STATE, cdr.StateCodec().encode(0, q, [0.0, 0.0, 0.0]))
@@ -186,18 +204,19 @@ def test_a_non_unit_or_non_finite_attitude_is_refused_not_renormalised():
 
 def test_steps_that_never_complete_are_bounded():
     visual = _visual(True, False, False)
-    recording = ViewerRecording(parse_config(config_text(visual, names.STATE, _topics(visual))))
+    recording = RecordedTopics(parse_config(config_text(None, visual, names.STATE, _topics(visual))))
     codec = cdr.JointStateCodec('x')
     for k in range(10 * MAX_PENDING):   # wheel states whose steps are never integrated
         assert recording.derive(names.WHEELS_STATE, codec.encode(k, list('abcd'), [0.0] * 4, [1.0] * 4, [0.0] * 4)) == []
-    assert len(recording._pending) == MAX_PENDING
+    assert len(recording.viewer._pending) == MAX_PENDING
     with pytest.raises(InvalidMessage):   # a wheel count that is not the config's
         recording.derive(names.WHEELS_STATE, codec.encode(0, ['a'], [0.0], [1.0], [0.0]))
 
 
 def test_in_a_graph_the_bag_holds_what_a_live_viewer_received(tmp_path, ros_domain):
-    """Dynamics + PD + recorder, and a live viewer subscribed to every viewer topic: the dynamics
-    node publishes them to the viewer only, the recorder writes its own, and both are the same."""
+    """Dynamics + PD + recorder, and a live viewer subscribed to /clock and every viewer topic:
+    the dynamics node publishes them to the viewer only, the recorder writes its own, and both are
+    the same."""
     from adcs_controllers.nodes.pd_controller import PdController
     from adcs_sim.bag.reader import read_raw
     from adcs_sim.nodes.dynamics import DynamicsNode
@@ -208,7 +227,7 @@ def test_in_a_graph_the_bag_holds_what_a_live_viewer_received(tmp_path, ros_doma
     scenario = make_scenario(tmp_path, {
         'dynamics': {'duration': float(n), 'startup.expect_recorder': True},
         'pd_controller': {'startup.expect_recorder': True}, 'recorder': {'output': str(bag_dir)}})
-    live = {t: [] for t in (names.FRAMES_BODY, names.ERROR_EIGENAXIS, names.ERROR_EULER_213, names.MARKERS)}
+    live = {t: [] for t in (names.CLOCK, names.FRAMES_BODY, names.ERROR_EIGENAXIS, names.ERROR_EULER_213, names.MARKERS)}
     with InProcessGraph(scenario) as graph:
         viewer = graph.plain('live_viewer')
         from adcs_msgs_py import topics
@@ -216,7 +235,8 @@ def test_in_a_graph_the_bag_holds_what_a_live_viewer_received(tmp_path, ros_doma
                                            topics.recorder_qos(topics.TOPICS[t].qos), raw=True) for t in live]
         rec = graph.add(RecorderNode)
         dyn = graph.add(DynamicsNode)
-        graph.spin_until(lambda: all(dyn.pub_visual[t].get_subscription_count() >= 1 for t in live))
+        pubs = {**dyn.pub_visual, names.CLOCK: dyn.pub_clock}
+        graph.spin_until(lambda: all(pubs[t].get_subscription_count() >= 1 for t in live))
         pd = graph.add(PdController)
         pd.connect()
         dyn.run(graph.executor)
@@ -229,6 +249,6 @@ def test_in_a_graph_the_bag_holds_what_a_live_viewer_received(tmp_path, ros_doma
     for topic, _, _, data in read_raw(bag_dir):
         recorded.setdefault(topic, []).append(bytes(data))
     for t, messages in live.items():
-        assert recorded['/' + t] == [_padded(bytes(m)) for m in messages], t
-    assert len(recorded['/tf']) == n + 1 and len(recorded['/visualization/config']) == 1
+        assert recorded[t if t.startswith('/') else '/' + t] == [_padded(bytes(m)) for m in messages], t
+    assert len(recorded['/tf']) == n + 1 and len(recorded['/dynamics/recording']) == 1
     assert rec.rejects.total == 0

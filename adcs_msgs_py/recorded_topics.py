@@ -1,18 +1,23 @@
-"""The per-step viewer topics written by the recorder, from what it records (issue 18).
+"""The topics the recorder writes itself, from what it records (issue 18).
 
-``frames/body``, ``frames/orbit``, ``error/eigenaxis``, ``error/euler_213`` and ``markers``
-(:data:`adcs_msgs_py.names.RECORDED_VISUAL_TOPICS`) are functions of the true attitude, the wheel
-speeds and the thrusters' on-times, which the bag already holds. Sending them through DDS cost
-the lockstep loop four of its eight messages a step, in the dynamics node's publishing and in the
-recorder's taking (the loop's longest path). So the dynamics node publishes once, latched, on
-``visualization/config`` (:data:`~adcs_msgs_py.names.VISUAL_CONFIG`, ``std_msgs/String``) the
-JSON of what builds them (:attr:`adcs_msgs_py.visual.VisualMessages.config`, plus which topic
-holds the true attitude and which viewer topics it has), and publishes the viewer topics only to
-subscribers (a live viewer); the recorder builds the same
-:class:`~adcs_msgs_py.visual.VisualMessages` from that config and writes, for each recorded
-message, the viewer messages the dynamics node would have sent: the same bytes
-(``tests/test_viewer_record.py``), the same stamps and so the same log times.
+``/clock`` and the per-step viewer topics (``frames/body``, ``frames/orbit``, ``error/eigenaxis``,
+``error/euler_213``, ``markers``: :data:`adcs_msgs_py.names.RECORDED_VISUAL_TOPICS`) are functions
+of what the bag already holds: the state's stamps, the true attitude, the wheel speeds and the
+thrusters' on-times. Sending them through DDS cost the lockstep loop five of its eight messages a
+step, in the dynamics node's publishing and in the recorder's taking, on the 2-core machine's
+critical path. So the dynamics node publishes once, latched, on ``dynamics/recording``
+(:data:`~adcs_msgs_py.names.RECORDING_CONFIG`, ``std_msgs/String``) the JSON of what the recorder
+needs (:func:`config_text`: the topic whose stamps are the clock ticks, and the viewer config:
+:attr:`adcs_msgs_py.visual.VisualMessages.config`, the topic that holds the true attitude, the
+viewer topics it has), and publishes ``/clock`` and the viewer topics only to subscribers (the
+fault injector, the runner's progress bar, a live viewer). The recorder never subscribes to them
+(nor, once a ``dynamics/recording`` publisher is in the graph, to a ``/clock`` it discovers): it
+builds the same :class:`~adcs_msgs_py.visual.VisualMessages` from that config and writes, for each
+recorded message, what the dynamics node would have sent: the same bytes, zero-padded to 4 as DDS
+delivers them, the same stamps and so the same log times (``tests/test_recorded_topics.py``).
 
+* ``/clock`` of step ``t``: from the ``state`` of ``t`` (the dynamics node publishes both, with one
+  stamp, at every step).
 * ``frames/*``, ``error/*`` of step ``t``: from the attitude message of ``t`` (``truth/state``
   when the dynamics node publishes one, else ``state``, which is then the true state). The
   quaternion is taken as sent (not renormalised, which could move its last bit), after the
@@ -39,9 +44,10 @@ from nav_msgs.msg import Odometry
 
 from adcs_core.orbit import R_EARTH, CircularOrbit
 from adcs_msgs_py import conversions as cv
-from adcs_msgs_py.cdr import JointStateCodec, StateCodec, deserialized
+from adcs_msgs_py.cdr import ClockCodec, JointStateCodec, StateCodec, deserialized
 from adcs_msgs_py.names import (
     APPLIED_TORQUE,
+    CLOCK,
     ERROR_EIGENAXIS,
     ERROR_EULER_213,
     FRAMES_BODY,
@@ -60,34 +66,57 @@ MAX_ACTUATORS = 64   # wheels, thrusters
 MAX_PENDING = 32     # steps whose markers wait for an input
 ATTITUDE_TOPICS = (TRUTH_STATE, STATE)
 KEYS = ('target', 'axis_length', 'wheel_axes', 'spin_inertia', 'max_speed', 'thruster_positions',
-        'thruster_directions', 'orbit', 'attitude_topic', 'topics')
+        'thruster_directions', 'orbit', 'attitude_topic', 'topics')   # of the viewer config
+CLOCK_SOURCES = (STATE,)
+WHAT = 'dynamics/recording'
 ORBIT_KEYS = tuple(f.name for f in CircularOrbit.__dataclass_fields__.values())
 
 
-def config_text(visual: VisualMessages, attitude_topic: str, topics) -> str:
-    """The ``visualization/config`` message's text for ``visual`` (the dynamics node's)."""
-    return json.dumps({**visual.config, 'attitude_topic': attitude_topic, 'topics': list(topics)})
+def config_text(clock_topic: str | None, visual: VisualMessages | None = None, attitude_topic: str = STATE,
+                topics=()) -> str:
+    """The ``dynamics/recording`` message's text: ``/clock`` from the stamps of ``clock_topic`` (None:
+    the dynamics node sends /clock to the recorder itself), the viewer topics ``topics`` of ``visual``
+    (None: no viewer topics) with the true attitude on ``attitude_topic``."""
+    viewer = None if visual is None else {**visual.config, 'attitude_topic': attitude_topic, 'topics': list(topics)}
+    return json.dumps({'clock': clock_topic, 'viewer': viewer})
+
+
+@dataclass(frozen=True)
+class RecordingConfig:
+    """A checked ``dynamics/recording``: where /clock comes from, and the viewer's config (or None)."""
+
+    clock: str | None
+    viewer: 'VisualConfig | None'
+
+
+def parse_config(text) -> RecordingConfig:
+    """``dynamics/recording`` text -> :class:`RecordingConfig`; InvalidMessage naming what is wrong."""
+    if not isinstance(text, str) or len(text) > MAX_CONFIG_CHARS:
+        raise cv.InvalidMessage(f'{WHAT}: not a text of at most {MAX_CONFIG_CHARS} characters')
+    try:
+        raw = json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise cv.InvalidMessage(f'{WHAT}: not JSON ({exc})') from None
+    if not isinstance(raw, dict) or set(raw) != {'clock', 'viewer'}:
+        raise cv.InvalidMessage(f'{WHAT}: not an object with exactly the keys clock, viewer')
+    if raw['clock'] is not None and raw['clock'] not in CLOCK_SOURCES:
+        raise cv.InvalidMessage(f'{WHAT}: clock must be null or one of {list(CLOCK_SOURCES)}')
+    return RecordingConfig(raw['clock'], None if raw['viewer'] is None else _viewer(raw['viewer']))
 
 
 @dataclass(frozen=True)
 class VisualConfig:
-    """A checked ``visualization/config``: the :class:`VisualMessages` arguments and what to derive."""
+    """The viewer part of a ``dynamics/recording``: the :class:`VisualMessages` arguments, what to derive."""
 
     arguments: dict
     attitude_topic: str
     topics: tuple[str, ...]
 
 
-def parse_config(text) -> VisualConfig:
-    """``visualization/config`` text -> :class:`VisualConfig`; InvalidMessage naming what is wrong."""
-    if not isinstance(text, str) or len(text) > MAX_CONFIG_CHARS:
-        raise cv.InvalidMessage(f'visualization/config: not a text of at most {MAX_CONFIG_CHARS} characters')
-    try:
-        raw = json.loads(text)
-    except (ValueError, RecursionError) as exc:
-        raise cv.InvalidMessage(f'visualization/config: not JSON ({exc})') from None
+def _viewer(raw) -> VisualConfig:
+    """The viewer part of the config, checked."""
     if not isinstance(raw, dict) or set(raw) != set(KEYS):
-        raise cv.InvalidMessage(f'visualization/config: not an object with exactly the keys {list(KEYS)}')
+        raise cv.InvalidMessage(f'{WHAT} viewer: not an object with exactly the keys {list(KEYS)}')
     wheels, thrusters = _count(raw, 'wheel_axes'), _count(raw, 'thruster_positions')
     args = {'target': _numbers(raw, 'target', (4,)), 'axis_length': _number(raw['axis_length'], 'axis_length'),
             'wheel_axes': _numbers(raw, 'wheel_axes', (wheels, 3)),
@@ -97,12 +126,12 @@ def parse_config(text) -> VisualConfig:
             'thruster_directions': _numbers(raw, 'thruster_directions', (thrusters, 3)),
             'orbit': _orbit(raw['orbit'])}
     if not math.hypot(*args['target']) > 0 or not args['axis_length'] > 0:
-        raise cv.InvalidMessage('visualization/config: a zero target quaternion or a non-positive axis length')
+        raise cv.InvalidMessage(f'{WHAT} viewer: a zero target quaternion or a non-positive axis length')
     topics = raw['topics']
     if (raw['attitude_topic'] not in ATTITUDE_TOPICS or not isinstance(topics, list)
             or not all(t in RECORDED_VISUAL_TOPICS for t in topics) or len(set(topics)) != len(topics)
             or (FRAMES_ORBIT in topics and args['orbit'] is None)):
-        raise cv.InvalidMessage(f'visualization/config: attitude_topic must be one of {list(ATTITUDE_TOPICS)} '
+        raise cv.InvalidMessage(f'{WHAT} viewer: attitude_topic must be one of {list(ATTITUDE_TOPICS)} '
                                 f'and topics distinct ones of {list(RECORDED_VISUAL_TOPICS)} '
                                 '(frames/orbit with an orbit)')
     return VisualConfig(args, raw['attitude_topic'], tuple(topics))
@@ -113,13 +142,13 @@ def _count(raw: dict, key: str) -> int:
     if value is None:
         return 0
     if not isinstance(value, list) or not 0 < len(value) <= MAX_ACTUATORS:
-        raise cv.InvalidMessage(f'visualization/config: {key} must be null or a list of 1 to {MAX_ACTUATORS} rows')
+        raise cv.InvalidMessage(f'{WHAT} viewer: {key} must be null or a list of 1 to {MAX_ACTUATORS} rows')
     return len(value)
 
 
 def _number(value, key: str, infinite: bool = False) -> float:
     if type(value) not in (int, float) or math.isnan(value) or (math.isinf(value) and not infinite):
-        raise cv.InvalidMessage(f'visualization/config: {key} holds {str(value)[:40]!r}, not a finite number')
+        raise cv.InvalidMessage(f'{WHAT} viewer: {key} holds {str(value)[:40]!r}, not a finite number')
     return float(value)
 
 
@@ -128,13 +157,13 @@ def _numbers(raw: dict, key: str, shape: tuple[int, ...], infinite: bool = False
     value = raw[key]
     if shape[0] == 0:
         if value is not None:
-            raise cv.InvalidMessage(f'visualization/config: {key} given without the actuators it belongs to')
+            raise cv.InvalidMessage(f'{WHAT} viewer: {key} given without the actuators it belongs to')
         return None
     rows = value if len(shape) == 2 else [value]
     width = shape[-1]
     if not isinstance(value, list) or len(value) != shape[0] or not all(
             isinstance(r, list) and len(r) == width for r in rows):
-        raise cv.InvalidMessage(f'visualization/config: {key} must have shape {list(shape)}')
+        raise cv.InvalidMessage(f'{WHAT} viewer: {key} must have shape {list(shape)}')
     out = [[_number(v, key, infinite) for v in r] for r in rows]
     return out if len(shape) == 2 else out[0]
 
@@ -143,10 +172,10 @@ def _orbit(value) -> CircularOrbit | None:
     if value is None:
         return None
     if not isinstance(value, dict) or set(value) != set(ORBIT_KEYS):
-        raise cv.InvalidMessage(f'visualization/config: orbit must be null or have exactly the keys {list(ORBIT_KEYS)}')
+        raise cv.InvalidMessage(f'{WHAT} viewer: orbit must be null or have exactly the keys {list(ORBIT_KEYS)}')
     orbit = CircularOrbit(**{k: _number(value[k], f'orbit.{k}') for k in ORBIT_KEYS})
     if not (orbit.mu > 0 and orbit.altitude > -R_EARTH):
-        raise cv.InvalidMessage('visualization/config: orbit needs mu > 0 and a positive radius')
+        raise cv.InvalidMessage(f'{WHAT} viewer: orbit needs mu > 0 and a positive radius')
     return orbit
 
 
@@ -170,11 +199,8 @@ class ViewerRecording:
         self._pending: dict[int, dict] = {}
 
     def derive(self, topic: str, data: bytes) -> list[tuple[str, bytes]]:
-        """The viewer messages (topic, CDR bytes as a subscriber receives them: DDS pads a message to
-        a multiple of 4 bytes with zeros) that the message ``data`` on ``topic`` completes."""
-        return [(name, message + bytes(-len(message) % 4)) for name, message in self._derive(topic, data)]
-
-    def _derive(self, topic: str, data: bytes) -> list[tuple[str, bytes]]:
+        """The viewer messages (topic, CDR bytes as the dynamics node encodes them) that the message
+        ``data`` on ``topic`` completes."""
         out = []
         if topic == self.config.attitude_topic and set(self.topics) - {MARKERS}:
             t_ns, q = self._attitude(data)
@@ -222,3 +248,26 @@ class ViewerRecording:
         del self._pending[t_ns]
         speed = np.array(entry[WHEELS_STATE]) if self.wheels else None
         return [(MARKERS, self.visual.marker_array_cdr(t_ns, speed, entry.get(THRUSTERS_STATE, ())))]
+
+
+class RecordedTopics:
+    """What the recorder writes itself for one ``dynamics/recording`` config: ``/clock`` (with
+    ``config.clock``) and the viewer topics (with ``config.viewer``)."""
+
+    def __init__(self, config: RecordingConfig) -> None:
+        self.config = config
+        self.viewer = ViewerRecording(config.viewer) if config.viewer is not None else None
+        self.topics = ((CLOCK,) if config.clock else ()) + (self.viewer.topics if self.viewer else ())
+        self.sources = frozenset(({config.clock} if config.clock else set())
+                                 | (self.viewer.sources if self.viewer else set()))
+        self._clock = ClockCodec()
+
+    def derive(self, topic: str, data: bytes) -> list[tuple[str, bytes]]:
+        """The messages (topic, CDR bytes as a subscriber receives them: DDS pads a message to a
+        multiple of 4 bytes with zeros) that the message ``data`` on ``topic`` completes."""
+        out = []
+        if topic == self.config.clock:
+            out.append((CLOCK, self._clock.encode(cv.checked_cdr_stamp(topic, data))))
+        if self.viewer is not None and topic in self.viewer.sources:
+            out += self.viewer.derive(topic, data)
+        return [(name, message + bytes(-len(message) % 4)) for name, message in out]
