@@ -194,15 +194,18 @@ class PublisherVetting:
             rows.append(f'{node} ({kind}, GID {_gid_hex(info.endpoint_gid)})')
         return '; '.join(rows) or 'none'
 
-    def sweep(self, subs) -> None:
+    def sweep(self, subs, unsubscribed=()) -> None:
         """Look every vetted subscription of ``subs`` up in the graph, message or not, count
         changed or not (one publisher leaving as another joins keeps the count): for a node that
-        must record an intruder that sent nothing through it (the recorder, periodically)."""
-        for sub in subs:
-            topic = sub.topic_name
+        must record an intruder that sent nothing through it (the recorder, periodically). Also
+        the vetted topics ``unsubscribed`` (resolved names) that the node watches without a
+        subscription (the recorder writes /clock and the viewer topics itself)."""
+        looks = [(sub.topic_name, sub.get_publisher_count) for sub in subs]
+        looks += [(topic, lambda t=topic: self._node.count_publishers(t)) for topic in unsubscribed]
+        for topic, count in looks:
             allowed = self.allowed.get(topic)
             if allowed is not None and topic not in self.compromised:
-                self._inspect(topic, allowed, sub.get_publisher_count())
+                self._inspect(topic, allowed, count())
 
     def _inspect(self, topic: str, allowed: frozenset[str], matched: int) -> None:
         """Look the topic's publishers up in the graph (waiting up to GRAPH_SETTLE_S for every

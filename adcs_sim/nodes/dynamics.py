@@ -131,8 +131,7 @@ class DynamicsNode(AdcsNode):
                                self.n_steps)
         self._late = 0   # commands of the previous step that the link delayed past its deadline
 
-        # first: a recorder that discovers this node's /clock has seen that it writes its own
-        self.pub_recording = self.publisher(RECORDING_CONFIG)
+        self.pub_recording = self.publisher(RECORDING_CONFIG)   # before /clock: recorded_topics.py
         self.pub_clock = self.publisher(topics.CLOCK)
         self.pub_state = self.publisher(topics.STATE)
         truth = self.measurement.active or self.sensors is not None
@@ -148,9 +147,6 @@ class DynamicsNode(AdcsNode):
         self._step_publishers += list(self.pub_sensors.values())
         self._codecs()
         self.visual, self.pub_visual = self._visual_setup(p)
-        attitude = topics.TRUTH_STATE if self.pub_truth is not None else topics.STATE   # the true one
-        self._recording = config_text(topics.STATE, self.visual, attitude,
-                                      [t for t in RECORDED_VISUAL_TOPICS if t in self.pub_visual])
         self._visual_speed = None   # wheel speeds at the start of the step being integrated
 
         self.subs = {}
@@ -187,6 +183,13 @@ class DynamicsNode(AdcsNode):
         if not visual.markers.markers:
             skip.add(MARKERS)   # nothing moves but the body (torquers only)
         return visual, {t: self.publisher(t) for t in VISUAL_TOPICS if t not in skip}
+
+    def recording_config(self) -> str:
+        """What the recorder writes itself (``dynamics/recording``, adcs_msgs_py/recorded_topics.py):
+        /clock from the state's stamps, the viewer topics from the true attitude's topic."""
+        attitude = topics.TRUTH_STATE if self.pub_truth is not None else topics.STATE
+        return config_text(topics.STATE, self.visual, attitude,
+                           [t for t in RECORDED_VISUAL_TOPICS if t in self.pub_visual])
 
     # --- faults -----------------------------------------------------------------------------
 
@@ -394,7 +397,7 @@ class DynamicsNode(AdcsNode):
         self.publish_status()
         # latched, once before t = 0: what the recorder writes itself, the static markers; it has
         # them before the state of t = 0
-        self.pub_recording.publish(String(data=self._recording))
+        self.pub_recording.publish(String(data=self.recording_config()))
         latched = [self.pub_recording]
         if MARKERS_STATIC in self.pub_visual:
             self.pub_visual[MARKERS_STATIC].publish(self.visual.static_markers(0))

@@ -124,6 +124,7 @@ class RecorderNode(AdcsNode):
         self._written: set[str] = set()   # their resolved names, once the config has come
         self.own_topics = {t for t in names.RECORDED_TOPICS if self.record_all or t in wanted}
         self.derived = {self.resolve_topic_name(t) for t in names.RECORDED_VISUAL_TOPICS}
+        self.not_taken = {self.resolve_topic_name(t) for t in names.RECORDED_TOPICS}   # watched for intruders
         self.config_topic = self.resolve_topic_name(names.RECORDING_CONFIG)
         # the config first: an executor that takes ready subscriptions in their order takes it
         # before a state that arrived with it (the events executor takes them as they arrive)
@@ -289,7 +290,7 @@ class RecorderNode(AdcsNode):
             self.received += 1
 
     def _sweep(self) -> None:
-        self.vetting.sweep(self.subs.values())
+        self.vetting.sweep(self.subs.values(), [t for t in self.not_taken if t not in self.subs])
 
     def close(self) -> None:
         try:   # a last look before the bag is closed
