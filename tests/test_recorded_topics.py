@@ -252,3 +252,31 @@ def test_in_a_graph_the_bag_holds_what_a_live_viewer_received(tmp_path, ros_doma
         assert recorded[t if t.startswith('/') else '/' + t] == [_padded(bytes(m)) for m in messages], t
     assert len(recorded['/tf']) == n + 1 and len(recorded['/dynamics/recording']) == 1
     assert rec.rejects.total == 0
+
+
+def test_the_recorder_still_finds_a_rogue_on_a_topic_it_writes_itself(tmp_path, ros_domain):
+    """/clock and frames/body reach the recorder no more (it writes its own), yet a rogue publisher
+    on them is found by the recorder's look at the graph and written into the bag as an intrusion
+    (the look is repeated until the graph lists the rogue: discovery, not a sleep)."""
+    from rosgraph_msgs.msg import Clock
+
+    from adcs_msgs_py import topics
+    from adcs_sim.bag.reader import read_raw
+    from adcs_sim.nodes.recorder import RecorderNode
+    bag_dir = tmp_path / 'bag'
+    scenario = make_scenario(tmp_path, {'recorder': {
+        'output': str(bag_dir), 'startup.publishers': ['/clock=dynamics', 'frames/body=dynamics']}})
+    with InProcessGraph(scenario) as graph:
+        rec = graph.add(RecorderNode)
+        rogue = graph.plain('rogue')
+        rogue.create_publisher(Clock, '/clock', topics.QOS_CLOCK)
+        rogue.create_publisher(topics.TOPICS[names.FRAMES_BODY].msg_type, names.FRAMES_BODY, topics.QOS_LOCKSTEP)
+        assert '/clock' not in rec.subs and '/frames/body' not in rec.subs
+
+        def found() -> bool:
+            rec._sweep()
+            return {i.topic for i in rec.vetting.intruders.values()} == {'/clock', '/frames/body'}
+        graph.spin_until(found, what='the rogue in the recorder\'s look at the graph')
+        rec.close()
+    written = [data for topic, _, _, data in read_raw(bag_dir) if topic == '/intrusions']
+    assert written and all(b'/rogue' in data for data in written)
