@@ -86,7 +86,7 @@ class RecordingConfig:
     """A checked ``dynamics/recording``: where /clock comes from, and the viewer's config (or None)."""
 
     clock: str | None
-    viewer: 'VisualConfig | None'
+    viewer: VisualConfig | None
 
 
 def parse_config(text) -> RecordingConfig:

@@ -24,8 +24,8 @@ from hypothesis import strategies as st
 from adcs_core.orbit import CircularOrbit
 from adcs_msgs_py import cdr, names
 from adcs_msgs_py.conversions import InvalidMessage
-from adcs_msgs_py.visual import VisualMessages
 from adcs_msgs_py.recorded_topics import MAX_PENDING, RecordedTopics, config_text, parse_config
+from adcs_msgs_py.visual import VisualMessages
 
 SETTINGS = settings(max_examples=300, derandomize=True, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow])

@@ -1,11 +1,14 @@
 """Dynamics node: owns the plant and the simulated clock.
 
-Lockstep (default, deterministic): for each step ``k`` it publishes ``/clock``, ``state`` (and
-``truth/state`` when noise is on) and ``wheels/state`` stamped ``t_k``, waits until every awaited
-command topic has delivered a command stamped ``t_k``, publishes the applied control torque, and
-integrates ``[t_k, t_k+1]`` holding the commands (zero-order hold, fixed-step RK4). A step whose
-commands do not arrive within ``lockstep.timeout`` wall seconds is a *missed step*: the declared
-policy (hold the last command, or zero) applies and the miss is counted on ``dynamics/status``.
+Lockstep (default, deterministic): for each step ``k`` it publishes ``state``, ``wheels/state`` (and
+``truth/state`` when noise is on) and ``/clock`` stamped ``t_k`` (``/clock`` and the viewer
+topics only to live subscribers: the recorder writes its own from the state and the latched
+``dynamics/recording`` this node sends before ``t_0``, :mod:`adcs_msgs_py.recorded_topics`),
+waits until every awaited command topic has delivered a command stamped ``t_k``, publishes the
+applied control torque, and integrates ``[t_k, t_k+1]`` holding the commands (zero-order hold,
+fixed-step RK4). A step whose commands do not arrive within ``lockstep.timeout`` wall seconds is a
+*missed step*: the declared policy (hold the last command, or zero) applies and the miss is
+counted on ``dynamics/status``.
 Commands stamped for another step are counted as stale and ignored. ``link_faults.drop`` /
 ``link_faults.delay`` make a seeded fraction of the steps lose their commands or get them late
 (:mod:`adcs_sim.truth.link_faults`): missed steps under the same policy, deterministic.
@@ -52,10 +55,10 @@ import numpy as np
 from std_msgs.msg import String
 
 from adcs_core.faults import FaultTracker, split_snapshot
-from adcs_msgs_py import cdr
+from adcs_msgs_py import cdr, topics
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import conversions_determination as cd
-from adcs_msgs_py import topics
+from adcs_msgs_py.guard import IntrusionDetected
 from adcs_msgs_py.names import (
     ERROR_EIGENAXIS,
     ERROR_EULER_213,
@@ -67,10 +70,9 @@ from adcs_msgs_py.names import (
     RECORDING_CONFIG,
     VISUAL_TOPICS,
 )
-from adcs_msgs_py.guard import IntrusionDetected
 from adcs_msgs_py.node import AdcsNode, RunStopped, main_for
-from adcs_msgs_py.visual import VisualMessages
 from adcs_msgs_py.recorded_topics import config_text
+from adcs_msgs_py.visual import VisualMessages
 from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.link_faults import DELAY, FATE_NAMES, OK, LinkFaults
 from adcs_sim.truth.plant import ReactionWheels, WheelCommand

@@ -307,7 +307,7 @@ class RecorderNode(AdcsNode):
               f'{self.bag.path}', file=sys.stderr, flush=True)
 
 
-def _request_stop(signum, frame) -> None:  # noqa: ARG001
+def _request_stop(signum, frame) -> None:
     STOP_REQUESTED.set()
 
 
