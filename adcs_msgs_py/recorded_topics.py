@@ -147,9 +147,13 @@ def _count(raw: dict, key: str) -> int:
 
 
 def _number(value, key: str, infinite: bool = False) -> float:
-    if type(value) not in (int, float) or math.isnan(value) or (math.isinf(value) and not infinite):
+    try:   # an int beyond a double's range: OverflowError
+        number = float(value) if type(value) in (int, float) else math.nan
+    except OverflowError:
+        number = math.nan
+    if math.isnan(number) or (math.isinf(number) and not infinite):
         raise cv.InvalidMessage(f'{WHAT} viewer: {key} holds {str(value)[:40]!r}, not a finite number')
-    return float(value)
+    return number
 
 
 def _numbers(raw: dict, key: str, shape: tuple[int, ...], infinite: bool = False):

@@ -155,7 +155,8 @@ BAD = [
     {**VALID, 'orbit': None},   # frames/orbit listed without an orbit
     {**VALID, 'attitude_topic': '/evil'}, {**VALID, 'topics': ['markers', 'markers']},
     {**VALID, 'topics': ['/clock']}, {**VALID, 'topics': 'markers'},
-    {**VALID, 'target': [math.inf, 0.0, 0.0, 1.0]}, {**VALID, 'max_speed': [math.nan] * 4})]
+    {**VALID, 'target': [math.inf, 0.0, 0.0, 1.0]}, {**VALID, 'max_speed': [math.nan] * 4},
+    {**VALID, 'axis_length': 10 ** 400}, {**VALID, 'orbit': {**VALID['orbit'], 'raan': -10 ** 309}})]
 
 
 @pytest.mark.parametrize('text', BAD, ids=range(len(BAD)))
