@@ -9,10 +9,6 @@ What Foxglove's 3D panel and RViz draw, and what a plot panel plots without comp
   to inertial axes, the tf convention) and ``orbit`` (:func:`adcs_core.orbit.orbit_frame_attitude`).
   No translation: attitude only, every frame at one origin. The recorder also writes them into
   the bag as ``/tf`` (``tf2_msgs/TFMessage``: :mod:`adcs_sim.bag.tf`).
-
-The per-step ones (``frames/*``, ``markers``, ``error/*``) go out only to live subscribers: the
-recorder builds them itself, from :attr:`VisualMessages.config` (published once on
-``dynamics/recording``) and the messages it records (:mod:`adcs_msgs_py.recorded_topics`).
 * ``markers/static`` (``visualization_msgs/MarkerArray``, latched, published once at t = 0):
   a translucent body box and the body axes (frame ``body``, ``frame_locked``: they move with the
   transform) and the target attitude's axes (frame ``inertial``, oriented by the target).
@@ -26,6 +22,10 @@ recorder builds them itself, from :attr:`VisualMessages.config` (published once 
   z), of ``q_e = q_ref* (x) q``: :func:`adcs_core.attitude.error_quaternion`,
   :func:`~adcs_core.attitude.eigenaxis_angle` and :func:`~adcs_core.attitude.euler_213`, the
   functions the offline analysis uses (``adcs_sim.app.analysis.attitude_errors``).
+
+The per-step ones (``frames/*``, ``markers``, ``error/*``) go out only to live subscribers: the
+recorder builds them itself, from :attr:`VisualMessages.config` (published once on
+``dynamics/recording``) and the messages it records (:mod:`adcs_msgs_py.recorded_topics`).
 
 Each message is built once and updated in place every step (the dynamics loop pays a few field
 writes, not the construction); what never changes goes out once (its serialisation, ~1 ms for
