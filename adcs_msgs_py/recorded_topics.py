@@ -202,12 +202,12 @@ class ViewerRecording:
         self.sources = frozenset(attitude | self.marker_inputs)
         self._pending: dict[int, dict] = {}
 
-    def derive(self, topic: str, data: bytes) -> list[tuple[str, bytes]]:
+    def derive(self, topic: str, data: bytes, t_ns: int) -> list[tuple[str, bytes]]:
         """The viewer messages (topic, CDR bytes as the dynamics node encodes them) that the message
-        ``data`` on ``topic`` completes."""
+        ``data`` on ``topic``, stamped ``t_ns`` (checked), completes."""
         out = []
         if topic == self.config.attitude_topic and set(self.topics) - {MARKERS}:
-            t_ns, q = self._attitude(data)
+            q = self._attitude(data)
             if FRAMES_BODY in self.topics:
                 out.append((FRAMES_BODY, self.visual.body_frame_cdr(t_ns, q)))
             if FRAMES_ORBIT in self.topics:
@@ -217,23 +217,21 @@ class ViewerRecording:
                     if name in self.topics:
                         out.append((name, msg))
         if topic in self.marker_inputs:
-            out += self._markers(topic, data)
+            out += self._markers(topic, data, t_ns)
         return out
 
-    def _attitude(self, data: bytes) -> tuple[int, tuple]:
-        """Stamp and quaternion of an attitude message, as sent (checked, not renormalised)."""
+    def _attitude(self, data: bytes) -> tuple:
+        """The quaternion of an attitude message, as sent (checked, not renormalised)."""
         v = self._state.template.decode(data)
         if v is None:   # another layout of an Odometry: read it whole
-            msg = deserialized(data, Odometry, self.config.attitude_topic)
-            o = msg.pose.pose.orientation
-            v = (None, None, o.x, o.y, o.z, o.w)
-        t_ns = cv.checked_cdr_stamp(self.config.attitude_topic, data)
-        q = tuple(v[2:6])
+            o = deserialized(data, Odometry, self.config.attitude_topic).pose.pose.orientation
+            q = (o.x, o.y, o.z, o.w)
+        else:
+            q = tuple(v[2:6])
         cv.checked_quaternion(f'{self.config.attitude_topic} orientation', q)
-        return t_ns, q
+        return q
 
-    def _markers(self, topic: str, data: bytes) -> list[tuple[str, bytes]]:
-        t_ns = cv.checked_cdr_stamp(topic, data)
+    def _markers(self, topic: str, data: bytes, t_ns: int) -> list[tuple[str, bytes]]:
         value = None
         if topic in self._joints:
             msg = self._joints[topic].message(data)
@@ -269,9 +267,12 @@ class RecordedTopics:
     def derive(self, topic: str, data: bytes) -> list[tuple[str, bytes]]:
         """The messages (topic, CDR bytes as a subscriber receives them: DDS pads a message to a
         multiple of 4 bytes with zeros) that the message ``data`` on ``topic`` completes."""
+        if topic not in self.sources:
+            return []
         out = []
+        t_ns = cv.checked_cdr_stamp(topic, data)   # every source is a header-first message
         if topic == self.config.clock:
-            out.append((CLOCK, self._clock.encode(cv.checked_cdr_stamp(topic, data))))
+            out.append((CLOCK, self._clock.encode(t_ns)))
         if self.viewer is not None and topic in self.viewer.sources:
-            out += self.viewer.derive(topic, data)
+            out += self.viewer.derive(topic, data, t_ns)
         return [(name, message + bytes(-len(message) % 4)) for name, message in out]

@@ -46,6 +46,7 @@ from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213, qua
 from adcs_core.orbit import CircularOrbit, orbit_frame_attitude, orbit_rate
 from adcs_msgs_py.cdr import STAMP, Template, TransformCodec, VectorCodec
 from adcs_msgs_py.conversions import BODY_FRAME, INERTIAL_FRAME, NS_PER_S, stamp_from_ns
+from adcs_msgs_py.names import FRAMES_ORBIT, MARKERS, VISUAL_TOPICS
 
 ORBIT_FRAME = 'orbit'
 AXIS_COLORS = ((0.9, 0.1, 0.1), (0.1, 0.8, 0.1), (0.1, 0.3, 0.95))   # x red, y green, z blue
@@ -135,6 +136,10 @@ class VisualMessages:
                                 0.04 * self.length) if n else None)
         self.plumes = self._plumes(thruster_positions, thruster_directions)
         self.markers = MarkerArray(markers=[m for m in (self.momentum, self.plumes) if m is not None])
+        # the viewer topics this spacecraft has: no orbit frame without an orbit, no moving markers
+        # when nothing moves but the body (torquers only)
+        skip = ({FRAMES_ORBIT} if orbit is None else set()) | (set() if self.markers.markers else {MARKERS})
+        self.topics = tuple(t for t in VISUAL_TOPICS if t not in skip)
         self._markers_cdr: dict[tuple, Template] = {}   # per set of firing thrusters
 
     def static_markers(self, t_ns: int) -> MarkerArray:

@@ -43,10 +43,7 @@ def _visual(wheels: bool, thrusters: bool, orbit: bool) -> VisualMessages:
 
 
 def _topics(visual: VisualMessages) -> list[str]:
-    skip = {names.FRAMES_ORBIT} if visual.orbit is None else set()
-    if not visual.markers.markers:
-        skip.add(names.MARKERS)
-    return [t for t in ALL if t not in skip]
+    return [t for t in ALL if t in visual.topics]
 
 
 def _padded(data: bytes) -> bytes:

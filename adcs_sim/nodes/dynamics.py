@@ -68,7 +68,6 @@ from adcs_msgs_py.names import (
     MARKERS_STATIC,
     RECORDED_VISUAL_TOPICS,
     RECORDING_CONFIG,
-    VISUAL_TOPICS,
 )
 from adcs_msgs_py.node import AdcsNode, RunStopped, main_for
 from adcs_msgs_py.recorded_topics import config_text
@@ -181,10 +180,7 @@ class DynamicsNode(AdcsNode):
         visual = VisualMessages(p['visualization.target_attitude'], p['visualization.axis_length'],
                                 *((w.axes, w.spin_inertia, w.max_speed) if w else (None, None, None)),
                                 *((th.positions, th.directions) if th else (None, None)), orbit=orbit)
-        skip = {FRAMES_ORBIT} if orbit is None else set()
-        if not visual.markers.markers:
-            skip.add(MARKERS)   # nothing moves but the body (torquers only)
-        return visual, {t: self.publisher(t) for t in VISUAL_TOPICS if t not in skip}
+        return visual, {t: self.publisher(t) for t in visual.topics}
 
     def recording_config(self) -> str:
         """What the recorder writes itself (``dynamics/recording``, adcs_msgs_py/recorded_topics.py):

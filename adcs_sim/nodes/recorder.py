@@ -150,7 +150,6 @@ class RecorderNode(AdcsNode):
             self.bag.add_topic(resolved, type_name, qos_dicts(offered))
         stamped = type_name in STAMP_FIRST_TYPES
         derive_tf = name in names.FRAME_TOPICS
-        relative = name   # a topic of the interface by its relative name (a discovered one: resolved)
 
         def on_message(data: bytes, topic=resolved) -> None:
             # the stamp is the log time: a negative or out-of-range one is rejected (counted)
@@ -163,10 +162,11 @@ class RecorderNode(AdcsNode):
                 self.received += 1
                 if derive_tf:
                     self._write_tf(topic, data)
-            if relative == names.RECORDING_CONFIG:
+            # a topic of the interface by its relative name (a discovered one's name is resolved)
+            if name == names.RECORDING_CONFIG:
                 self._on_recording_config(topic, data)
-            elif self.recorded is not None and relative in self.recorded.sources:
-                self._write_own(topic, relative, data)
+            elif self.recorded is not None and name in self.recorded.sources:
+                self._write_own(topic, name, data)
 
         self.subs[resolved] = self.subscription(name, on_message, qos=qos, msg_type=msg_type, raw=True)
 
