@@ -18,6 +18,7 @@ if str(ROOT) not in sys.path:
 
 from adcs_sim.app.batch import BatchSimulation  # noqa: E402
 from adcs_sim.app.domains import DomainLease  # noqa: E402
+from adcs_sim.bag.reader import read_raw  # noqa: E402
 from adcs_sim.truth.plant import Plant  # noqa: E402
 
 # Asks Fast DDS for UDP only. rmw_fastrtps's LOCALHOST discovery range sets its own transports and
@@ -67,6 +68,21 @@ def alive(pid: int) -> bool:
     """Whether ``pid`` runs (a zombie whose parent has not reaped it yet is gone for our purpose)."""
     stat = _stat(pid)
     return stat is not None and stat[0] not in 'ZX'
+
+
+def states_on_disk(bag: Path) -> int:
+    """How many ``/state`` messages a bag being written holds: 0 until the recorder has created its
+    file and written the MCAP magic (the file exists, empty, for a moment first). Any other fault of
+    the file is raised: a poll must not hide a broken bag."""
+    try:
+        return sum(t == '/state' for t, *_ in read_raw(bag))
+    except FileNotFoundError:
+        return 0
+    except ValueError:
+        files = list(Path(bag).glob('*.mcap')) if Path(bag).is_dir() else [Path(bag)]
+        if files and all(f.stat().st_size < 8 for f in files):   # 8: the MCAP magic's length
+            return 0
+        raise
 
 
 def descendants(pid: int) -> set[int]:

@@ -12,21 +12,14 @@ import subprocess
 import sys
 import time
 
-from conftest import ROOT, alive, children, make_scenario
+from conftest import ROOT, alive, children, make_scenario, states_on_disk
 
 from adcs_msgs_py.node import RUNNER_PID_ENV
 from adcs_sim.app.domains import DomainLease
-from adcs_sim.bag.reader import is_complete, read_raw
+from adcs_sim.bag.reader import is_complete
 
 START_DEADLINE = 120.0   # a hang guard for the run to get under way
 DEATH_BOUND = 5.0        # every node is gone this long after the runner's SIGKILL
-
-
-def _state_recorded(bag) -> bool:
-    try:
-        return any(t == '/state' for t, *_ in read_raw(bag))
-    except (FileNotFoundError, ValueError):
-        return False
 
 
 def _lease_granted(domain_id: int) -> bool:
@@ -45,7 +38,7 @@ def test_sigkill_of_the_runner_leaves_no_node_and_holds_the_lease_until_the_last
                    stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, cwd=ROOT)
     domain = int(re.search(r'ROS_DOMAIN_ID=(\d+)', runner.stdout.readline() + runner.stdout.readline())[1])
     deadline = time.monotonic() + START_DEADLINE
-    while not _state_recorded(out / 'bag'):
+    while not states_on_disk(out / 'bag') > 0:
         assert runner.poll() is None, f'runner exited ({runner.returncode}) before the run got under way'
         assert time.monotonic() < deadline, 'the run did not get under way'
         try:
@@ -86,7 +79,7 @@ def test_sigkill_of_the_runner_leaves_no_node_and_holds_the_lease_until_the_last
     assert _lease_granted(domain)   # the last node gone, the domain is free again
     # The recorder got SIGTERM: it closed the bag, with what it had recorded.
     assert is_complete(out / 'bag')
-    assert _state_recorded(out / 'bag')
+    assert states_on_disk(out / 'bag') > 0
 
 
 def test_a_process_that_inherits_the_lock_holds_the_lease_until_it_exits(spawn):
