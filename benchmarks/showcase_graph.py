@@ -6,7 +6,10 @@ Issue 18: the stepping loop of ``config/uosat12_gsmn.yaml`` (10 000 steps of 1 s
 fault injector, dynamics and controller as four processes, plus the runner's own ``/clock``
 subscriber - against the ping-pong round-trip rate of :mod:`lockstep_vs_pingpong` (two processes,
 ``nav_msgs/Odometry``, the lockstep QoS), alternated ``--repeat`` times (default 3) so that a change
-of machine load hits both; medians compared.
+of machine load hits both; medians compared. Each showcase run is bracketed by two ping-pongs (the
+repeat's own and the next one's, a last one after the last repeat) and its ratio is taken against
+their mean: this machine's speed drifts by tens of per cent within a minute, and a ping-pong of
+a second measured only before a ten-second run often samples another phase of it.
 
 Each showcase run is ``python -m adcs_sim.app.runner <scenario> --out <tmp> --no-progress`` (its own
 leased domain). Timed without touching the loop: the dynamics node's own figure in its log
@@ -98,17 +101,23 @@ def _describe(tag: str, label: str, sh: dict) -> None:
           'end to end', flush=True)
 
 
+def _pingpongs(args, env: dict, runs: dict, tag: str) -> None:
+    """One ping-pong on rclpy's executor and one on the nodes' LockstepExecutor, into ``runs``."""
+    pp = lp.run_pingpong(env, args.round_trips, args.warmup)
+    runs['pp'].append(pp['rate'])
+    print(f'{tag} ping-pong : {pp["rate"]:.0f} round trips/s ({1e6 / pp["rate"]:.0f} us each)', flush=True)
+    lean = lp.run_pingpong(env, args.round_trips, args.warmup, executor='lockstep')
+    runs['pp_lean'].append(lean['rate'])
+    print(f'{tag} ping-pong on the nodes\' LockstepExecutor: {lean["rate"]:.0f} round trips/s', flush=True)
+
+
 def _repeats(args, env: dict, run_env: dict, tmp: Path) -> dict:
-    """The alternated measurements: ping-pong, showcase (this tree), compared tree, PD pair."""
+    """The alternated measurements: ping-pong, showcase (this tree), compared tree, PD pair; and a
+    last ping-pong, so that every run has one before and one after it."""
     runs = {'pp': [], 'pp_lean': [], 'showcase': [], 'compared': [], 'pd': []}
     for i in range(args.repeat):
         tag = f'[{i + 1}/{args.repeat}]'
-        pp = lp.run_pingpong(env, args.round_trips, args.warmup)
-        runs['pp'].append(pp['rate'])
-        print(f'{tag} ping-pong : {pp["rate"]:.0f} round trips/s ({1e6 / pp["rate"]:.0f} us each)', flush=True)
-        lean = lp.run_pingpong(env, args.round_trips, args.warmup, executor='lockstep')
-        runs['pp_lean'].append(lean['rate'])
-        print(f'{tag} ping-pong on the nodes\' LockstepExecutor: {lean["rate"]:.0f} round trips/s', flush=True)
+        _pingpongs(args, env, runs, tag)
         runs['showcase'].append(run_showcase(tmp / f'run{i}', args.duration, run_env))
         _describe(tag, 'showcase ', runs['showcase'][-1])
         if args.compare:
@@ -119,19 +128,29 @@ def _repeats(args, env: dict, run_env: dict, tmp: Path) -> dict:
             runs['pd'].append(pd['rate'])
             print(f'{tag} PD pair   : {pd["steps"]} steps in {pd["seconds"]:.3f} s -> {pd["rate"]:.0f} steps/s',
                   flush=True)
+    _pingpongs(args, env, runs, '[after]')
     return runs
 
 
+def bracketed(rates: list[float]) -> list[float]:
+    """The ping-pong rate of each repeat's window: the mean of the round-trip rates measured right
+    before and right after it (``rates`` has one more entry than there are repeats)."""
+    return [(a + b) / 2 for a, b in zip(rates, rates[1:])]
+
+
 def _summary(runs: dict, compare: Path | None) -> None:
-    pps, shs, cmps, pds = runs['pp'], runs['showcase'], runs['compared'], runs['pd']
+    pps, shs, cmps, pds = bracketed(runs['pp']), runs['showcase'], runs['compared'], runs['pd']
     pp = statistics.median(pps)
     rate, startup, wall = (median(shs, k) for k in ('rate', 'startup', 'wall'))
     print(f'median      : ping-pong {pp:.0f} round trips/s; showcase {rate:.0f} steps/s; start-up '
           f'{startup:.2f} s; adcs-run {wall:.2f} s')
     per = ', '.join(f'{s["rate"] / p:.3f}' for s, p in zip(shs, pps))
-    print(f'ratio       : showcase full graph / ping-pong = {rate / pp:.3f} (per repeat: {per})')
-    lean = statistics.median(runs['pp_lean'])
-    per = ', '.join(f'{s["rate"] / p:.3f}' for s, p in zip(shs, runs['pp_lean']))
+    print(f'ratio       : showcase full graph / ping-pong = {rate / pp:.3f} (per repeat: {per}; median of the '
+          f'per-repeat ratios {statistics.median(s["rate"] / p for s, p in zip(shs, pps)):.3f}; each against '
+          'the mean of the ping-pongs before and after it)')
+    leans = bracketed(runs['pp_lean'])
+    lean = statistics.median(leans)
+    per = ', '.join(f'{s["rate"] / p:.3f}' for s, p in zip(shs, leans))
     print(f'ratio       : showcase full graph / ping-pong on LockstepExecutor ({lean:.0f} round trips/s) = '
           f'{rate / lean:.3f} (per repeat: {per})')
     if cmps:
@@ -148,7 +167,7 @@ def _parse_args():
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--repeat', type=int, default=3)
     ap.add_argument('--duration', type=float, default=None, help='override the showcase duration (s)')
-    ap.add_argument('--round-trips', type=int, default=2000)
+    ap.add_argument('--round-trips', type=int, default=5000)
     ap.add_argument('--warmup', type=int, default=200)
     ap.add_argument('--pd', action='store_true', help='also time the PD pair (lockstep_vs_pingpong)')
     ap.add_argument('--pd-duration', type=float, default=3000.0)
