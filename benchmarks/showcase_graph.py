@@ -33,6 +33,7 @@ SingleThreadedExecutor); also printed against the ping-pong on the nodes' own Lo
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import re
 import statistics
@@ -135,7 +136,7 @@ def _repeats(args, env: dict, run_env: dict, tmp: Path) -> dict:
 def bracketed(rates: list[float]) -> list[float]:
     """The ping-pong rate of each repeat's window: the mean of the round-trip rates measured right
     before and right after it (``rates`` has one more entry than there are repeats)."""
-    return [(a + b) / 2 for a, b in zip(rates, rates[1:])]
+    return [(a + b) / 2 for a, b in itertools.pairwise(rates)]
 
 
 def _summary(runs: dict, compare: Path | None) -> None:
@@ -176,7 +177,11 @@ def _parse_args():
     ap.add_argument('--compare', type=Path, metavar='TREE',
                     help="also run the showcase with another checkout's code (e.g. the commit before a "
                          'change, `git archive <rev> | tar -x -C TREE`), alternated: before/after in one run')
-    return ap.parse_args()
+    args = ap.parse_args()
+    for name in ('repeat', 'round_trips', 'warmup'):
+        if getattr(args, name) < (0 if name == 'warmup' else 1):
+            ap.error(f'--{name.replace("_", "-")} must be at least {0 if name == "warmup" else 1}')
+    return args
 
 
 def main() -> int:
