@@ -3,8 +3,8 @@
 
 Issue 18: the stepping loop of ``config/uosat12_gsmn.yaml`` (10 000 steps of 1 s, RK4 max step
 0.25 s, rw_z fails at 500 s, two-wheel GSMN law) run the way ``adcs-run`` runs it - recorder,
-fault injector, dynamics and controller as four processes, plus the runner's own ``/clock``
-subscriber - against the ping-pong round-trip rate of :mod:`lockstep_vs_pingpong` (two processes,
+fault injector, dynamics and controller as four processes (``--no-progress``: without the runner's
+``/clock`` progress bar, which only a terminal gets) - against the ping-pong round-trip rate of :mod:`lockstep_vs_pingpong` (two processes,
 ``nav_msgs/Odometry``, the lockstep QoS), alternated ``--repeat`` times (default 3) so that a change
 of machine load hits both; medians compared. Each showcase run is bracketed by two ping-pongs (the
 repeat's own and the next one's, a last one after the last repeat) and its ratio is taken against
