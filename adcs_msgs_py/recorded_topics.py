@@ -48,9 +48,6 @@ from adcs_msgs_py.cdr import ClockCodec, JointStateCodec, StateCodec, deserializ
 from adcs_msgs_py.names import (
     APPLIED_TORQUE,
     CLOCK,
-    ERROR_EIGENAXIS,
-    ERROR_EULER_213,
-    FRAMES_BODY,
     FRAMES_ORBIT,
     MARKERS,
     RECORDED_VISUAL_TOPICS,
@@ -198,7 +195,8 @@ class ViewerRecording:
         if MARKERS in self.topics:
             self.marker_inputs = frozenset({APPLIED_TORQUE} | ({WHEELS_STATE} if self.wheels else set())
                                            | ({THRUSTERS_STATE} if self.thrusters else set()))
-        attitude = {config.attitude_topic} if set(self.topics) - {MARKERS} else set()
+        self.attitude_topics = tuple(t for t in self.topics if t != MARKERS)   # of the true attitude
+        attitude = {config.attitude_topic} if self.attitude_topics else set()
         self.sources = frozenset(attitude | self.marker_inputs)
         self._pending: dict[int, dict] = {}
 
@@ -206,16 +204,8 @@ class ViewerRecording:
         """The viewer messages (topic, CDR bytes as the dynamics node encodes them) that the message
         ``data`` on ``topic``, stamped ``t_ns`` (checked), completes."""
         out = []
-        if topic == self.config.attitude_topic and set(self.topics) - {MARKERS}:
-            q = self._attitude(data)
-            if FRAMES_BODY in self.topics:
-                out.append((FRAMES_BODY, self.visual.body_frame_cdr(t_ns, q)))
-            if FRAMES_ORBIT in self.topics:
-                out.append((FRAMES_ORBIT, self.visual.orbit_frame_cdr(t_ns)))
-            if ERROR_EIGENAXIS in self.topics or ERROR_EULER_213 in self.topics:
-                for name, msg in zip((ERROR_EIGENAXIS, ERROR_EULER_213), self.visual.errors_cdr(t_ns, q)):
-                    if name in self.topics:
-                        out.append((name, msg))
+        if topic == self.config.attitude_topic and self.attitude_topics:
+            out += self.visual.attitude_cdr(t_ns, self._attitude(data), self.attitude_topics)
         if topic in self.marker_inputs:
             out += self._markers(topic, data, t_ns)
         return out

@@ -46,7 +46,7 @@ from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213, qua
 from adcs_core.orbit import CircularOrbit, orbit_frame_attitude, orbit_rate
 from adcs_msgs_py.cdr import STAMP, Template, TransformCodec, VectorCodec
 from adcs_msgs_py.conversions import BODY_FRAME, INERTIAL_FRAME, NS_PER_S, stamp_from_ns
-from adcs_msgs_py.names import FRAMES_ORBIT, MARKERS, VISUAL_TOPICS
+from adcs_msgs_py.names import ERROR_EIGENAXIS, ERROR_EULER_213, FRAMES_BODY, FRAMES_ORBIT, MARKERS, VISUAL_TOPICS
 
 ORBIT_FRAME = 'orbit'
 AXIS_COLORS = ((0.9, 0.1, 0.1), (0.1, 0.8, 0.1), (0.1, 0.3, 0.95))   # x red, y green, z blue
@@ -225,6 +225,21 @@ class VisualMessages:
         """The CDR bytes of :meth:`errors` (:class:`~adcs_msgs_py.cdr.VectorCodec`)."""
         eigenaxis, euler = self.error_values(q)
         return self._error_cdr.encode(t_ns, eigenaxis), self._error_cdr.encode(t_ns, euler)
+
+    def attitude_cdr(self, t_ns: int, q, wanted) -> list[tuple[str, bytes]]:
+        """(topic, CDR bytes) of the messages of the true attitude ``q`` at ``t_ns`` whose topic is in
+        ``wanted``: ``frames/body``, ``frames/orbit``, ``error/eigenaxis``, ``error/euler_213``
+        (the dynamics node's, to its live subscribers; the recorder's, adcs_msgs_py.recorded_topics)."""
+        out = []
+        if FRAMES_BODY in wanted:
+            out.append((FRAMES_BODY, self.body_frame_cdr(t_ns, q)))
+        if FRAMES_ORBIT in wanted:
+            out.append((FRAMES_ORBIT, self.orbit_frame_cdr(t_ns)))
+        if ERROR_EIGENAXIS in wanted or ERROR_EULER_213 in wanted:
+            for topic, data in zip((ERROR_EIGENAXIS, ERROR_EULER_213), self.errors_cdr(t_ns, q)):
+                if topic in wanted:
+                    out.append((topic, data))
+        return out
 
     def marker_array(self, t_ns: int, wheel_speed=None, on_time: Sequence[float] = ()) -> MarkerArray:
         """The step's moving markers: the wheel momentum from the speeds (rad/s, relative to the

@@ -60,10 +60,6 @@ from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import conversions_determination as cd
 from adcs_msgs_py.guard import IntrusionDetected
 from adcs_msgs_py.names import (
-    ERROR_EIGENAXIS,
-    ERROR_EULER_213,
-    FRAMES_BODY,
-    FRAMES_ORBIT,
     MARKERS,
     MARKERS_STATIC,
     RECORDED_VISUAL_TOPICS,
@@ -291,14 +287,8 @@ class DynamicsNode(AdcsNode):
     def publish_visual_state(self, t_ns: int, q) -> None:
         """frames/* and error/* of the true attitude at ``t_ns``, to what is subscribed."""
         live = {t: pub for t, pub in self.pub_visual.items() if pub.get_subscription_count()}
-        if FRAMES_BODY in live:
-            live[FRAMES_BODY].publish(self.visual.body_frame_cdr(t_ns, q))
-        if FRAMES_ORBIT in live:
-            live[FRAMES_ORBIT].publish(self.visual.orbit_frame_cdr(t_ns))
-        if ERROR_EIGENAXIS in live or ERROR_EULER_213 in live:
-            for topic, data in zip((ERROR_EIGENAXIS, ERROR_EULER_213), self.visual.errors_cdr(t_ns, q)):
-                if topic in live:   # errors()' bytes
-                    live[topic].publish(data)
+        for topic, data in self.visual.attitude_cdr(t_ns, q, live):
+            live[topic].publish(data)
 
     def publish_markers(self, t_ns: int) -> None:
         """markers of the step just integrated (stamp ``t_ns`` = its start): the wheel momentum at
