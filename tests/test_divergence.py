@@ -10,11 +10,16 @@ import re
 import subprocess
 import sys
 
+import numpy as np
 from conftest import ROOT, make_scenario
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from adcs_sim.app.batch import BatchSimulation
 from adcs_sim.app.scenario_files import validate_scenario
 from adcs_sim.bag.reader import read_raw
+from adcs_sim.truth.divergence import nonfinite_cause
+from adcs_sim.truth.schema import build_plant
 
 DEADLINE = 300.0   # a hang guard only
 NO_WHEELS = {'wheels.names': None, 'wheels.axes': None, 'wheels.max_torque': None}
@@ -53,3 +58,29 @@ def test_dynamics_node_stops_the_run_naming_the_time_and_the_cause(tmp_path):
     # The bag keeps every finite state up to the divergence, and no non-finite one.
     states = [m for t, *m in read_raw(out / 'bag') if t == '/state']
     assert len(states) == k_fail
+
+
+def _named(plant, x, torque):
+    """What is not finite, part by part (the check before the one-sum shortcut)."""
+    parts = {'attitude quaternion': x[:4], 'body rate': x[4:7]}
+    parts.update({f'{name} state': x[s] for name, s in plant.slices.items()})
+    if torque is not None:
+        parts['applied torque'] = torque
+    return ', '.join(n for n, v in parts.items() if not np.isfinite(v).all()) or None
+
+
+@settings(max_examples=300, derandomize=True, deadline=None)
+@given(st.data())
+def test_the_one_sum_shortcut_names_what_the_part_by_part_check_names(data):
+    """Any mix of finite values (sums that overflow to infinity among them), NaNs and infinities
+    in the state and the torque: the same answer as checking each part."""
+    plant = validate_plant()
+    values = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([1e308, -1e308, 0.0]))
+    x = np.array(data.draw(st.lists(values, min_size=plant.n_states, max_size=plant.n_states)))
+    torque = data.draw(st.one_of(st.none(), st.lists(values, min_size=3, max_size=3).map(np.array)))
+    assert nonfinite_cause(plant, x, torque) == _named(plant, x, torque)
+
+
+def validate_plant():
+    """The showcase's plant (body and three wheels)."""
+    return build_plant(validate_scenario(ROOT / 'config' / 'uosat12_gsmn.yaml')['dynamics'], warm=False)
