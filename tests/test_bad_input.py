@@ -113,7 +113,6 @@ def _run_node(module: str, args: list[str], env) -> subprocess.CompletedProcess:
     ('adcs_controllers.nodes.pd_controller', {'pd_controller': {'kp': None}}, 'kp'),
     ('adcs_controllers.nodes.pd_controller', {'pd_controller': {'kd': -0.05}}, 'kd'),
     ('adcs_sim.nodes.recorder', {'recorder': {'chunk_size': 0}}, 'chunk_size'),
-    ('adcs_sim.nodes.recorder', {'recorder': {'nice': 20}}, 'nice'),
 ])
 def test_node_refuses_bad_parameters_at_start(ros_domain, tmp_path, module, overrides, key):
     scenario = make_scenario(tmp_path, overrides)

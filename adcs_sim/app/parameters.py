@@ -45,7 +45,6 @@ CHECKS = {
     'all_positive': 'each > 0',
     'all_non_negative': 'each >= 0',
     'domain_id': '0..232',
-    'niceness': '0..19',
     'check_unit_quaternion': 'unit norm (within 1e-3)',
     '_check_inertia_values': 'symmetric, positive definite, triangle inequality of the principal moments',
     '_fraction': 'in [0, 1]',

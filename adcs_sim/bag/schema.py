@@ -4,11 +4,6 @@ from __future__ import annotations
 from adcs_msgs_py.blocks import startup_params
 from adcs_msgs_py.params import Param, Schema, positive
 
-
-def niceness(v) -> str | None:
-    return None if 0 <= v <= 19 else f'must be a Linux niceness from 0 to 19, got {v!r}'
-
-
 RECORDER_SCHEMA = Schema('recorder', [
     Param('output', 'string', default='', doc='bag folder to create (empty: runs/<timestamp>)'),
     Param('scenario_file', 'string', default='',
@@ -21,9 +16,5 @@ RECORDER_SCHEMA = Schema('recorder', [
           doc='wall seconds between flushes of the open chunk to disk'),
     Param('discovery_period', 'double', default=1.0, check=positive,
           doc='wall seconds between looks for new topics to record'),
-    Param('nice', 'int', default=10, check=niceness,
-          doc='niceness of all the recorder\'s threads (Linux; 0: as the other nodes): it is off the '
-              'lockstep loop\'s critical path, so the kernel runs the loop\'s nodes first when they '
-              'compete for a core (the acknowledgement pacing bounds how far it falls behind)'),
     *startup_params(),
 ], doc='records every topic of the graph to a rosbag2 MCAP bag')

@@ -11,12 +11,6 @@ On SIGINT / SIGTERM the node stops taking new work, drains what DDS has already 
 closes the bag (summary + ``metadata.yaml``). After SIGKILL, everything up to the last flush is
 readable (:func:`adcs_sim.bag.reader.read_raw`).
 
-Priority: the recorder's threads run at niceness ``nice`` (default 10, :func:`lower_priority`). On
-the two cores the lockstep loop needs, its threads (the DDS threads that take each delivery, the
-executor) competed with the dynamics node and the controller: a thread woken for a delivery took
-the core from the node that had just published. The recorder is off the loop's critical path and
-the acknowledgement pacing bounds how far it can fall behind, so it yields instead.
-
 Memory: what DDS has delivered and the recorder has not taken yet is bounded (its Fast DDS
 profile, ``recorder_fastdds.xml``: :data:`MAX_UNTAKEN` messages a topic; a reader that is full
 acknowledges nothing more, so the writers' acknowledgement waits hold the loop until the recorder
@@ -56,28 +50,6 @@ DRAIN_MAX_S = 10.0  # < the runner's stop timeout (adcs_sim.app.graph.STOP_TIMEO
 PROFILES_ENV = 'FASTRTPS_DEFAULT_PROFILES_FILE'
 RECORDER_PROFILE = Path(__file__).resolve().parent / 'recorder_fastdds.xml'
 MAX_UNTAKEN = 1000  # messages a topic DDS holds for the recorder (recorder_fastdds.xml's max_samples)
-
-
-def lower_priority(nice: int, tasks: Path = Path('/proc/self/task')) -> int:
-    """Raise the niceness of every thread of this process to at least ``nice``; the number of
-    threads changed. Linux schedules threads, and a thread's niceness is its own: the DDS threads
-    (which take every delivery) and the executor's already run, so each is set, not only the
-    calling one (threads started later inherit their creator's). A thread already nicer is left
-    as it is, and so is one that ended meanwhile or may not be changed: lowering a niceness needs
-    privileges, raising it never does. Where there is no ``/proc`` (not Linux), nothing changes."""
-    try:
-        tids = [int(t) for t in os.listdir(tasks)]
-    except (OSError, ValueError):
-        return 0
-    changed = 0
-    for tid in tids:
-        try:
-            if os.getpriority(os.PRIO_PROCESS, tid) < nice:
-                os.setpriority(os.PRIO_PROCESS, tid, nice)
-                changed += 1
-        except OSError:   # the thread ended, or is not ours to change
-            continue
-    return changed
 
 
 def use_recorder_profile(environ=os.environ) -> None:
@@ -274,8 +246,6 @@ class RecorderNode(AdcsNode):
         self._subscribe(name, msg_type, qos, infos[0].qos_profile if infos else qos)
 
     def run(self, executor) -> None:
-        # The executor exists (and its threads): every thread of the process yields to the loop's nodes.
-        lower_priority(self.params['nice'])
         while not (self.stopping or STOP_REQUESTED.is_set()):
             executor.spin_once(timeout_sec=0.1)
         # Drain: keep taking what DDS already delivered until a quiet period, but never longer
