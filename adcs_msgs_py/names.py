@@ -58,6 +58,12 @@ RUN_NODES = '*'  # the startup.publishers entry naming every node of the run (wh
 INTRUSIONS = 'intrusions'  # written by the recorder into the bag: publishers the run does not allow
 QUARANTINE_PREFIX = 'quarantine'  # the recorder keeps a compromised topic's messages under quarantine/<topic>
 
+
+def quarantined(topic: str) -> bool:
+    """Whether ``topic`` (a resolved name) is where the recorder keeps the messages of a compromised
+    topic (``<ns>/quarantine/<topic>``): never a run's own data, whatever its name ends with."""
+    return f'/{QUARANTINE_PREFIX}/' in topic
+
 # Who may publish on each topic a node of the graph listens to, by role (the scenario's sections
 # say which nodes of each role run; a node's name is its section's name). An empty tuple: nobody.
 PUBLISHER_ROLES: dict[str, tuple[str, ...]] = {

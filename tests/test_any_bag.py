@@ -526,3 +526,27 @@ def test_diagnostics_decoder_against_rosbags(monkeypatch):
     np.testing.assert_array_equal(stamps, [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in intact])
     assert statuses == [[(s.level, s.name, s.message, s.hardware_id, {kv.key: kv.value for kv in s.values})
                          for s in m.status] for m in intact]
+
+
+def test_a_quarantine_is_never_taken_for_the_runs_namespace(tmp_path):
+    """A compromised run whose recorder took every state after it had seen the intruder keeps them
+    all under quarantine/state (tests/test_intruders.py, on a loaded machine): the analysis finds no
+    state of the run, rather than analysing the quarantine (maybe the intruder's) as a namespace of
+    it; beside the run's own states, the quarantine is never chosen either, however full."""
+    Q = np.array([0.0, 0.0, 0.0, 1.0])
+    W = np.zeros(3)
+    rogue = [('/quarantine/state', 'nav_msgs/msg/Odometry', k * 10**9, ser(odom(k * 10**9, Q, W), 'nav_msgs/msg/Odometry'))
+             for k in range(5)]
+    rogue += [(f'/quarantine/{name}', 'geometry_msgs/msg/Vector3Stamped', k * 10**9,
+               ser(vec3(k * 10**9, [1.0, 2.0, 3.0]), 'geometry_msgs/msg/Vector3Stamped'))
+              for k in range(5) for name in ('actuators/torque',)]
+    applied = [('/actuators/torque', 'geometry_msgs/msg/Vector3Stamped', k * 10**9,
+                ser(vec3(k * 10**9, [0.1, 0.0, 0.0]), 'geometry_msgs/msg/Vector3Stamped')) for k in range(2)]
+    only_quarantined = write_ours(tmp_path / 'only', rogue + applied)
+    with pytest.raises(ValueError, match=r'no /state \(nav_msgs/msg/Odometry\) messages'):
+        RunData.from_bag(only_quarantined)
+    own = [('/state', 'nav_msgs/msg/Odometry', k * 10**9, ser(odom(k * 10**9, Q, 0.01 * np.ones(3)), 'nav_msgs/msg/Odometry'))
+           for k in range(2)]
+    both = RunData.from_bag(write_ours(tmp_path / 'both', rogue + applied + own))
+    assert len(both.t) == 2 and np.all(both.w == 0.01)
+    np.testing.assert_array_equal(both.u, [[0.1, 0.0, 0.0]] * 2)

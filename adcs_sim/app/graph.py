@@ -285,10 +285,12 @@ def graph_env(lease: DomainLease, allow_network: bool = False) -> dict:
 
 
 def recorded_state(bag_dir: Path) -> bool:
-    """Whether the bag (complete, or as flushed so far) holds at least one state message."""
+    """Whether the bag (complete, or as flushed so far) holds at least one state message (a
+    quarantined one is not the run's)."""
+    from adcs_msgs_py.names import quarantined
     from adcs_sim.bag.reader import read_raw
     try:
-        return any(topic.endswith('/state') for topic, *_ in read_raw(bag_dir))
+        return any(topic.endswith('/state') and not quarantined(topic) for topic, *_ in read_raw(bag_dir))
     except (OSError, ValueError):
         return False
 

@@ -243,10 +243,12 @@ def _relative(topic: str, ns: str) -> str:
 
 
 def _namespace(counts: dict[str, int], types: dict[str, str]) -> str:
-    """The prefix of the ``state`` topic with the most of the graph's topics beside it ('/' first)."""
+    """The prefix of the ``state`` topic with the most of the graph's topics beside it ('/' first);
+    never a quarantine (``<ns>/quarantine/state``: a compromised run's states, maybe an intruder's,
+    are not the run's even when every state of it went there)."""
     best = None
     for name, n in counts.items():
-        if not name.endswith('/' + topics.STATE) or types.get(name) != ODOMETRY:
+        if not name.endswith('/' + topics.STATE) or types.get(name) != ODOMETRY or topics.quarantined(name):
             continue
         prefix = name[:-len(topics.STATE)]
         score = sum(1 for rel in set(READ_TYPES) | set(REPORTED_TOPICS) if counts.get(prefix + rel))
