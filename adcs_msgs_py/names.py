@@ -64,6 +64,7 @@ def quarantined(topic: str) -> bool:
     topic (``<ns>/quarantine/<topic>``): never a run's own data, whatever its name ends with."""
     return f'/{QUARANTINE_PREFIX}/' in topic
 
+
 # Who may publish on each topic a node of the graph listens to, by role (the scenario's sections
 # say which nodes of each role run; a node's name is its section's name). An empty tuple: nobody.
 PUBLISHER_ROLES: dict[str, tuple[str, ...]] = {
