@@ -543,8 +543,13 @@ def test_a_quarantine_is_never_taken_for_the_runs_namespace(tmp_path):
     applied = [('/actuators/torque', 'geometry_msgs/msg/Vector3Stamped', k * 10**9,
                 ser(vec3(k * 10**9, [0.1, 0.0, 0.0]), 'geometry_msgs/msg/Vector3Stamped')) for k in range(2)]
     only_quarantined = write_ours(tmp_path / 'only', rogue + applied)
-    with pytest.raises(ValueError, match=r'no /state \(nav_msgs/msg/Odometry\) messages'):
+    with pytest.raises(ValueError, match=r'no /state \(nav_msgs/msg/Odometry\) messages: not a run of the graph'):
         RunData.from_bag(only_quarantined)
+    intrusion = [('/intrusions', DIAG, 3 * 10**9, ser(diag(3 * 10**9, '/state', {
+        'topic': '/state', 'node': '/rogue', 'gid': '01.0f', 'allowed': '/dynamics'}), DIAG))]
+    with pytest.raises(ValueError, match=r'no /state .* of the run \(those recorded are under /quarantine/state, not '
+                                         r'analysed\): nothing to analyse; run compromised: intruder node /rogue '):
+        RunData.from_bag(write_ours(tmp_path / 'compromised', rogue + applied + intrusion))
     own = [('/state', 'nav_msgs/msg/Odometry', k * 10**9, ser(odom(k * 10**9, Q, 0.01 * np.ones(3)), 'nav_msgs/msg/Odometry'))
            for k in range(2)]
     both = RunData.from_bag(write_ours(tmp_path / 'both', rogue + applied + own))
