@@ -6,6 +6,7 @@ Torquers with unlimited torque and kd * period > 2 (kd = 40): the discrete rate 
 and overflows within a few hundred steps (tests/test_batch.py)."""
 from __future__ import annotations
 
+import functools
 import re
 import subprocess
 import sys
@@ -74,13 +75,14 @@ def _named(plant, x, torque):
 def test_the_one_sum_shortcut_names_what_the_part_by_part_check_names(data):
     """Any mix of finite values (sums that overflow to infinity among them), NaNs and infinities
     in the state and the torque: the same answer as checking each part."""
-    plant = validate_plant()
+    plant = showcase_plant()
     values = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([1e308, -1e308, 0.0]))
     x = np.array(data.draw(st.lists(values, min_size=plant.n_states, max_size=plant.n_states)))
     torque = data.draw(st.one_of(st.none(), st.lists(values, min_size=3, max_size=3).map(np.array)))
     assert nonfinite_cause(plant, x, torque) == _named(plant, x, torque)
 
 
-def validate_plant():
-    """The showcase's plant (body and three wheels)."""
+@functools.lru_cache(maxsize=1)
+def showcase_plant():
+    """The showcase's plant (body and three wheels), built once."""
     return build_plant(validate_scenario(ROOT / 'config' / 'uosat12_gsmn.yaml')['dynamics'], warm=False)

@@ -221,7 +221,8 @@ def test_rogue_publisher_is_detected_not_applied_and_named(tmp_path, monkeypatch
     else:   # a recorder that lagged (a loaded machine) took every state after it had seen the rogue:
         # all under quarantine/state, none analysed as the run's (adcs_sim.app.run_data._namespace)
         assert has_messages(bag, '/quarantine/state')
-        with pytest.raises(ValueError, match='no /state'):
+        with pytest.raises(ValueError, match=r'no /state .* under /quarantine/state, not analysed\): nothing to '
+                                             r'analyse; run compromised: intruder node /rogue'):
             RunData.from_bag(bag)
         u = np.array([[m.vector.x, m.vector.y, m.vector.z] for _, _, m in read_messages(bag, {'/actuators/torque'})])
     assert len(u) >= 2, 'the rogue starts at t = 2 s: the run had clean steps before it'

@@ -228,7 +228,8 @@ def _scenario(text: str | None) -> dict | None:
 
 
 def _no_state(path, reader: ColumnReader, state_topic: str) -> ValueError:
-    """The one-line error for a bag without a state message (saying so when it is damaged)."""
+    """The one-line error for a bag without a state message of the run (saying so when it is
+    damaged, and when the run was compromised: its states may all be under quarantine)."""
     what = f'{state_topic} ({ODOMETRY})'
     if state_topic in reader.topics and reader.topics[state_topic] != ODOMETRY:
         what = f'{state_topic} of type {ODOMETRY} (it is {reader.topics[state_topic]})'
