@@ -65,6 +65,13 @@ def quarantined(topic: str) -> bool:
     return f'/{QUARANTINE_PREFIX}/' in topic
 
 
+def quarantine_topic(topic: str, namespace: str) -> str:
+    """Where the recorder keeps the messages of ``topic`` (resolved, in ``namespace``) once it is
+    compromised: ``<namespace>/quarantine/<topic relative to it>``."""
+    ns = namespace.rstrip('/')
+    return f'{ns}/{QUARANTINE_PREFIX}{topic[len(ns):]}'
+
+
 # Who may publish on each topic a node of the graph listens to, by role (the scenario's sections
 # say which nodes of each role run; a node's name is its section's name). An empty tuple: nobody.
 PUBLISHER_ROLES: dict[str, tuple[str, ...]] = {

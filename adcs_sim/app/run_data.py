@@ -238,7 +238,7 @@ def _no_state(path, reader: ColumnReader, state_topic: str) -> ValueError:
                           f'({reader.message_count} messages salvaged): nothing to analyse')
     intrusions = bag_intrusions(path)
     if intrusions:   # e.g. a compromised run whose recorder took every state after the detection
-        kept = state_topic[:-len(topics.STATE)] + f'{topics.QUARANTINE_PREFIX}/{topics.STATE}'
+        kept = topics.quarantine_topic(state_topic, state_topic[:-len(topics.STATE)])
         where = f' (those recorded are under {kept}, not analysed)' if kept in reader.topics else ''
         return ValueError(f'{path}: no {what} messages of the run{where}: nothing to analyse; run compromised: '
                           + '; '.join(intrusions))

@@ -281,8 +281,7 @@ class RecorderNode(AdcsNode):
 
     def on_refused(self, topic: str, data) -> None:
         """A message of a compromised topic: kept, under ``quarantine/<topic>``."""
-        ns = self.get_namespace().rstrip('/')
-        quarantine = f'{ns}/{names.QUARANTINE_PREFIX}{topic[len(ns):]}'
+        quarantine = names.quarantine_topic(topic, self.get_namespace())
         original = self.bag.topics[topic]
         self.bag.add_topic(quarantine, original.type_name, original.qos)
         if not original.stamped or self.rejects.accept(topic, lambda: cv.checked_cdr_stamp(topic, data)) is not None:
