@@ -263,11 +263,19 @@ def test_recorder_counts_a_hostile_viewer_config_and_keeps_recording(graphs, tex
 
 def test_the_fuzzed_graph_runs_to_the_end(graphs):
     """After all of the above, the lockstep loop of the fuzzed nodes completes and the recorder
-    closes a readable bag (its rejections in the bag's metadata)."""
+    closes a readable bag (its rejections in the bag's metadata). Selected alone, the nodes are
+    first given one message each that they refuse, so that they too have rejected something."""
     from adcs_sim.app.analysis import RunData
     graph, nodes, steps, bag_dir = graphs
-    dyn, rec = nodes['dynamics'], nodes['recorder']
-    assert dyn.rejects.total > 0 and nodes['pd_controller'].rejects.total > 0 and rec.rejects.total > 0
+    dyn, pd, rec = nodes['dynamics'], nodes['pd_controller'], nodes['recorder']
+    state, cmd = _stamp(Odometry(), -1, 0), _stamp(JointState(name=WHEELS, effort=[0.0] * 3), -1, 0)
+    for convert in (lambda: cv.state_from_msg(state), lambda: cv.wheel_cmd_from_msg(cmd, dyn.wheel_index),
+                    lambda: cv.checked_cdr_stamp('/state', b'\x00')):
+        assert refused(convert)   # negative stamps; one byte, no CDR message
+    feed(pd, pd.sub_state, state, lambda: cv.state_from_msg(state))
+    feed(dyn, dyn.subs['wheels/cmd'], cmd, lambda: cv.wheel_cmd_from_msg(cmd, dyn.wheel_index))
+    feed(rec, rec.subs['/state'], b'\x00', lambda: cv.checked_cdr_stamp('/state', b'\x00'))
+    assert dyn.rejects.total > 0 and pd.rejects.total > 0 and rec.rejects.total > 0
     dyn.step_ns = 0
     dyn.run(graph.executor)
     assert dyn.step_ns == steps * dyn.period_ns
