@@ -35,6 +35,7 @@ FUZZ = settings(derandomize=True, max_examples=40, deadline=None, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 
 WHEELS = ['rw_x', 'rw_y', 'rw_z']
+_INJECTOR_CLOCK: dict = {}   # the fault injector's /clock subscription as it started (graphs)
 ANY_FLOAT = st.one_of(st.floats(allow_nan=True, allow_infinity=True),
                       st.sampled_from([0.0, 1e308, -1e308, 1e-320, math.nan, math.inf]))
 SEC = st.one_of(st.integers(-2**31, 2**31 - 1), st.sampled_from([-1, 0, 1, 2**31 - 1]))
@@ -132,6 +133,8 @@ def graphs(tmp_path_factory):
                 nodes = {'recorder': a.add(RecorderNode), 'fault_injector': a.add(FaultInjectorNode),
                          'dynamics': a.add(DynamicsNode), 'pd_controller': a.add(PdController),
                          'backstepping_controller': b.add(BacksteppingController)}
+                # the injector's /clock subscription as it started, kept: a run to the end drops it
+                _INJECTOR_CLOCK['sub'] = nodes['fault_injector'].sub_clock
                 nodes['pd_controller'].wait_for_faults(a.executor)
                 nodes['pd_controller'].connect()
                 b.add(DynamicsNode)   # what the backstepping controller's start-up waits for
@@ -171,18 +174,16 @@ def test_backstepping_controller_survives_any_state_wheel_state_or_fault(graphs,
     feed(ctrl, ctrl.sub_faults, faults, lambda: cv.faults_from_msg(faults, known))
 
 
-_INJECTOR_CLOCK: dict = {}
-
-
 @FUZZ
 @given(clock=clocks())
 def test_fault_injector_survives_any_clock(graphs, clock):
-    """Any clock, also once a fuzzed clock past the last event made the injector drop its /clock
-    subscription (the subscription object it had is kept here: its callback must still take anything,
-    and the drop happens exactly when every event is announced)."""
+    """Any clock, also once a fuzzed clock (or the run to the end) past the last event made the
+    injector drop its /clock subscription (the subscription object it started with is kept by the
+    fixture: its callback must still take anything, and the drop happens exactly when every event
+    is announced)."""
     _, nodes, _, _ = graphs
     inj = nodes['fault_injector']
-    sub = _INJECTOR_CLOCK.setdefault('sub', inj.sub_clock)
+    sub = _INJECTOR_CLOCK['sub']
     assert sub is not None, 'the injector of a two-snapshot schedule follows /clock from the start'
     feed(inj, sub, clock, lambda: cv.clock_from_msg(clock))
     assert (inj.sub_clock is None) == (inj._logged + 1 == len(inj.schedule))
