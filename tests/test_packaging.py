@@ -129,17 +129,37 @@ class ColconBuild:
                         f'{_tail(self.output)}', pytrace=False)
 
 
+def _python_without_blanks(tmp: Path) -> Path:
+    """This venv's interpreter, by a path without blanks. colcon runs a package's build with the
+    interpreter it runs on, and that path ends up in the workspace's setup scripts (colcon-core
+    0.21.3 runs it unquoted: from a path with a blank they source nothing, silently) and in the
+    installed executables' shebangs (which a kernel splits at the blank). The venv lives in the
+    clone, so a clone under such a path would fail the build's tests for where it lives: under it,
+    colcon runs on an alias of the venv in ``tmp`` (its ``pyvenv.cfg``, its ``lib``, the same
+    interpreter): the same environment (README, "ROS users")."""
+    python = VENV_BIN / 'python'
+    if not any(c.isspace() for c in str(python)):
+        return python
+    alias = tmp / 'venv'
+    assert not any(c.isspace() for c in str(alias)), f'the temporary directory {tmp} has a blank too'
+    (alias / 'bin').mkdir(parents=True)
+    shutil.copy(VENV_BIN.parent / 'pyvenv.cfg', alias / 'pyvenv.cfg')
+    (alias / 'lib').symlink_to(VENV_BIN.parent / 'lib')
+    (alias / 'bin' / 'python').symlink_to(python.resolve())
+    return alias / 'bin' / 'python'
+
+
 @pytest.fixture(scope='module')
 def colcon_build(tmp_path_factory) -> ColconBuild:
     """``colcon build`` of a copy of the repository in a fresh workspace (built once per module)."""
     ws = tmp_path_factory.mktemp('colcon_ws')
     _copy_source(ws / 'src' / PACKAGE)
-    colcon = _tool('colcon')
+    colcon = [str(_python_without_blanks(ws)), str(_tool('colcon'))]
     env = _base_env()
     env['COLCON_HOME'] = str(ws / 'colcon_home')  # no user defaults / mixins leak in
     for var in ('COLCON_DEFAULTS_FILE', 'COLCON_PREFIX_PATH', 'AMENT_PREFIX_PATH', 'CMAKE_PREFIX_PATH'):
         env.pop(var, None)
-    cmd = [str(colcon), '--log-base', str(ws / 'log'), 'build',
+    cmd = [*colcon, '--log-base', str(ws / 'log'), 'build',
            '--base-paths', str(ws / 'src'),
            '--build-base', str(ws / 'build'),
            '--install-base', str(ws / 'install'),
