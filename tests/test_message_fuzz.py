@@ -270,12 +270,12 @@ def test_the_fuzzed_graph_runs_to_the_end(graphs):
     graph, nodes, steps, bag_dir = graphs
     dyn, pd, rec = nodes['dynamics'], nodes['pd_controller'], nodes['recorder']
     state, cmd = _stamp(Odometry(), -1, 0), _stamp(JointState(name=WHEELS, effort=[0.0] * 3), -1, 0)
-    for convert in (lambda: cv.state_from_msg(state), lambda: cv.wheel_cmd_from_msg(cmd, dyn.wheel_index),
-                    lambda: cv.checked_cdr_stamp('/state', b'\x00')):
+    for node, sub, msg, convert in (
+            (pd, pd.sub_state, state, lambda: cv.state_from_msg(state)),
+            (dyn, dyn.subs['wheels/cmd'], cmd, lambda: cv.wheel_cmd_from_msg(cmd, dyn.wheel_index)),
+            (rec, rec.subs['/state'], b'\x00', lambda: cv.checked_cdr_stamp('/state', b'\x00'))):
         assert refused(convert)   # negative stamps; one byte, no CDR message
-    feed(pd, pd.sub_state, state, lambda: cv.state_from_msg(state))
-    feed(dyn, dyn.subs['wheels/cmd'], cmd, lambda: cv.wheel_cmd_from_msg(cmd, dyn.wheel_index))
-    feed(rec, rec.subs['/state'], b'\x00', lambda: cv.checked_cdr_stamp('/state', b'\x00'))
+        feed(node, sub, msg, convert)
     assert dyn.rejects.total > 0 and pd.rejects.total > 0 and rec.rejects.total > 0
     dyn.step_ns = 0
     dyn.run(graph.executor)
