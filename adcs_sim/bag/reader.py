@@ -20,8 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
+from adcs_msgs_py.params_file import YamlError, load_yaml
 from adcs_sim.bag.records import (
     CHANNEL,
     CHUNK,
@@ -115,9 +114,9 @@ def is_complete(bag: str | os.PathLike) -> bool:
     if not contents.records.complete:
         return False
     try:
-        info = yaml.safe_load((folder / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+        info = load_yaml(folder / 'metadata.yaml')['rosbag2_bagfile_information']
         return mcap.name in info['relative_file_paths'] and info['message_count'] == contents.count
-    except (OSError, UnicodeDecodeError, yaml.YAMLError, KeyError, TypeError):
+    except (YamlError, KeyError, TypeError):
         return False
 
 

@@ -10,8 +10,7 @@ import os
 import re
 from pathlib import Path
 
-import yaml
-
+from adcs_msgs_py.params_file import YamlError, load_yaml
 from adcs_msgs_py.typestore import typestore  # noqa: F401 - the bag code's, shared with the CDR codec
 
 # rosbags' type store and AnyReader are imported when first used (typestore(), any_reader): the
@@ -73,9 +72,9 @@ def bag_files(bag: str | os.PathLike) -> tuple[str, list[Path]]:
 def _listed_files(folder: Path) -> list[str]:
     """``relative_file_paths`` of a bag folder's metadata.yaml (empty if absent or unreadable)."""
     try:
-        info = yaml.safe_load((folder / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+        info = load_yaml(folder / 'metadata.yaml')['rosbag2_bagfile_information']
         return [str(x) for x in info.get('relative_file_paths') or []]
-    except (OSError, KeyError, TypeError, yaml.YAMLError):
+    except (KeyError, TypeError, AttributeError, YamlError):
         return []
 
 
@@ -88,6 +87,10 @@ class any_reader:
 
     def __enter__(self):
         from rosbags.highlevel import AnyReader
+        try:   # rosbags reads metadata.yaml itself (ruamel): within every YAML reader's limits first
+            load_yaml(Path(self.folder) / 'metadata.yaml')
+        except YamlError as exc:
+            raise ValueError(f'{self.bag}: cannot read bag: {exc}') from None
         try:
             self.reader = AnyReader([Path(self.folder)], default_typestore=typestore())
             self.reader.open()

@@ -9,8 +9,8 @@ import os
 from pathlib import Path
 
 import numpy as np
-import yaml
 
+from adcs_msgs_py.params_file import YamlError, load_yaml
 from adcs_sim.app.analysis import attitude_errors
 from adcs_sim.app.report.envelope import reduced
 from adcs_sim.app.report.figures import add_legend, log_positive, new_figure, save_figure, step_plot
@@ -57,9 +57,9 @@ def load_reference(path) -> dict:
     {comparison row: value}}}`` (rows as in ``comparison.csv``, e.g. ``integrated_torque_Nms``,
     ``peak_torque_x_Nm``, ``settling_euler213_theta1_x_0.5deg_s``). Raises ValueError."""
     try:
-        tree = yaml.safe_load(Path(path).read_text(encoding='utf-8'))
-    except (OSError, yaml.YAMLError) as exc:
-        raise ValueError(f'{path}: cannot read reference figures: {exc}') from None
+        tree = load_yaml(path)
+    except YamlError as exc:
+        raise ValueError(f'cannot read reference figures: {exc}') from None
     if not isinstance(tree, dict) or not isinstance(tree.get('runs'), dict):
         raise ValueError(f'{path}: expected `source:` and `runs: {{<run name>: {{<metric>: value}}}}`')
     for name, values in tree['runs'].items():

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion
+from adcs_msgs_py.params_file import YamlError, load_yaml
 from adcs_sim.app.analysis import (
     POINTING_BANDS_DEG,
     fault_metrics,
@@ -83,8 +83,8 @@ def paper_values(name: str, docs: Path = DOCS) -> tuple[str, dict]:
     """(source, {metric: published value}) of run ``name`` from the ``docs/*/paper.yaml`` files."""
     for path in sorted(docs.glob('seed*/paper.yaml')):
         try:
-            tree = yaml.safe_load(path.read_text(encoding='utf-8')) or {}
-        except (OSError, yaml.YAMLError):
+            tree = load_yaml(path) or {}
+        except YamlError:
             continue
         runs = tree.get('runs') if isinstance(tree, dict) else None
         if isinstance(runs, dict) and isinstance(runs.get(name), dict):
