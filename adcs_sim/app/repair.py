@@ -10,15 +10,35 @@ or ``.original``). It prints what it kept and dropped: messages, the byte offset
 A complete, intact bag is left alone (``--force`` rewrites it anyway).
 
 Exit status 0 when every bag is complete afterwards; 1 when a bag cannot be repaired (not a bag,
-no intact message, a fault that no CRC locates): one line per failure on stderr, the bag left
-as it was.
+no intact message, a fault that no CRC locates, a FIFO, socket or device, a folder where the
+repaired file cannot be written, a bag still being written: its writer named): one line per failure
+on stderr, the bag left as it was.
 """
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from pathlib import Path
 
+from adcs_sim.app.outputs import OutputError, path_kind, writable_folder
 from adcs_sim.bag.repair import repair
+
+
+def check_bag_path(path: str) -> None:
+    """What a repair rewrites in place is usable, before the bag is opened: a folder or a regular
+    file (a FIFO would block the reader, a device is no bag), in a folder where the repaired file
+    and the kept original can be created (probed: root too). OutputError (one line) otherwise;
+    a missing path is left to :func:`repair`, which names it."""
+    kind = path_kind(Path(path))
+    if kind == 'absent':
+        return
+    if kind not in ('folder', 'file'):
+        raise OutputError(path, f'{kind}, not a bag')
+    folder = Path(path) if kind == 'folder' else Path(os.path.abspath(path)).parent
+    why = writable_folder(folder)
+    if why is not None:
+        raise OutputError(path, f'cannot be repaired in place: {why}')
 
 
 def main(argv=None) -> int:
@@ -29,8 +49,9 @@ def main(argv=None) -> int:
     status = 0
     for path in args.bags:
         try:
+            check_bag_path(path)
             result = repair(path, force=args.force)
-        except (OSError, ValueError) as exc:
+        except (OSError, ValueError) as exc:   # (OutputError is a ValueError)
             print(f'adcs-bag-repair: {path}: {_one_line(exc, path)}', file=sys.stderr)
             status = 1
             continue

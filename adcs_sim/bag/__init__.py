@@ -16,6 +16,8 @@ One module per job (import what you need from the module that has it):
   a damaged file's intact part ends (``Damage``) and ``BagDamaged``, the readers' error.
 * :mod:`adcs_sim.bag.repair`  — ``repair``: rewrite the intact part of a killed writer's or a
   damaged bag into a complete one, saying what was kept and dropped.
+* :mod:`adcs_sim.bag.lock`    — ``BagLock``: one writer at a time (the writer's lock, naming it);
+  ``bag_writer``: who writes a bag now; ``BagInUse``.
 * :mod:`adcs_sim.bag.storage` — ``bag_files`` (which files hold a bag, MCAP or other rosbag2
   storage), ``mcap_file``, ``typestore`` (the ROS 2 Jazzy type store).
 * :mod:`adcs_sim.bag.schema`  — the recorder's parameter schema.

@@ -9,6 +9,14 @@ open chunk and flushes the file, so after a SIGKILL everything before the last f
 with :func:`adcs_sim.bag.reader.read_messages` (which reads a file with no summary as well).
 ``metadata.yaml`` is written on :meth:`BagWriter.close`.
 
+One writer at a time: the writer holds the bag folder's lock (:class:`~adcs_sim.bag.lock.BagLock`,
+naming it) from its start to its close, so ``adcs-bag-repair`` never rewrites a bag under it.
+
+A write that fails (a full disk: ENOSPC, EDQUOT; or any other OSError) raises :class:`BagWriteError`:
+the writer writes nothing more and lets go of its file and lock, so the bag is what a killed writer
+leaves, readable up to the failure (every method raises that same error again;
+:meth:`BagWriter.close` returns).
+
 Memory: what the writer keeps does not grow with the recording. The mcap ``Writer`` keeps one
 ``ChunkIndex`` object per chunk written (a dataclass holding a dict of one offset per channel,
 ~2 KiB each with 20 channels) for the summary it writes at ``finish()``: a long recording, flushed
@@ -24,6 +32,9 @@ Two lockstep runs therefore produce identical bags.
 """
 from __future__ import annotations
 
+import contextlib
+import errno
+import functools
 import os
 import struct
 import tempfile
@@ -35,6 +46,7 @@ import yaml
 from mcap.data_stream import RecordBuilder
 from mcap.writer import CompressionType, Writer
 
+from adcs_sim.bag.lock import BagLock
 from adcs_sim.bag.storage import typestore
 
 ROSBAG2_VERSION = 9
@@ -143,6 +155,39 @@ def spill_chunk_indexes(writer: Writer) -> SpilledChunkIndexes | None:
     return spilled
 
 
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
+
+
+class BagWriteError(OSError):
+    """The bag could not be written (:attr:`disk_full`: no space or quota left); the writer stopped."""
+
+    def __init__(self, bag: Path, exc: OSError) -> None:
+        super().__init__(exc.errno, f'cannot write the bag {bag}: {exc.strerror or exc}')
+
+    def __str__(self) -> str:
+        return self.strerror
+
+    @property
+    def disk_full(self) -> bool:
+        return self.errno in DISK_FULL
+
+
+def _writes(method):
+    """A :class:`BagWriter` method that writes: its first OSError stops the writer (released, the error
+    kept as :class:`BagWriteError`), and once stopped the method only raises that error again."""
+    @functools.wraps(method)
+    def call(self, *args, **kwargs):
+        if self.failed is not None:
+            raise self.failed
+        try:
+            return method(self, *args, **kwargs)
+        except OSError as exc:
+            self.failed = BagWriteError(self.path, exc)
+            self._release()
+            raise self.failed from exc
+    return call
+
+
 @dataclass
 class _Topic:
     channel_id: int
@@ -155,12 +200,14 @@ class _Topic:
 
 @dataclass
 class BagWriter:
-    """Write a rosbag2 MCAP bag folder. Refuses to overwrite an existing, non-empty folder."""
+    """Write a rosbag2 MCAP bag folder. Refuses to overwrite an existing, non-empty folder, and a folder
+    another writer holds (:class:`~adcs_sim.bag.lock.BagInUse`)."""
 
     path: Path
     chunk_size: int = 65536
     metadata: dict[str, str] = field(default_factory=dict)
     file_name: str | None = None   # default <folder name>_0.mcap, as ros2 bag record names it
+    process: str | None = None     # who writes, as the lock names it (default: this program's name)
 
     def __post_init__(self) -> None:
         self.path = Path(self.path)
@@ -168,6 +215,19 @@ class BagWriter:
             raise FileExistsError(f'bag folder {self.path} exists and is not empty')
         self.path.mkdir(parents=True, exist_ok=True)
         self.mcap_path = self.path / (self.file_name or f'{self.path.name}_0.mcap')
+        self._schemas: dict[str, int] = {}
+        self.topics: dict[str, _Topic] = {}
+        self.start_ns: int | None = None
+        self.end_ns = 0
+        self.clock_ns = 0
+        self.closed = False
+        self.failed: BagWriteError | None = None
+        self._file = self._chunk_indexes = None
+        self._lock = BagLock(self.path, self.process)
+        self._start()
+
+    @_writes
+    def _start(self) -> None:
         self._file = open(self.mcap_path, 'wb')
         # Data-section CRC on (the mcap default is off): with the chunk and summary CRCs, every byte
         # of a closed file is covered, so a reader detects any flipped bit.
@@ -175,16 +235,11 @@ class BagWriter:
                               enable_data_crcs=True)
         self._chunk_indexes = spill_chunk_indexes(self._writer)
         self._writer.start(profile='ros2', library='adcs_sim')
-        self._schemas: dict[str, int] = {}
-        self.topics: dict[str, _Topic] = {}
-        self.start_ns: int | None = None
-        self.end_ns = 0
-        self.clock_ns = 0
-        self.closed = False
         for name, text in self.metadata.items():
             self._writer.add_metadata(name, {'text': text})
         self._file.flush()
 
+    @_writes
     def add_topic(self, name: str, type_name: str, qos: list[dict[str, Any]],
                   schema: tuple[str, bytes] | None = None) -> None:
         """Register a topic (idempotent). ``schema`` (encoding, data): the message definition to
@@ -203,6 +258,7 @@ class BagWriter:
         self.topics[name] = _Topic(cid, type_name, qos, stamped=type_name in STAMP_FIRST_TYPES,
                                    array=type_name in STAMPED_ARRAY_TYPES)
 
+    @_writes
     def write(self, topic: str, data: bytes, log_time_ns: int | None = None) -> None:
         """Append one serialized message; log time = its stamp (or the latest /clock)."""
         t = self.topics[topic]
@@ -217,24 +273,42 @@ class BagWriter:
         self.start_ns = log_time_ns if self.start_ns is None else min(self.start_ns, log_time_ns)
         self.end_ns = max(self.end_ns, log_time_ns)
 
+    @_writes
     def flush(self) -> None:
         """Close the open chunk and push everything to the OS (survives a kill of this process)."""
         self._writer.flush()
 
     def close(self, custom_data: dict[str, str] | None = None) -> None:
-        """Write the MCAP summary and ``metadata.yaml``. Idempotent."""
+        """Write the MCAP summary and ``metadata.yaml``, and let go of the bag. Idempotent; after a
+        failed write it only lets go (the bag stays as the failure left it)."""
         if self.closed:
             return
         self.closed = True
+        if self.failed is None:
+            self._finish(custom_data)
+        self._release()
+
+    @_writes
+    def _finish(self, custom_data: dict[str, str] | None) -> None:
         info = self.bagfile_information(custom_data)
         self._writer.add_metadata('rosbag2', {'serialized_metadata': yaml.safe_dump(info, sort_keys=False)})
         self._writer.finish()
         self._file.close()
-        if self._chunk_indexes is not None:
-            self._chunk_indexes.close()
         tmp = self.path / 'metadata.yaml.tmp'
         tmp.write_text(yaml.safe_dump({'rosbag2_bagfile_information': info}, sort_keys=False))
         os.replace(tmp, self.path / 'metadata.yaml')
+
+    def _release(self) -> None:
+        """Let go of the file, the spilled chunk indexes, a half-written ``metadata.yaml`` and the lock
+        (on close, or once a write failed: nothing is written after that)."""
+        for part in (self._file, self._chunk_indexes):
+            if part is not None:
+                with contextlib.suppress(OSError):
+                    part.close()
+        with contextlib.suppress(OSError):
+            (self.path / 'metadata.yaml.tmp').unlink(missing_ok=True)
+        with contextlib.suppress(OSError):
+            self._lock.release()
 
     def bagfile_information(self, custom_data: dict[str, str] | None = None) -> dict[str, Any]:
         start = self.start_ns or 0
