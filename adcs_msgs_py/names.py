@@ -55,6 +55,9 @@ TF = 'tf'
 COMMAND_TOPICS = (WHEELS_CMD, TORQUE_CMD, THRUSTERS_CMD)
 
 RUN_NODES = '*'  # the startup.publishers entry naming every node of the run (whose subscriptions count)
+# the startup.publishers entry naming the nodes the runner may start again (adcs-run --restart): a
+# second node of such a name is held, not an intrusion at once, until one of the two leaves the graph
+RESTARTABLE = '+'
 INTRUSIONS = 'intrusions'  # written by the recorder into the bag: publishers the run does not allow
 QUARANTINE_PREFIX = 'quarantine'  # the recorder keeps a compromised topic's messages under quarantine/<topic>
 

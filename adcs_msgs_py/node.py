@@ -41,7 +41,14 @@ from rclpy.signals import SignalHandlerOptions
 
 from adcs_msgs_py import topics
 from adcs_msgs_py.executor import LockstepExecutor
-from adcs_msgs_py.guard import Intruder, IntrusionDetected, PublisherVetting, RejectCounter, parse_publishers
+from adcs_msgs_py.guard import (
+    Intruder,
+    IntrusionDetected,
+    PublisherVetting,
+    RejectCounter,
+    Unmatchable,
+    parse_publishers,
+)
 from adcs_msgs_py.params import REQUIRED, ParameterError, Schema
 from adcs_msgs_py.params_file import load_params_file
 
@@ -49,7 +56,10 @@ EXIT_BAD_PARAMETERS = 2
 EXIT_GRAPH_TIMEOUT = 3
 EXIT_INTRUSION = 4   # a publisher the run does not allow was matched on a topic this node applies
 INTRUSION_LOG = 'intrusion: '   # the start of the error a node logs for each intruder it finds
+UNMATCHABLE_LOG = 'unmatchable publisher: '   # the warning for a publisher of another type on a run topic
 EXIT_RUN_STOPPED = 5   # the run cannot go on (e.g. the plant state is no longer finite)
+EXIT_FLIGHT_SOFTWARE = 6   # a controller or estimator could not answer a step (FlightSoftwareFailed)
+EXIT_DISK_FULL = 7   # the recorder cannot write its bag: no space or quota left (DiskFull)
 
 
 class GraphTimeout(RuntimeError):
@@ -59,6 +69,16 @@ class GraphTimeout(RuntimeError):
 class RunStopped(RuntimeError):
     """The run cannot go on (e.g. the plant state is no longer finite): the node exits with
     :data:`EXIT_RUN_STOPPED` and this message."""
+
+
+class FlightSoftwareFailed(RunStopped):
+    """A flight-software node (controller, estimator) could not answer a step: the node exits with
+    :data:`EXIT_FLIGHT_SOFTWARE` and this message (naming the node, the time and the error)."""
+
+
+class DiskFull(RuntimeError):
+    """A node cannot write its output (the recorder, its bag): no space or quota left. The node exits
+    with :data:`EXIT_DISK_FULL` and this message (naming the file and the error)."""
 
 
 FASTDDS_PROFILE = Path(__file__).resolve().parent / 'fastdds_profile.xml'
@@ -200,7 +220,7 @@ class AdcsNode(Node):
         self.params = schema.validate(given)
         self.rejects = RejectCounter(self.get_logger())
         self.vetting = PublisherVetting(self, parse_publishers(self.params.get('startup.publishers', [])),
-                                        self.on_intrusion)
+                                        self.on_intrusion, self.on_unmatchable)
 
     # --- the validation boundary of every incoming message ----------------------------------
 
@@ -218,9 +238,16 @@ class AdcsNode(Node):
             topic = intruders[0].topic
             raise IntrusionDetected(intruders, self.vetting.allowed.get(topic, ()))
 
+    def on_unmatchable(self, publishers: list[Unmatchable]) -> None:
+        """A publisher of another type on a vetted topic: it can never deliver, the run goes on."""
+        for publisher in publishers:
+            self.get_logger().warning(f'{UNMATCHABLE_LOG}{publisher.describe()}')
+
     def on_refused(self, topic: str, msg) -> None:  # noqa: ARG002
-        """A message on a compromised topic (or from an intruder's GID): not applied."""
-        self.get_logger().warning(f'message on compromised topic {topic} not applied '
+        """A message on a compromised topic (or from an intruder's GID), or on a held one (a restarted
+        node's predecessor still in the graph): not applied."""
+        how = 'held' if topic in self.vetting.held else 'compromised'
+        self.get_logger().warning(f'message on {how} topic {topic} not applied '
                                   f'({self.vetting.refused[topic]} so far)', throttle_duration_sec=5.0)
 
     #: Whether each subscription carries a handler of its matched event (see :func:`_take_matched`):
@@ -414,7 +441,10 @@ def main_for(node_class: type[AdcsNode], args=None, handle_signals: bool = True)
         status = EXIT_INTRUSION
     except RunStopped as exc:
         print(f'[{node_class.schema.node}] error: {exc}', file=sys.stderr, flush=True)
-        status = EXIT_RUN_STOPPED
+        status = EXIT_FLIGHT_SOFTWARE if isinstance(exc, FlightSoftwareFailed) else EXIT_RUN_STOPPED
+    except DiskFull as exc:
+        print(f'[{node_class.schema.node}] error: {exc}', file=sys.stderr, flush=True)
+        status = EXIT_DISK_FULL
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

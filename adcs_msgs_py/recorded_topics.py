@@ -26,8 +26,12 @@ delivers them, the same stamps and so the same log times (``tests/test_recorded_
 * ``markers`` of step ``t`` (the wheel momentum at its start, the thrusters that fire in it): once
   the step is integrated, i.e. when ``actuators/torque`` of ``t``, ``wheels/state`` of ``t`` (with
   wheels) and ``thrusters/state`` of ``t`` (with thrusters) are all here, in whatever order they
-  arrive; at most :data:`MAX_PENDING` incomplete steps are held (the oldest is forgotten: the
-  last step's wheels/state, whose step is never integrated, stays until then).
+  arrive, however far (up to :data:`MAX_LAG` steps) one of them runs ahead of the others: two
+  lockstep runs record the same markers whatever the load. :data:`MAX_PENDING` incomplete steps
+  are held; one more is a broken invariant (or a hostile source): the step that has waited
+  longest is given up, counted (:attr:`ViewerRecording.lost`, the bag's
+  ``recorder.viewer_steps_lost``) and reported (the recorder logs an error), never silently (32
+  were held until issue 31: under load 758 of 10 000 steps lost their markers unnoticed).
 
 Everything here is untrusted input: a config that is not exactly what the dynamics node sends
 (keys, types, finite numbers, sizes), or a source message that does not check, raises
@@ -37,6 +41,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,11 +61,21 @@ from adcs_msgs_py.names import (
     TRUTH_STATE,
     WHEELS_STATE,
 )
+from adcs_msgs_py.topics import DEPTH
 from adcs_msgs_py.visual import VisualMessages
 
 MAX_CONFIG_CHARS = 65536
 MAX_ACTUATORS = 64   # wheels, thrusters
-MAX_PENDING = 32     # steps whose markers wait for an input
+# How far one source of the markers can run ahead of another, in steps. The recorder takes messages
+# in their order of arrival (its events executor), and the writers of the per-step topics wait
+# every topics.ACK_INTERVAL steps until every reader holds what they sent (adcs_msgs_py.topics): when the
+# recorder takes a message of step s, every input of the steps before s - ACK_INTERVAL has been
+# taken. Allowed: the writers' history DEPTH (> ACK_INTERVAL: the margin the pacing keeps for a wait
+# that times out), as an input further behind than that has left its writer's history (KEEP_LAST).
+MAX_LAG = DEPTH
+# Incomplete steps held: a lagging step and the MAX_LAG steps after it, and the last state's wheels
+# state (its step is never integrated). More is a broken invariant: counted and reported.
+MAX_PENDING = MAX_LAG + 2
 ATTITUDE_TOPICS = (TRUTH_STATE, STATE)
 KEYS = ('target', 'axis_length', 'wheel_axes', 'spin_inertia', 'max_speed', 'thruster_positions',
         'thruster_directions', 'orbit', 'attitude_topic', 'topics')   # of the viewer config
@@ -183,8 +198,10 @@ def _orbit(value) -> CircularOrbit | None:
 class ViewerRecording:
     """The viewer messages of the recorded messages, as the dynamics node of ``config`` builds them."""
 
-    def __init__(self, config: VisualConfig) -> None:
+    def __init__(self, config: VisualConfig, on_lost: Callable[[int], None] | None = None) -> None:
         self.config = config
+        self.on_lost = on_lost   # called with the stamp of each step given up (MAX_PENDING exceeded)
+        self.lost = 0            # steps given up
         self.visual = VisualMessages(**config.arguments)
         self.topics = config.topics
         self.wheels = len(config.arguments['wheel_axes'] or ())
@@ -231,8 +248,8 @@ class ViewerRecording:
                 raise cv.InvalidMessage(f'{topic}: {len(value)} velocities, not {count} finite ones')
         entry = self._pending.get(t_ns)
         if entry is None:
-            if len(self._pending) >= MAX_PENDING:   # a step that never completes: forget the oldest
-                del self._pending[min(self._pending)]
+            if len(self._pending) >= MAX_PENDING:
+                self._give_up()
             entry = self._pending[t_ns] = {}
         entry[topic] = value
         if not self.marker_inputs <= entry.keys():
@@ -241,18 +258,33 @@ class ViewerRecording:
         speed = np.array(entry[WHEELS_STATE]) if self.wheels else None
         return [(MARKERS, self.visual.marker_array_cdr(t_ns, speed, entry.get(THRUSTERS_STATE, ())))]
 
+    def _give_up(self) -> None:
+        """More incomplete steps than MAX_PENDING: a broken invariant (or steps of a hostile source
+        that never complete). The one that has waited longest goes (not the smallest stamp: a
+        hostile far-future one would stay forever), counted and reported."""
+        t_ns = next(iter(self._pending))
+        del self._pending[t_ns]
+        self.lost += 1
+        if self.on_lost is not None:
+            self.on_lost(t_ns)
+
 
 class RecordedTopics:
     """What the recorder writes itself for one ``dynamics/recording`` config: ``/clock`` (with
     ``config.clock``) and the viewer topics (with ``config.viewer``)."""
 
-    def __init__(self, config: RecordingConfig) -> None:
+    def __init__(self, config: RecordingConfig, on_lost: Callable[[int], None] | None = None) -> None:
         self.config = config
-        self.viewer = ViewerRecording(config.viewer) if config.viewer is not None else None
+        self.viewer = ViewerRecording(config.viewer, on_lost) if config.viewer is not None else None
         self.topics = ((CLOCK,) if config.clock else ()) + (self.viewer.topics if self.viewer else ())
         self.sources = frozenset(({config.clock} if config.clock else set())
                                  | (self.viewer.sources if self.viewer else set()))
         self._clock = ClockCodec()
+
+    @property
+    def lost(self) -> int:
+        """Steps whose markers were given up (:data:`MAX_PENDING` exceeded): 0 unless an invariant broke."""
+        return self.viewer.lost if self.viewer is not None else 0
 
     def derive(self, topic: str, data: bytes) -> list[tuple[str, bytes]]:
         """The messages (topic, CDR bytes as a subscriber receives them: DDS pads a message to a

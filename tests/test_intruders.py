@@ -13,52 +13,18 @@ named by ``adcs-run``'s non-zero exit; the bag says so.
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
 import sys
-import time
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from conftest import ROOT
+from helpers.rogue import FakeGraph, FakeSub, first_unclean_step, has_messages, run_with_rogue
 
-from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
-from adcs_msgs_py.guard import UNKNOWN_NODE, PublisherVetting, subscribed_by
+from adcs_msgs_py.guard import UNKNOWN_NODE, PublisherVetting
 from adcs_sim.app.analysis import RunData, bag_intrusions
-from adcs_sim.app.batch import BatchSimulation
 from adcs_sim.app.runner import allowed_publishers
-from adcs_sim.app.scenario_files import validate_scenario
 from adcs_sim.bag.reader import read_messages
-
-
-class FakeGraph:
-    """What PublisherVetting asks of a node: namespace, name resolution, publishers of a topic."""
-
-    def __init__(self) -> None:
-        self.publishers: dict[str, list] = {}
-
-    def get_namespace(self) -> str:
-        return '/'
-
-    def resolve_topic_name(self, name: str) -> str:
-        return name if name.startswith('/') else '/' + name
-
-    def get_publishers_info_by_topic(self, topic: str):
-        return list(self.publishers.get(topic, []))
-
-    def add(self, topic: str, node: str, gid: int) -> None:
-        self.publishers.setdefault(topic, []).append(
-            SimpleNamespace(node_name=node, node_namespace='/', endpoint_gid=[gid] * 16))
-
-
-class FakeSub:
-    def __init__(self, graph: FakeGraph, topic: str) -> None:
-        self.graph, self.topic_name = graph, topic
-
-    def get_publisher_count(self) -> int:
-        return len(self.graph.publishers.get(self.topic_name, []))
 
 
 def test_vetting_admits_the_allowed_and_compromises_a_topic_with_an_intruder():
@@ -105,110 +71,11 @@ def test_the_runner_allows_each_topic_to_its_nodes_only():
     assert allowed['faults'] == ''   # no fault injector: nobody
 
 
-# --- the rogue publisher ---------------------------------------------------------------------------
-
-MAX_TORQUE = 0.01   # microsat_pd_slew's wheel torque limit (N m)
-DURATION_S = 20000  # lockstep runs steps in milliseconds: long enough never to end before the rogue
-RUN_LIMIT_S = 240   # wall seconds: the run ends at the detection; this only turns a miss into a failure
-# interrupt_after counts only the rogue's messages sent once the run is past this step time: the
-# dynamics node has then waited for the recorder's acknowledgement of every step up to
-# ACK_INTERVAL, so those steps are in the bag however the interrupt falls
-INTERRUPT_PAST_NS = (topics.ACK_INTERVAL + 1) * cv.NS_PER_S
-
-
-def _rogue_message(topic: str, t_ns: int):
-    if topic == topics.APPLIED_TORQUE:
-        return cv.vector_to_msg(t_ns, [123.0, 456.0, 789.0])
-    if topic == topics.WHEELS_CMD:
-        return cv.wheel_cmd_to_msg(t_ns, ['rw_x', 'rw_y', 'rw_z'], effort=[MAX_TORQUE] * 3)
-    if topic == topics.STATE:
-        return cv.state_to_msg(t_ns, [0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0])
-    from adcs_core.faults import FaultState
-    return cv.faults_to_msg(0, {w: FaultState('failed') for w in ('rw_x', 'rw_y', 'rw_z')}, 0, 1)
-
-
-def _run_with_rogue(tmp_path, monkeypatch, topic: str, start_s: float = 2.0, duration_s: float = DURATION_S,
-                    interrupt_after: int = 0):
-    """adcs-run of the PD slew (long enough never to end first: DURATION_S) and, once its clock passes
-    ``start_s``, a rogue node in this process publishing on ``topic`` for every state.
-    ``interrupt_after`` > 0: once the run is past INTERRUPT_PAST_NS and the recorder, matched with the
-    rogue, has acknowledged that many more of its messages, SIGINT the runner (a topic nobody
-    applies: nothing else ends the run early, and no wall-clock race decides whether the recorder
-    saw the rogue)."""
-    import rclpy
-    from nav_msgs.msg import Odometry
-    from rclpy.context import Context
-    from rclpy.duration import Duration
-    from rclpy.executors import SingleThreadedExecutor
-    from rosgraph_msgs.msg import Clock
-
-    out = tmp_path / 'run'
-    runner = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.runner', str(ROOT / 'config/microsat_pd_slew.yaml'),
-                               '--out', str(out), '--duration', str(duration_s), '--no-progress'],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
-    try:
-        line = ''
-        while 'ROS_DOMAIN_ID=' not in line:
-            line = runner.stdout.readline()
-            assert line, runner.communicate()[1]
-        monkeypatch.setenv('ROS_DOMAIN_ID', line.split('ROS_DOMAIN_ID=')[1].split(',')[0])
-        monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-        context = Context()
-        rclpy.init(context=context)
-        try:
-            node = rclpy.create_node('rogue', context=context)
-            executor = SingleThreadedExecutor(context=context)
-            executor.add_node(node)
-            rogue = {}
-            if start_s <= 0:   # there before the run's nodes
-                rogue['pub'] = node.create_publisher(topics.spec(topic).msg_type, topic, topics.spec(topic).qos)
-
-            def on_clock(msg):
-                t_ns = cv.ns_from_stamp(msg.clock)
-                if t_ns >= start_s * cv.NS_PER_S and 'pub' not in rogue:
-                    s = topics.spec(topic)
-                    rogue['pub'] = node.create_publisher(s.msg_type, s.name, s.qos)
-                    if topic == topics.FAULTS:
-                        rogue['pub'].publish(_rogue_message(topic, 0))
-                elif 'pub' in rogue and topic == topics.STATE:   # a spoofed state every step
-                    rogue['pub'].publish(_rogue_message(topic, t_ns))
-
-            def on_state(msg):   # a maximum-torque command (or a record) answering every state, stamped with it
-                rogue['t_ns'] = cv.ns_from_stamp(msg.header.stamp)
-                if 'pub' in rogue and topic in (topics.WHEELS_CMD, topics.APPLIED_TORQUE):
-                    rogue['pub'].publish(_rogue_message(topic, rogue['t_ns']))
-            node.create_subscription(Clock, topics.CLOCK, on_clock, topics.QOS_CLOCK)
-            node.create_subscription(Odometry, topics.STATE, on_state, topics.QOS_LOCKSTEP)
-            deadline = time.monotonic() + RUN_LIMIT_S
-            sent_matched = 0   # messages sent once the recorder was matched
-            while runner.poll() is None and time.monotonic() < deadline:
-                executor.spin_once(timeout_sec=0.1)
-                if topic == topics.APPLIED_TORQUE and 'pub' in rogue:   # a stream, states or not
-                    rogue['pub'].publish(_rogue_message(topic, rogue.get('t_ns', 0)))
-                    if (interrupt_after and rogue.get('t_ns', 0) > INTERRUPT_PAST_NS
-                            and subscribed_by(node, rogue['pub'], 'recorder')):
-                        sent_matched += 1
-                        if sent_matched == interrupt_after:
-                            assert rogue['pub'].wait_for_all_acked(Duration(seconds=60))
-                            runner.send_signal(signal.SIGINT)
-            node.destroy_node()
-        finally:
-            rclpy.try_shutdown(context=context)
-        _, err = runner.communicate(timeout=60)
-    finally:
-        if runner.poll() is None:
-            runner.kill()
-            runner.wait()
-    return runner.returncode, err, out
-
-
-def has_messages(bag, topic: str) -> bool:
-    return next(read_messages(bag, {topic}), None) is not None
-
+# --- the rogue publisher (tests/helpers/rogue.py) -------------------------------------------------
 
 @pytest.mark.parametrize('topic', [topics.WHEELS_CMD, topics.STATE, topics.FAULTS])
 def test_rogue_publisher_is_detected_not_applied_and_named(tmp_path, monkeypatch, topic):
-    code, err, out = _run_with_rogue(tmp_path, monkeypatch, topic)
+    code, err, out = run_with_rogue(tmp_path, monkeypatch, topic)
     assert code != 0, err
     assert 'run compromised' in err and 'rogue' in err and f'/{topic}' in err, err
     bag = out / 'bag'
@@ -226,17 +93,12 @@ def test_rogue_publisher_is_detected_not_applied_and_named(tmp_path, monkeypatch
             RunData.from_bag(bag)
         u = np.array([[m.vector.x, m.vector.y, m.vector.z] for _, _, m in read_messages(bag, {'/actuators/torque'})])
     assert len(u) >= 2, 'the rogue starts at t = 2 s: the run had clean steps before it'
-    clean = BatchSimulation.from_runs([validate_scenario(ROOT / 'config/microsat_pd_slew.yaml',
-                                                         float(len(u)))]).run()
-    clean_u = clean.run_data(0).u[:len(u)]
     # Every applied torque recorded is the clean run's, bit for bit, up to the node that applies the
     # topic stopping on the intrusion; after that only the last command held (missed steps, the
     # hold policy) until the runner stops the graph: never a command the rogue caused.
-    differs = [k for k in range(len(u)) if not np.array_equal(u[k], clean_u[k])]
-    if differs:
-        first = differs[0]
+    first = first_unclean_step(u)
+    if first is not None:
         assert first >= 2 and topic != topics.WHEELS_CMD   # the dynamics node stops at once on wheels/cmd
-        np.testing.assert_array_equal(u[first:], np.broadcast_to(u[first - 1], u[first:].shape))
     assert (bag / 'metadata.yaml').exists() and 'recorder.intrusions' in (bag / 'metadata.yaml').read_text()
     analyzed = subprocess.run([sys.executable, '-m', 'adcs_sim.app.analyze', str(bag), '--no-report'],
                               capture_output=True, text=True, timeout=120, cwd=tmp_path)
@@ -251,7 +113,7 @@ def test_a_spoofed_record_is_quarantined_not_analysed(tmp_path, monkeypatch):
     20 of the rogue's messages (a 20-step run on a loaded machine once ended before the
     recorder's participant had discovered the rogue: exit 0, nothing to quarantine); an
     interrupted run that was compromised says both."""
-    code, err, out = _run_with_rogue(tmp_path, monkeypatch, topics.APPLIED_TORQUE, start_s=0.0, interrupt_after=20)
+    code, err, out = run_with_rogue(tmp_path, monkeypatch, topics.APPLIED_TORQUE, start_s=0.0, interrupt_after=20)
     assert code != 0 and 'interrupted by SIGINT' in err, err
     assert 'run compromised' in err and '/rogue' in err and '/actuators/torque' in err, err
     bag = out / 'bag'

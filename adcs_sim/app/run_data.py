@@ -14,9 +14,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import yaml
 
 from adcs_msgs_py import names as topics
+from adcs_msgs_py.params import ParameterError
+from adcs_msgs_py.params_file import load_params_text
 from adcs_sim.app.status_records import StatusRecords
 from adcs_sim.bag.batches import ColumnReader
 from adcs_sim.bag.columns import decode_batch, decode_diagnostics
@@ -68,6 +69,7 @@ class RunData:
     controller_status: Sequence = field(default_factory=list)  # (t, name, {key: value text}) per status (StatusRecords)
     faults: list = field(default_factory=list)  # (t, level, name, message) per status on faults
     intrusions: list = field(default_factory=list)  # the recorder's intruder lines (intrusion_lines)
+    unmatchable: list = field(default_factory=list)  # publishers of another type it saw (unmatchable_lines)
     topic_counts: dict = field(default_factory=dict)  # messages per topic (relative to the namespace)
     # How the bag was read:
     truncated: bool = False            # no MCAP summary/footer (writer killed): data up to the last whole chunk
@@ -150,13 +152,14 @@ def set_recording(run: RunData, reader: ColumnReader, diagnostics: dict, ns: str
     run.faults = [(stamp, int(s[0]), s[1], s[2]) for stamp, statuses in
                   _merged_statuses(diagnostics.get(ns + topics.FAULTS, [])) for s in statuses]
     run.intrusions = _recorded_intrusions(diagnostics)
+    run.unmatchable = _recorded_intrusions(diagnostics, unmatchable_lines)
     run.topic_counts = {_relative(name, ns): n for name, n in counts.items()}
     run.truncated = reader.truncated
     run.problem, run.damaged = reader.problem, reader.damaged
     run.message_count = reader.message_count
     run.missing_topics = [rel for rel in REPORTED_TOPICS if not counts.get(ns + rel)]
     run.namespace = ns
-    run.scenario = _scenario(reader.metadata.get('scenario', {}).get('text'))
+    run.scenario = _scenario(reader.metadata.get('scenario', {}).get('text'), reader.bag)
     if run.scenario is not None:
         run.q_ref = target_attitude(run.scenario)
         run.pointing = pointing_request(run.scenario)
@@ -215,16 +218,36 @@ def _missed_steps(parts: list) -> int | None:
     return missed
 
 
-def _scenario(text: str | None) -> dict | None:
-    """The embedded scenario as a mapping; None without one, or when it is not YAML or not a
-    mapping of sections (a bag from elsewhere: the report then says it has no usable scenario)."""
+def _scenario(text: str | None, bag) -> dict | None:
+    """The scenario embedded in ``bag`` as the nodes got it (rcl's reading, merged sections and all:
+    :func:`load_params_text`, which warns about a section or key written twice), as a tree
+    ``{section: {'ros__parameters': {nested keys}}}``; None without one, or when the nodes could not
+    have run it (not a params file: a bag from elsewhere, the report then says it has no usable scenario)."""
     if not text:
         return None
     try:
-        tree = yaml.safe_load(text)
-    except yaml.YAMLError:
+        sections = load_params_text(text, f'{bag} (embedded scenario)')
+    except ParameterError:
         return None
-    return tree if isinstance(tree, dict) else None
+    return {name: {'ros__parameters': _nested(params)} for name, params in sections.items()}
+
+
+def _nested(flat: dict) -> dict:
+    """``{'a.b': v}`` -> ``{'a': {'b': v}}``; a name that is both a value and a prefix of others
+    (``a`` and ``a.b``: rcl allows both) stays dotted beside them."""
+    out: dict = {}
+    for key in sorted(flat, key=lambda k: k.count('.')):   # shorter names first: a value is never replaced
+        node = out
+        *parents, leaf = key.split('.')
+        for part in parents:
+            node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                break
+        if isinstance(node, dict) and leaf not in node:
+            node[leaf] = flat[key]
+        else:
+            out[key] = flat[key]
+    return out
 
 
 def _no_state(path, reader: ColumnReader, state_topic: str) -> ValueError:
@@ -394,21 +417,36 @@ def _missed_at(parts: list) -> np.ndarray:
 
 
 def intrusion_lines(values) -> list[str]:
-    """One line per intruder (node, topic, GID, who was allowed), each once, from the ``{key:
-    value}`` of the statuses the recorder wrote on ``intrusions`` (adcs_msgs_py.guard)."""
+    """One line per intruder (node, topic, GID, who was allowed; a second node of an allowed name
+    said so), each once, from the ``{key: value}`` of the statuses the recorder wrote on
+    ``intrusions`` (adcs_msgs_py.guard); a publisher of another type there is no intruder
+    (:func:`unmatchable_lines`)."""
+    def line(kv) -> str:
+        node = kv.get('node', '?') + (' (a second node of that name)' if kv.get('duplicate') == 'true' else '')
+        if kv.get('topic') == '':   # found in the graph's node names
+            return f'intruder node {node} in the graph'
+        return (f'intruder node {node} published on {kv.get("topic", "?")} '
+                f'(GID {kv.get("gid", "?")}; allowed: {kv.get("allowed", "?")})')
+    return list(dict.fromkeys(line(kv) for kv in values if kv.get('unmatchable') != 'true'))
+
+
+def unmatchable_lines(values) -> list[str]:
+    """One line per publisher of another type on a run topic (node, type, topic, GID), each once,
+    from the statuses on ``intrusions``: it could never deliver, the run is not compromised."""
     return list(dict.fromkeys(
-        f'intruder node {kv.get("node", "?")} published on {kv.get("topic", "?")} '
-        f'(GID {kv.get("gid", "?")}; allowed: {kv.get("allowed", "?")})' for kv in values))
+        f'node {kv.get("node", "?")} published {kv.get("type", "?")} on {kv.get("topic", "?")}, which '
+        f'carries {kv.get("expected", "?")} (GID {kv.get("gid", "?")}): it could never deliver; ignored'
+        for kv in values if kv.get('unmatchable') == 'true'))
 
 
 def _is_intrusions(topic: str) -> bool:
     return topic.rsplit('/', 1)[-1] == topics.INTRUSIONS
 
 
-def _recorded_intrusions(diagnostics: dict) -> list[str]:
-    """:func:`intrusion_lines` of the decoded ``intrusions`` topics ({topic: [(stamps, statuses)]})."""
-    return intrusion_lines(s[4] for name, parts in diagnostics.items() if _is_intrusions(name)
-                           for _, statuses in _merged_statuses(parts) for s in statuses)
+def _recorded_intrusions(diagnostics: dict, lines=intrusion_lines) -> list[str]:
+    """:func:`intrusion_lines` (or ``lines``) of the decoded ``intrusions`` topics ({topic: [(stamps, statuses)]})."""
+    return lines(s[4] for name, parts in diagnostics.items() if _is_intrusions(name)
+                 for _, statuses in _merged_statuses(parts) for s in statuses)
 
 
 def bag_intrusions(bag) -> list[str]:

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import SimpleNamespace
 
 import numpy as np
@@ -61,13 +61,15 @@ class Unstreamable(Exception):
 @dataclass
 class StreamResult:
     """What :func:`analyse_bag` found: the metrics, the recorder's intruder lines, the chosen
-    namespace, and whether the streamed pass gave them (False: the in-memory path, and why)."""
+    namespace, whether the streamed pass gave them (False: the in-memory path, and why), and the
+    recorder's lines about publishers of another type (no intruders: ``unmatchable_lines``)."""
 
     metrics: dict
     intrusions: list
     namespace: str
     streamed: bool = True
     reason: str | None = None
+    unmatchable: list = field(default_factory=list)
 
 
 class BandTrack:
@@ -299,9 +301,9 @@ def _in_file_order(parts: list, name: str):
             np.concatenate([c.fields[name] for c in parts])[order])
 
 
-def _target(metadata: dict) -> tuple[np.ndarray, object]:
-    """(q_ref, pointing request) of the scenario in a bag's metadata, as RunData sets them."""
-    scenario = rd._scenario(metadata.get('scenario', {}).get('text'))
+def _target(metadata: dict, bag) -> tuple[np.ndarray, object]:
+    """(q_ref, pointing request) of the scenario in ``bag``'s metadata, as RunData sets them."""
+    scenario = rd._scenario(metadata.get('scenario', {}).get('text'), bag)
     if scenario is None:
         return np.array([0.0, 0.0, 0.0, 1.0]), None
     return rd.target_attitude(scenario), rd.pointing_request(scenario)
@@ -343,7 +345,7 @@ class _Pass:
             self.torque.setdefault(topic, TorqueStream(topic)).add(*_in_file_order(parts, 'vector'))
         elif type_name == rd.ODOMETRY:
             if self.target is None:
-                self.target = _target(self.reader.metadata)
+                self.target = _target(self.reader.metadata, self.reader.bag)
             if topic not in self.attitude:
                 self.attitude[topic] = AttitudeStream(topic, *self.target, self.tol, self.eigen_tol)
             self.attitude[topic].add(*_in_file_order(parts, 'orientation'))
@@ -356,7 +358,7 @@ class _Pass:
         state = self.attitude.get(ns + topics.STATE)
         if state is None or not state.rows:
             raise rd._no_state(path, reader, ns + topics.STATE)
-        target = _target(reader.metadata)
+        target = _target(reader.metadata, reader.bag)
         if not _same_target(target, self.target):
             raise Unstreamable('the scenario (target, pointing request) was written after the state')
         truth = self.attitude.get(ns + topics.TRUTH_STATE)
@@ -436,5 +438,6 @@ def analyse_bag(path, tol_deg: float = 0.5, eigen_tol_deg: float | None = None, 
         del stream
         run = RunData.from_bag(path, namespace)
         return StreamResult(run_metrics(run, tol_deg, eigen_tol_deg), run.intrusions, run.namespace,
-                            streamed=False, reason=str(exc))
-    return StreamResult(metrics, rd._recorded_intrusions(stream.diagnostics), ns)
+                            streamed=False, reason=str(exc), unmatchable=run.unmatchable)
+    return StreamResult(metrics, rd._recorded_intrusions(stream.diagnostics), ns,
+                        unmatchable=rd._recorded_intrusions(stream.diagnostics, rd.unmatchable_lines))

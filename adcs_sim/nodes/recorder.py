@@ -9,7 +9,11 @@ why, and what is refused).
 
 On SIGINT / SIGTERM the node stops taking new work, drains what DDS has already delivered, and
 closes the bag (summary + ``metadata.yaml``). After SIGKILL, everything up to the last flush is
-readable (:func:`adcs_sim.bag.reader.read_raw`).
+readable (:func:`adcs_sim.bag.reader.read_raw`). The bag is locked, naming the node, while it is
+written (:mod:`adcs_sim.bag.lock`: ``adcs-bag-repair`` refuses it meanwhile). A write that fails (a
+full disk) stops the recording: nothing more is written, the bag is readable up to the failure, and
+the node exits with :data:`~adcs_msgs_py.node.EXIT_DISK_FULL` (another write error:
+``EXIT_RUN_STOPPED``) and one line naming the bag and the error.
 
 Memory: what DDS has delivered and the recorder has not taken yet is bounded (its Fast DDS
 profile, ``recorder_fastdds.xml``: :data:`MAX_UNTAKEN` messages a topic; a reader that is full
@@ -36,12 +40,12 @@ from std_msgs.msg import String
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import names, topics
 from adcs_msgs_py.cdr import deserialized
-from adcs_msgs_py.guard import Intruder
-from adcs_msgs_py.node import FASTDDS_PROFILE, AdcsNode, main_for
-from adcs_msgs_py.recorded_topics import RecordedTopics, parse_config
+from adcs_msgs_py.guard import Intruder, Unmatchable
+from adcs_msgs_py.node import FASTDDS_PROFILE, AdcsNode, DiskFull, RunStopped, main_for
+from adcs_msgs_py.recorded_topics import MAX_PENDING, RecordedTopics, parse_config
 from adcs_sim.bag.schema import RECORDER_SCHEMA
 from adcs_sim.bag.tf import TF_TYPE, tf_message_cdr
-from adcs_sim.bag.writer import STAMP_FIRST_TYPES, BagWriter, qos_dicts
+from adcs_sim.bag.writer import STAMP_FIRST_TYPES, BagWriteError, BagWriter, qos_dicts
 
 IGNORED_TOPICS = ('/rosout', '/parameter_events')
 STOP_REQUESTED = threading.Event()  # set by SIGINT / SIGTERM in the recorder process
@@ -105,7 +109,8 @@ class RecorderNode(AdcsNode):
                 raise ParameterError('scenario_file', f'cannot read {p["scenario_file"]}: {exc.strerror}',
                                      'recorder') from None
         try:
-            self.bag = BagWriter(Path(output), chunk_size=p['chunk_size'], metadata=metadata)
+            self.bag = BagWriter(Path(output), chunk_size=p['chunk_size'], metadata=metadata,
+                                 process=f'recorder node {self.get_fully_qualified_name()}')
         except (FileExistsError, OSError) as exc:
             from adcs_msgs_py.params import ParameterError
             raise ParameterError('output', str(exc), 'recorder') from None
@@ -133,11 +138,11 @@ class RecorderNode(AdcsNode):
                 continue
             if self.record_all or spec.name in wanted or (spec.name == names.RECORDING_CONFIG and self.own_topics):
                 self._subscribe(spec.name, spec.msg_type, topics.recorder_qos(spec.qos), spec.qos)
-        self.create_timer(p['flush_period'], self.bag.flush)
+        self.create_timer(p['flush_period'], self._unless_unwritable(self.bag.flush))
         if self.record_all:
-            self.create_timer(p['discovery_period'], self._discover)
+            self.create_timer(p['discovery_period'], self._unless_unwritable(self._discover))
         if self.vetting.active:   # an intruder is recorded even if nothing it sends comes through
-            self.create_timer(p['discovery_period'], self._sweep)
+            self.create_timer(p['discovery_period'], self._unless_unwritable(self._sweep))
         print(READY_LINE, flush=True)
 
     def _subscribe(self, name: str, msg_type, qos: QoSProfile, offered: QoSProfile, record: bool = True) -> None:
@@ -168,7 +173,20 @@ class RecorderNode(AdcsNode):
             elif self.recorded is not None and name in self.recorded.sources:
                 self._write_own(topic, name, data)
 
-        self.subs[resolved] = self.subscription(name, on_message, qos=qos, msg_type=msg_type, raw=True)
+        self.subs[resolved] = self.subscription(name, self._unless_unwritable(on_message), qos=qos,
+                                                msg_type=msg_type, raw=True)
+
+    def _unless_unwritable(self, callback):
+        """``callback``, doing nothing once the bag cannot be written, and stopping the recorder
+        (:meth:`run`) when it is the one that finds so (a full disk): not a rejected message, not an
+        exception out of the executor."""
+        def call(*args) -> None:
+            if self.bag.failed is None:
+                try:
+                    callback(*args)
+                except BagWriteError:
+                    self.stopping = True
+        return call
 
     def _on_recording_config(self, topic: str, data: bytes) -> None:
         """The dynamics node's dynamics/recording: from now on /clock and the viewer topics are
@@ -180,7 +198,7 @@ class RecorderNode(AdcsNode):
                 if text != self.recording_text:
                     raise cv.InvalidMessage(f'{topic}: a second, different config (the first one stays)')
                 return None
-            return text, RecordedTopics(parse_config(text))
+            return text, RecordedTopics(parse_config(text), on_lost=self._viewer_step_lost)
         parsed = self.rejects.accept(topic, parse)
         if not parsed:
             return
@@ -203,6 +221,14 @@ class RecorderNode(AdcsNode):
                 self.bag.write(resolved, message)
                 if name in names.FRAME_TOPICS:
                     self._write_tf(resolved, message)
+
+    def _viewer_step_lost(self, t_ns: int) -> None:
+        """A step's markers given up: more incomplete steps than the acknowledgement pacing allows
+        (adcs_msgs_py.recorded_topics.MAX_PENDING), a broken invariant: said, and counted in the bag."""
+        self.get_logger().error(
+            f'markers of t = {t_ns / cv.NS_PER_S:g} s not written: more than {MAX_PENDING} steps waited '
+            f'for an input at once ({self.recorded.lost} step(s) lost so far; adcs_msgs_py.recorded_topics)',
+            throttle_duration_sec=5.0)
 
     def _write_tf(self, topic: str, data: bytes) -> None:
         """The transform just recorded on ``topic``, also on ``/tf`` as a TFMessage (a malformed one
@@ -247,17 +273,31 @@ class RecorderNode(AdcsNode):
 
     def run(self, executor) -> None:
         while not (self.stopping or STOP_REQUESTED.is_set()):
-            executor.spin_once(timeout_sec=0.1)
+            self._spin(executor, 0.1)
         # Drain: keep taking what DDS already delivered until a quiet period, but never longer
         # than DRAIN_MAX_S (a publisher that floods, an intruder, would keep it from closing the bag
         # before the runner's stop timeout kills it).
         quiet_until = time.monotonic() + 0.3
         give_up = time.monotonic() + DRAIN_MAX_S
-        while time.monotonic() < min(quiet_until, give_up):
+        while self.bag.failed is None and time.monotonic() < min(quiet_until, give_up):
             before = self.received
-            executor.spin_once(timeout_sec=0.05)
+            self._spin(executor, 0.05)
             if self.received != before:
                 quiet_until = time.monotonic() + 0.3
+        self.close()   # here, not only at exit: a bag that cannot be written stops the node with its reason
+        if self.bag.failed is not None:
+            error = self.bag.failed
+            line = (f'{"disk full: " if error.disk_full else ""}{error}; recording stopped, the bag is '
+                    f'readable up to there (adcs-bag-repair completes it)')
+            raise DiskFull(line) if error.disk_full else RunStopped(line)
+
+    def _spin(self, executor, timeout: float) -> None:
+        """One spin; a bag write error out of a callback the node's base calls (intruders, refused
+        messages) stops the recorder too."""
+        try:
+            executor.spin_once(timeout_sec=timeout)
+        except BagWriteError:
+            self.stopping = True
 
     # --- intruders (adcs_msgs_py.guard.PublisherVetting) ----------------------------------------
 
@@ -265,17 +305,32 @@ class RecorderNode(AdcsNode):
         """Log them, and write them into the bag: one ``intrusions`` message (one status per
         intruder) stamped with the latest ``/clock``."""
         super().on_intrusion(intruders)
+        self._write_intrusions([
+            ('ERROR', i.topic, {'topic': i.topic, 'node': i.node, 'gid': i.gid,
+                                'allowed': ','.join(sorted(self.vetting.allowed.get(i.topic, ()))) or 'none',
+                                **({'duplicate': 'true'} if i.duplicate else {})},
+             i.describe() if i.duplicate else f'publisher {i.node} may not publish on {i.topic}', i.node)
+            for i in intruders])
+
+    def on_unmatchable(self, publishers: list[Unmatchable]) -> None:
+        """Log them, and write them into the bag as warnings on ``intrusions`` (``unmatchable``:
+        the run's messages are not affected, nothing is quarantined)."""
+        super().on_unmatchable(publishers)
+        self._write_intrusions([
+            ('WARN', p.topic, {'topic': p.topic, 'node': p.node, 'gid': p.gid, 'type': p.type_name,
+                               'expected': p.expected, 'unmatchable': 'true'}, p.describe(), p.node)
+            for p in publishers])
+
+    def _write_intrusions(self, statuses: list[tuple]) -> None:
+        """One ``intrusions`` message of ``(level, name, values, message, hardware id)`` statuses,
+        stamped with the latest ``/clock``, flushed at once."""
         topic = self.resolve_topic_name(names.INTRUSIONS)
         self.bag.add_topic(topic, 'diagnostic_msgs/msg/DiagnosticArray', qos_dicts(topics.QOS_LATCHED))
         msg = DiagnosticArray()
         msg.header.stamp = cv.stamp_from_ns(self.bag.clock_ns)
-        for intruder in intruders:
-            allowed = ','.join(sorted(self.vetting.allowed.get(intruder.topic, ()))) or 'none'
-            msg.status.extend(cv.status_to_msg(
-                self.bag.clock_ns, intruder.topic, {'topic': intruder.topic, 'node': intruder.node,
-                                                    'gid': intruder.gid, 'allowed': allowed},
-                'ERROR', f'publisher {intruder.node} may not publish on {intruder.topic}',
-                hardware_id=intruder.node).status)
+        for level, name, values, message, hardware_id in statuses:
+            msg.status.extend(cv.status_to_msg(self.bag.clock_ns, name, values, level, message,
+                                               hardware_id=hardware_id).status)
         self.bag.write(topic, serialize_message(msg))
         self.bag.flush()
 
@@ -292,8 +347,12 @@ class RecorderNode(AdcsNode):
         self.vetting.sweep(self.subs.values(), [t for t in self.not_taken if t not in self.subs])
 
     def close(self) -> None:
+        """Close the bag, once (:meth:`run` does at the end of a run; a write error is said there)."""
+        if self.bag.closed:
+            return
         try:   # a last look before the bag is closed
-            self._sweep()
+            if self.bag.failed is None:
+                self._sweep()
         except Exception as exc:  # noqa: BLE001 - closing the bag comes first
             self.get_logger().error(f'last look for intruders failed: {exc}')
         summary = {}
@@ -301,9 +360,18 @@ class RecorderNode(AdcsNode):
             summary['recorder.rejected_messages'] = str(self.rejects.total)
         if self.vetting.intruders:
             summary['recorder.intrusions'] = '; '.join(i.describe() for i in self.vetting.intruders.values())
-        self.bag.close(summary or None)
-        print(f'recorder: wrote {sum(t.count for t in self.bag.topics.values())} messages to '
-              f'{self.bag.path}', file=sys.stderr, flush=True)
+        if self.recorded is not None and self.recorded.lost:
+            summary['recorder.viewer_steps_lost'] = str(self.recorded.lost)
+        if self.vetting.unmatchable:
+            summary['recorder.unmatchable_publishers'] = '; '.join(
+                p.describe() for p in self.vetting.unmatchable.values())
+        try:
+            self.bag.close(summary or None)
+        except BagWriteError:
+            return
+        if self.bag.failed is None:
+            print(f'recorder: wrote {sum(t.count for t in self.bag.topics.values())} messages to '
+                  f'{self.bag.path}', file=sys.stderr, flush=True)
 
 
 def _request_stop(signum, frame) -> None:
