@@ -41,13 +41,33 @@ from adcs_core.attitude import cross, dot, quat_conjugate, quat_multiply, quat_n
 from adcs_core.environment.environment import build_environment
 from adcs_msgs_py.blocks import check_environment, check_unit_quaternion, environment_params, startup_params
 from adcs_msgs_py.measurements import SENSORS, Estimate, Measurements
-from adcs_msgs_py.params import Param, ParameterError, Schema, all_positive, positive
+from adcs_msgs_py.params import Param, ParameterError, Schema, positive, vectorised
 
 NS_PER_S = 1_000_000_000
 VECTOR_SENSORS = ('sun', 'magnetometer')
 MIN_DQ4 = 1e-6   # a star tracker quaternion this close to 180 degrees from the estimate is rejected
 MAX_RATE = 100.0  # rad/s per axis: a gyro sample beyond is not a rate (rejected, counted), whatever its type allows
 References = Callable[[int], dict]
+
+# What the filter's arithmetic can take (issue #31: sigmas of 1e200 or 1e-300, a huge initial covariance
+# or reference field made the filter raise on every step). Upper bounds: beyond them a sigma says
+# nothing more (an attitude error lives within half a turn; a direction noise of a radian or a field
+# noise of 1 mT, 15 times the strongest geomagnetic field, measures nothing; a gyro noisier than
+# 1 rad/s^0.5 is the truth model's own limit, adcs_sim.truth.sensor_schema; a bias beyond MAX_RATE is
+# beyond any sample the filter accepts). Lower bounds: from the conditioning of what the filter
+# solves (covariance_problem).
+MAX_ATTITUDE_SIGMA = np.pi     # rad
+MAX_DIRECTION_SIGMA = 1.0      # rad: star tracker, sun sensor
+MAX_FIELD_SIGMA = 1e-3         # T
+MAX_GYRO_NOISE = 1.0           # rad/s^0.5 (sigma_v), rad/s^1.5 (sigma_u)
+# Each update solves the innovation covariance S = H P H^T + R (numpy's LU): the answer loses
+# log10(cond S) of a double's ~15.7 significant digits; 1e12 keeps ~4 (the NIS gate and the gain
+# need no more), and the filter raised or returned NaN within 30 steps wherever cond S passed ~1e15
+# (sun.sigma 1e-12 against a 0.1 rad prior: 1e22; gyro.sigma_v 1e12).
+MAX_CONDITION = 1e12
+# The strongest geomagnetic field (IGRF, at the surface, ~6.7e-5 T): with references.model
+# environment, the smallest magnetometer direction noise is magnetometer.sigma over it.
+EARTH_FIELD_MAX = 7e-5
 
 
 def _known_sensors(values) -> str | None:
@@ -57,8 +77,19 @@ def _known_sensors(values) -> str | None:
     return None
 
 
-def _sigma3(name: str, doc: str, default) -> Param:
-    return Param(name, 'double_array', default=default, length=3, check=all_positive, batch=True, doc=doc)
+def up_to(limit: float, unit: str):
+    """The check of a sigma (a double or each value of an array): in (0, ``limit``]."""
+    @vectorised(lambda a: bool(np.all((a > 0) & (a <= limit))))
+    def check(v) -> str | None:
+        values = v if isinstance(v, (list, tuple)) else [v]
+        return None if all(0 < x <= limit for x in values) else \
+            f'must be in (0, {limit:g}] {unit} (beyond it the filter learns nothing more), got {v!r}'
+    check.description = f'in (0, {limit:g}] {unit}'   # for docs/parameters.md (adcs_sim.app.parameters)
+    return check
+
+
+def _sigma3(name: str, doc: str, default, limit: float, unit: str) -> Param:
+    return Param(name, 'double_array', default=default, length=3, check=up_to(limit, unit), batch=True, doc=doc)
 
 
 def estimator_params(sensors_default: list[str], sensor_choice: str) -> list[Param]:
@@ -66,15 +97,15 @@ def estimator_params(sensors_default: list[str], sensor_choice: str) -> list[Par
     return [
         Param('sensors', 'string_array', default=sensors_default, check=_known_sensors,
               doc=f'the fitted sensors this estimator uses ({sensor_choice}); their topics are sensors/*'),
-        Param('gyro.sigma_v', 'double', default=1e-5, check=positive, batch=True,
+        Param('gyro.sigma_v', 'double', default=1e-5, check=up_to(MAX_GYRO_NOISE, 'rad/s^0.5'), batch=True,
               doc='angle random walk the filter assumes (rad/s^0.5)'),
         Param('gyro.propagation', 'string', default='hold', choices=('hold', 'average'),
               doc="the rate over [t_k-1, t_k]: 'hold' the sample of t_k-1 (a sample that is the mean rate "
                   "over the step after it, the Farrenkopf model); 'average' the mean of the samples of t_k-1 "
                   "and t_k (instantaneous samples: the trapezoidal rule)"),
-        Param('sun.sigma', 'double', default=1e-3, check=positive, batch=True,
+        Param('sun.sigma', 'double', default=1e-3, check=up_to(MAX_DIRECTION_SIGMA, 'rad'), batch=True,
               doc='sun sensor direction noise, 1 sigma perpendicular to the vector (rad)'),
-        Param('magnetometer.sigma', 'double', default=1e-7, check=positive, batch=True,
+        Param('magnetometer.sigma', 'double', default=1e-7, check=up_to(MAX_FIELD_SIGMA, 'T'), batch=True,
               doc='magnetometer noise per axis (T); direction noise sigma/|B_ref|'),
         Param('references.model', 'string', default='constant', choices=('constant', 'environment'),
               doc="the inertial reference vectors of the vector sensors: 'constant' references.sun and "
@@ -88,7 +119,7 @@ def estimator_params(sensors_default: list[str], sensor_choice: str) -> list[Par
         Param('initial.attitude', 'double_array', default=[0.0, 0.0, 0.0, 1.0], length=4,
               check=check_unit_quaternion, batch=True, doc='initial attitude estimate [x, y, z, w]'),
         _sigma3('initial.attitude_sigma', 'initial attitude uncertainty per body axis, 1 sigma (rad)',
-                [0.1, 0.1, 0.1]),
+                [0.1, 0.1, 0.1], MAX_ATTITUDE_SIGMA, 'rad'),
         Param('startup.estimate_subscribers', 'int', default=1,
               doc='matched subscribers of estimate/state (besides the recorder) to wait for before '
                   'subscribing to the sensors: the controllers flying on the estimate'),
@@ -117,12 +148,14 @@ def _references_check(v: dict) -> None:
 
 MEKF_SCHEMA = Schema('mekf_estimator', [
     *estimator_params(['gyro', 'star_tracker'], 'gyro and star_tracker, sun, magnetometer'),
-    Param('gyro.sigma_u', 'double', default=1e-8, check=positive, batch=True,
+    Param('gyro.sigma_u', 'double', default=1e-8, check=up_to(MAX_GYRO_NOISE, 'rad/s^1.5'), batch=True,
           doc='rate random walk of the bias the filter assumes (rad/s^1.5)'),
-    _sigma3('star_tracker.sigma', 'star tracker noise per body axis, 1 sigma (rad)', [1e-4, 1e-4, 1e-4]),
+    _sigma3('star_tracker.sigma', 'star tracker noise per body axis, 1 sigma (rad)', [1e-4, 1e-4, 1e-4],
+            MAX_DIRECTION_SIGMA, 'rad'),
     Param('initial.bias', 'double_array', default=[0.0, 0.0, 0.0], length=3, batch=True,
           doc='initial gyro bias estimate (rad/s)'),
-    _sigma3('initial.bias_sigma', 'initial bias uncertainty per axis, 1 sigma (rad/s)', [1e-3, 1e-3, 1e-3]),
+    _sigma3('initial.bias_sigma', 'initial bias uncertainty per axis, 1 sigma (rad/s)', [1e-3, 1e-3, 1e-3],
+            MAX_RATE, 'rad/s'),
     Param('gate.nis', 'double', default=float('inf'), check=positive, finite=False,
           doc='an update whose normalised innovation squared exceeds this is rejected and counted '
               '(.inf: no gate; chi-square quantiles: 16.3 for 3 dof at 0.999)'),
@@ -145,6 +178,63 @@ QUEST_SCHEMA = Schema('quest_estimator', [
           doc='known gyro bias subtracted from the measured rate (rad/s)'),
 ], cross_check=_single_frame_check, doc='single-frame attitude (QUEST / q-method / TRIAD on the sun and '
                                         'magnetometer vectors, Markley & Crassidis 2014 ch. 5) with the gyro rate')
+
+
+def _measurement_variances(p: dict) -> list[tuple[str, float, str]]:
+    """(key, variance (rad^2), what) of each measurement the section's filter updates with."""
+    out = []
+    if 'star_tracker' in p['sensors'] and 'star_tracker.sigma' in p:
+        out.append(('star_tracker.sigma', float(np.min(p['star_tracker.sigma'])) ** 2, 'the star tracker'))
+    if 'sun' in p['sensors']:
+        out.append(('sun.sigma', float(p['sun.sigma']) ** 2, 'the sun sensor'))
+    if 'magnetometer' in p['sensors']:   # a field noise in T, a direction noise of sigma / |B|
+        constant = p['references.model'] == 'constant'
+        field = float(np.linalg.norm(p['references.magnetometer'])) if constant else EARTH_FIELD_MAX
+        key = 'references.magnetometer' if constant and field > MAX_FIELD_SIGMA else 'magnetometer.sigma'
+        out.append((key, (float(p['magnetometer.sigma']) / field) ** 2,
+                    f'the magnetometer (direction noise magnetometer.sigma / {field:.3g} T)'))
+    return out
+
+
+def covariance_problem(p: dict, period: float) -> tuple[str, str] | None:
+    """Whether a validated estimator section's filter can do its arithmetic at the start of a run with
+    control period ``period`` (s), else ``(key, why)`` (None: it can).
+
+    Every measurement variance must be a normal double (S >= R stays invertible whatever P does).
+    The MEKF's innovation covariance of a vector sensor holds the measurement variance alone along
+    the measured direction and the attitude variance across it, and the star tracker's spans them
+    too: cond S ~ (P + R) / R, with P the largest attitude variance of the first two updates (the
+    prior, and one period of propagation: sigma_v^2 dt + sigma_u^2 dt^3 / 3 + the bias prior's
+    sigma_b^2 dt^2). The single-frame solution weighs the two vectors by 1 / R: cond ~ R_max / R_min.
+    Either must stay within MAX_CONDITION."""
+    with np.errstate(all='ignore'):
+        measured = _measurement_variances(p)
+        for key, r, what in measured:
+            if not np.finfo(float).tiny <= r < np.inf:
+                return key, (f'{what}: variance {r:.3g} rad^2 is not a normal double: the filter '
+                             'could not invert its innovation covariance')
+        dt = float(period)
+        sources = {'initial.attitude_sigma': float(np.max(p['initial.attitude_sigma'])) ** 2,
+                   'gyro.sigma_v': float(p['gyro.sigma_v']) ** 2 * dt}
+        if 'gyro.sigma_u' in p:   # the MEKF: bias states
+            sources['gyro.sigma_u'] = float(p['gyro.sigma_u']) ** 2 * dt ** 3 / 3.0
+            sources['initial.bias_sigma'] = float(np.max(p['initial.bias_sigma'])) ** 2 * dt ** 2
+            attitude = sum(sources.values())
+            for key, r, what in measured:
+                cond = (attitude + r) / r
+                if not cond <= MAX_CONDITION:
+                    largest = max(sources, key=sources.get)
+                    return key, (f'{what}: variance {r:.3g} rad^2 against an attitude variance of '
+                                 f'{attitude:.3g} rad^2 at the start (mostly from {largest}): the innovation '
+                                 f'covariance would have a condition number of {cond:.3g}, more than the '
+                                 f'{MAX_CONDITION:g} the filter\'s solves can take')
+        elif len(measured) > 1:   # single frame: the two vectors weighed by 1 / R
+            (k_small, r_small, w_small), (_, r_large, w_large) = sorted(measured, key=lambda m: m[1])
+            if not r_large / r_small <= MAX_CONDITION:
+                return k_small, (f'{w_small}: variance {r_small:.3g} rad^2 against {r_large:.3g} of '
+                                 f'{w_large}: weights {r_large / r_small:.3g} apart, more than the '
+                                 f'{MAX_CONDITION:g} the single-frame solution can take')
+    return None
 
 
 # --- shared machinery ------------------------------------------------------------------------------

@@ -21,7 +21,8 @@ import numpy as np
 
 from adcs_controllers.families import BACKSTEPPING, state_topic
 from adcs_controllers.laws.base import LawOutputRejected, checked_control
-from adcs_controllers.nodes.base import StampPairs, WheelStatePairing
+from adcs_controllers.laws.failure import FlightSoftwareError, answer
+from adcs_controllers.nodes.base import FlightSoftwareStop, StampPairs, WheelStatePairing
 from adcs_core.faults import FaultTracker
 from adcs_msgs_py import cdr
 from adcs_msgs_py import conversions as cv
@@ -29,7 +30,7 @@ from adcs_msgs_py import topics
 from adcs_msgs_py.node import AdcsNode, entry_point
 
 
-class BacksteppingController(WheelStatePairing, AdcsNode):
+class BacksteppingController(FlightSoftwareStop, WheelStatePairing, AdcsNode):
     family = BACKSTEPPING  # law: BacksteppingLaw, actuation: ThrusterActuation
     schema = BACKSTEPPING.schema
 
@@ -76,7 +77,7 @@ class BacksteppingController(WheelStatePairing, AdcsNode):
             self.spin_until(executor, f'the fault schedule on {self.sub_faults.topic_name}',
                             lambda: self.faults.complete, self.params['startup.timeout'])
         self.connect()
-        executor.spin()
+        self.spin(executor)
 
     # --- pairing ------------------------------------------------------------------------------
 
@@ -92,8 +93,12 @@ class BacksteppingController(WheelStatePairing, AdcsNode):
 
     def step(self, t_ns: int, q: np.ndarray, w: np.ndarray, speed: np.ndarray) -> None:
         self.steps += 1
+        if self.failure is not None:   # stopping: no later step is answered
+            return
         try:
             self._answer(t_ns, q, w, speed)
+        except FlightSoftwareError as exc:
+            self.failed(exc)
         finally:   # after the commands (off their critical path), at the dynamics' pacing steps
             self.pace_recorder(self.steps - 1, (self.pub_thrusters, self.pub_wheels, self.pub_status),
                                self.params['startup.timeout'])
@@ -103,12 +108,15 @@ class BacksteppingController(WheelStatePairing, AdcsNode):
         # Faults name wheels only and the law does not reconfigure: the snapshot due at t_ns is
         # only taken (FaultTracker.due), so that one arriving after its step counts as late.
         self.faults.due(t_ns)
+        name = self.get_name()
         try:  # a law refusing the state or giving a non-finite output: counted, nothing published
-            tau, status = checked_control(self.law, self.get_name(), t_ns / cv.NS_PER_S, q, w)
+            tau, status = answer(name, t_ns, lambda: checked_control(self.law, name, t_ns / cv.NS_PER_S, q, w),
+                                 refusals=(LawOutputRejected,))
         except LawOutputRejected as exc:
-            self.rejects.reject('law', str(exc))
+            self.refused(t_ns, str(exc))
             return
-        on_time, wheel_torque, info = self.actuation.command(tau, w, speed)
+        self.refusals_in_a_row = 0
+        on_time, wheel_torque, info = answer(name, t_ns, lambda: self.actuation.command(tau, w, speed))
         # the bytes of thruster_cmd_to_msg and wheel_cmd_to_msg(..., effort=...)
         self.pub_thrusters.publish(self.thrusters_cdr.encode(t_ns, self.thruster_names, effort=on_time))
         self.pub_wheels.publish(self.wheels_cdr.encode(t_ns, self.wheel_names, effort=wheel_torque))

@@ -28,6 +28,9 @@ engine builds from the same family, so it runs the very same object. The base cl
   per stamp in a small buffer and computes when both of a stamp are in, with
   ``h = sum_i a_i Js_i Ω_i`` (:meth:`~adcs_controllers.laws.allocation.Actuation.wheel_momentum`,
   the batch engine's function). Laws without the flag never see the wheel state.
+* stops the run when it cannot answer a step (:class:`FlightSoftwareStop`: exit status 6 naming the
+  node, the time and the error, :mod:`adcs_controllers.laws.failure`); a law refusing a state is
+  counted, not a failure, unless it refuses three in a row.
 """
 from __future__ import annotations
 
@@ -35,11 +38,47 @@ import numpy as np
 
 from adcs_controllers.families import ControllerFamily, state_topic
 from adcs_controllers.laws.base import LawOutputRejected, checked_control
+from adcs_controllers.laws.failure import FlightSoftwareError, answer
 from adcs_core.faults import FaultTracker
 from adcs_msgs_py import cdr
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
-from adcs_msgs_py.node import AdcsNode
+from adcs_msgs_py.node import AdcsNode, FlightSoftwareFailed
+
+
+class FlightSoftwareStop:
+    """For a flight-software node: a step it cannot answer (:class:`FlightSoftwareError`, raised in
+    a subscription callback, where the validation boundary would count it as a bad message) is
+    kept, and :meth:`spin` returns from the executor's loop to stop the run with it
+    (:class:`~adcs_msgs_py.node.FlightSoftwareFailed`, exit status 6): the lockstep graph then
+    stops at once instead of waiting out ``lockstep.timeout`` at every later step."""
+
+    failure: FlightSoftwareError | None = None
+    #: A law refusing this many states in a row cannot answer: a refusal is for a singular state (Krstic-
+    #: Tsiotras at 180 deg, a two-wheel law on q1^2 + q2^2 = 0), which the plant leaves at the next step
+    #: under the timeout policy unless it rests there, and each refusal costs a lockstep timeout.
+    MAX_REFUSALS_IN_A_ROW = 3
+    refusals_in_a_row = 0
+
+    def refused(self, t_ns: int, reason: str) -> None:
+        """A law refused the state of ``t_ns`` (counted under ``law``); the MAX_REFUSALS_IN_A_ROW-th
+        in a row is a FlightSoftwareError."""
+        self.rejects.reject('law', reason)
+        self.refusals_in_a_row += 1
+        if self.refusals_in_a_row >= self.MAX_REFUSALS_IN_A_ROW:
+            raise FlightSoftwareError(self.get_name(), t_ns, f'the law refused {self.refusals_in_a_row} states '
+                                      f'in a row, the last: {reason}')
+
+    def failed(self, error: FlightSoftwareError) -> None:
+        if self.failure is None:
+            self.failure = error
+            self.get_logger().error(str(error))
+
+    def spin(self, executor) -> None:
+        """Spin until shutdown, or until a step could not be answered (then FlightSoftwareFailed)."""
+        while self.failure is None:
+            executor.spin_once()
+        raise FlightSoftwareFailed(f'{self.failure}; run stopped')
 
 
 class StampPairs:
@@ -87,7 +126,7 @@ class WheelStatePairing:
             self.on_pair(t_ns, q, w, speed)
 
 
-class ControllerNode(WheelStatePairing, AdcsNode):
+class ControllerNode(FlightSoftwareStop, WheelStatePairing, AdcsNode):
     """Base class of the controller nodes. Subclasses set ``family``
     (:class:`~adcs_controllers.families.ControllerFamily`): its schema validates the section, its law
     and actuation are built from it, the objects the batch engine builds too."""
@@ -152,7 +191,7 @@ class ControllerNode(WheelStatePairing, AdcsNode):
         if self.params['startup.expect_faults']:
             self.wait_for_faults(executor)
         self.connect()
-        executor.spin()
+        self.spin(executor)
 
     # --- faults -----------------------------------------------------------------------------
 
@@ -201,24 +240,33 @@ class ControllerNode(WheelStatePairing, AdcsNode):
 
     def _step(self, t_ns: int, q: np.ndarray, w: np.ndarray, h: np.ndarray | None = None) -> None:
         self.states += 1
+        if self.failure is not None:   # stopping: no later step is answered
+            return
         try:
             self._answer(t_ns, q, w, h)
+        except FlightSoftwareError as exc:
+            self.failed(exc)
         finally:   # after the command (off its critical path), at the dynamics' pacing steps
             self.pace_recorder(self.states - 1, (self.pub_cmd, self.pub_status), self.params['startup.timeout'])
 
     def _answer(self, t_ns: int, q: np.ndarray, w: np.ndarray, h: np.ndarray | None) -> None:
         """Compute and publish the command (and the status) of the state stamped ``t_ns``."""
-        self.apply_due_faults(t_ns)
+        name = self.get_name()
+        answer(name, t_ns, lambda: self.apply_due_faults(t_ns))
         output = self.law.output  # torque or wheel momentum (a reconfiguring law's current phase)
         try:  # a law refusing the state or giving a non-finite output: counted, nothing published
-            value, status = checked_control(self, self.get_name(), t_ns / cv.NS_PER_S, q, w, h)
+            value, status = answer(name, t_ns, lambda: checked_control(self, name, t_ns / cv.NS_PER_S, q, w, h),
+                                   refusals=(LawOutputRejected,))
         except LawOutputRejected as exc:
-            self.rejects.reject('law', str(exc))
+            self.refused(t_ns, str(exc))
             return
+        self.refusals_in_a_row = 0
         if output == 'wheel_momentum':
-            self.publish_momentum(t_ns, value)
+            speed = answer(name, t_ns, lambda: self.actuation.command_momentum(value))
+            self.publish_momentum(t_ns, speed)
         else:
-            applied = self.publish_torque(t_ns, value)
+            values, applied = answer(name, t_ns, lambda: self.actuation.command(value))
+            self.publish_torque(t_ns, values)
         if self.pub_status.get_subscription_count():  # after the command: off the critical path
             status = self.law.published_status(status)
             if output == 'wheel_momentum':  # h_x..: the wheel momentum commanded (speed mode)
@@ -231,20 +279,18 @@ class ControllerNode(WheelStatePairing, AdcsNode):
                            'late_faults': self.faults.late})
             self.pub_status.publish(cdr.status_bytes(t_ns, self.get_name(), status))
 
-    def publish_momentum(self, t_ns: int, h: np.ndarray) -> None:
-        """Send the wheel momentum ``h`` (body axes) as speed commands to the available wheels
-        (the others are not named: they keep their last command, and produce no torque)."""
-        speed = self.actuation.command_momentum(h)
+    def publish_momentum(self, t_ns: int, speed: np.ndarray) -> None:
+        """Send the wheel speed commands of a commanded momentum (``actuation.command_momentum``) to
+        the available wheels (the others are not named: they keep their last command, and produce
+        no torque)."""
         ok = self.actuation.available
         self.pub_cmd.publish(self.cmd_cdr.encode(   # wheel_cmd_to_msg(..., velocity=...)'s bytes
             t_ns, [n for n, a in zip(self.wheel_names, ok) if a], velocity=speed[ok]))
 
-    def publish_torque(self, t_ns: int, torque: np.ndarray) -> np.ndarray:
-        """Send body torque ``torque`` through the configured actuators; return what it commands
-        (:class:`~adcs_controllers.laws.allocation.Actuation`)."""
-        values, applied = self.actuation.command(torque)
+    def publish_torque(self, t_ns: int, values: np.ndarray) -> None:
+        """Send the actuator commands of a body torque (``actuation.command``: wheel torques or
+        torquer torques, :class:`~adcs_controllers.laws.allocation.Actuation`)."""
         if self.actuator == 'wheels':   # the bytes of wheel_cmd_to_msg(..., effort=...) / vector_to_msg
             self.pub_cmd.publish(self.cmd_cdr.encode(t_ns, self.wheel_names, effort=values))
         else:
             self.pub_cmd.publish(self.cmd_cdr.encode(t_ns, values))
-        return applied

@@ -19,12 +19,18 @@ the same family, so it runs the very same object. The base class
 * rejects, counts and warns about bad messages (:mod:`adcs_msgs_py.guard`); a stamp that is not after
   the last step answered is rejected too. Noise levels come from the parameters, never from the
   messages' covariances.
+* stops the run when the filter cannot answer a step (it raises, or its estimate is not finite:
+  :class:`~adcs_controllers.nodes.base.FlightSoftwareStop`, exit status 6 naming the node, the
+  time and the error): what reaches the filter has passed the message checks, so the failure is
+  its own arithmetic, and every later step would wait out the lockstep timeout.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from adcs_controllers.estimators.families import EstimatorFamily
+from adcs_controllers.laws.failure import FlightSoftwareError, estimate_step
+from adcs_controllers.nodes.base import FlightSoftwareStop
 from adcs_msgs_py import cdr
 from adcs_msgs_py import conversions_determination as cd
 from adcs_msgs_py import topics
@@ -64,7 +70,7 @@ def _plain(value):
     return value.item() if isinstance(value, (np.ndarray, np.generic)) else value
 
 
-class EstimatorNode(AdcsNode):
+class EstimatorNode(FlightSoftwareStop, AdcsNode):
     """Base class of the estimator nodes. Subclasses set ``family``
     (:class:`~adcs_controllers.estimators.families.EstimatorFamily`)."""
 
@@ -96,7 +102,7 @@ class EstimatorNode(AdcsNode):
 
     def run(self, executor) -> None:
         self.connect()
-        executor.spin()
+        self.spin(executor)
 
     def _on_sensor(self, name: str, msg) -> None:
         topic = SENSOR_TOPICS[name]
@@ -118,17 +124,17 @@ class EstimatorNode(AdcsNode):
         """Run the family's step on the sensors' readings stamped ``t_ns``; publish its estimate and status."""
         self.steps += 1
         self.last_ns = t_ns
+        if self.failure is not None:   # stopping: no later step is answered
+            return
         try:
             self._answer(t_ns, readings)
+        except FlightSoftwareError as exc:
+            self.failed(exc)
         finally:   # after the estimate (off its critical path), at the dynamics' pacing steps
             self.pace_recorder(self.steps - 1, (self.pub_estimate, self.pub_status), self.params['startup.timeout'])
 
     def _answer(self, t_ns: int, readings: dict) -> None:
-        try:
-            est, status = self.estimator.step(Measurements(t_ns, **readings))
-        except ValueError as exc:   # nothing published: counted (the controller's step is missed)
-            self.rejects.reject('estimator', str(exc))
-            return
+        est, status = estimate_step(self.get_name(), self.estimator, Measurements(t_ns, **readings))
         self.pub_estimate.publish(cd.estimate_to_msg(est))
         if self.pub_status.get_subscription_count():   # after the estimate: off the critical path
             values = {k: _plain(v) for k, v in status.items()}

@@ -15,9 +15,9 @@ from typing import Any
 import numpy as np
 
 from adcs_core.environment.eclipse import shadow_conical, shadow_cylindrical
-from adcs_core.environment.frames import days_since_j2000, parse_epoch
+from adcs_core.environment.frames import SECONDS_PER_DAY, days_since_j2000, parse_epoch
 from adcs_core.environment.magnetic import DipoleModel, IgrfModel, load_igrf
-from adcs_core.environment.options import MAGNETIC_MODELS, ORBIT_KINDS, SHADOW_MODELS
+from adcs_core.environment.options import IGRF_YEARS, MAGNETIC_MODELS, ORBIT_KINDS, SHADOW_MODELS
 from adcs_core.environment.sun import sun_position_eci
 from adcs_core.environment.tle import CircularOrbitSource, OrbitSource, TleOrbit
 from adcs_core.orbit import CircularOrbit
@@ -92,3 +92,22 @@ def build_environment(p: Mapping[str, Any]) -> Environment:
     igrf = load_igrf()
     magnetic = igrf if model == 'igrf' else igrf.dipole(epoch_days)
     return Environment(epoch, orbit, magnetic, p['environment.shadow_model'])
+
+
+def span_problem(p: Mapping[str, Any], duration: float, period: float) -> tuple[str, str] | None:
+    """Whether the environment of validated ``environment.*`` parameters can be sampled by a run over
+    ``[epoch, epoch + duration]`` every ``period`` s, as it is at its start: ``('field', why)`` when the
+    span leaves the IGRF's years (the dipole's coefficients are frozen at the epoch), ``('orbit', why)``
+    when a trial SGP4 propagation of the TLE fails inside it (:meth:`TleOrbit.span_problem`), else None."""
+    start = parse_epoch(p['environment.epoch'])
+    end = start + duration / SECONDS_PER_DAY
+    year = 2000.0 + end / 365.25   # the epoch check's rule (adcs_msgs_py.blocks.check_environment)
+    if p['environment.magnetic_model'] == 'igrf' and not year < IGRF_YEARS[1]:
+        return 'field', (f'the run ends in {year:.2f} (epoch {p["environment.epoch"]} + {duration:g} s), beyond '
+                         f'the IGRF-14 field model\'s {IGRF_YEARS[0]}-{IGRF_YEARS[1]}')
+    if p['environment.orbit'] == 'tle':
+        orbit = TleOrbit(p['environment.tle.line1'], p['environment.tle.line2'])
+        problem = orbit.span_problem(start, duration, period)
+        if problem is not None:
+            return 'orbit', f'inside the run (epoch + 0..{duration:g} s): {problem}'
+    return None

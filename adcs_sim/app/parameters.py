@@ -63,6 +63,7 @@ CHECKS = {
     '_fraction_below_1': 'in [0, 1)',
     '_check_publishers': 'entries `topic=node[,node...]` (empty after `=`: nobody may publish)',
     '_check_epoch': 'an ISO-8601 UTC date and time',
+    '_control_period': 'in [1e-9, 2147483647] s (the time grid is in integer ns; stamps carry int32 seconds)',
 }
 LAMBDA_CHECKS = {
     'proposition': '1 or 2',
@@ -117,7 +118,8 @@ def check_of(param: Param) -> str:
         parts.append('finite' if param.finite else 'not NaN (.inf allowed)')
     if param.check is not None:
         name = param.check.__name__
-        text = LAMBDA_CHECKS.get(param.name) if name == '<lambda>' else CHECKS.get(name)
+        text = getattr(param.check, 'description', None) or (
+            LAMBDA_CHECKS.get(param.name) if name == '<lambda>' else CHECKS.get(name))
         if text is None:
             raise KeyError(f'{param.name}: no description of its check {param.check.__qualname__} '
                            '(add it to CHECKS or LAMBDA_CHECKS in adcs_sim/app/parameters.py)')

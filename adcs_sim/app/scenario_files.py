@@ -11,7 +11,7 @@ from pathlib import Path
 from adcs_msgs_py.params import ParameterError
 from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.app.registry import NODES
-from adcs_sim.app.scenario_checks import check_agreement, check_resources
+from adcs_sim.app.scenario_checks import check_agreement, check_resources, check_whole_run
 
 DEFAULT_SCENARIO = 'uosat12_gsmn.yaml'  # seed 000: a wheel fails, two-wheel GSMN recovers (the showcase)
 
@@ -82,4 +82,5 @@ def validate_sections(sections: dict, path, duration: float | None = None) -> di
                                  f'quest_estimator) in {path}', name)
     check_agreement(validated)
     check_resources(validated['dynamics'])
+    check_whole_run(validated)
     return validated

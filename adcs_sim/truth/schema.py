@@ -29,7 +29,7 @@ from adcs_msgs_py.blocks import (
     thruster_params,
     wheel_params,
 )
-from adcs_msgs_py.params import Param, ParameterError, Schema, all_positive, non_negative, positive
+from adcs_msgs_py.params import Param, ParameterError, Schema, all_positive, non_negative, positive, vectorised
 from adcs_sim.truth.plant import Disturbance, Plant, ReactionWheels, Torquers
 from adcs_sim.truth.sensor_schema import check_sensors, sensor_params
 from adcs_sim.truth.thrusters import Thrusters
@@ -135,6 +135,18 @@ def command_topics(v: dict) -> list[str]:
     return list(dict.fromkeys(commands))
 
 
+# The time grid is in integer nanoseconds (step_timing): a shorter period rounds to 0 ns; a period's
+# stamp carries int32 seconds.
+MIN_CONTROL_PERIOD = 1e-9
+MAX_CONTROL_PERIOD = 2 ** 31 - 1   # s (68 years)
+
+
+@vectorised(lambda a: bool(np.all((a >= MIN_CONTROL_PERIOD) & (a <= MAX_CONTROL_PERIOD))))
+def _control_period(v) -> str | None:
+    return None if MIN_CONTROL_PERIOD <= v <= MAX_CONTROL_PERIOD else \
+        f'must be in [{MIN_CONTROL_PERIOD:g}, {MAX_CONTROL_PERIOD}] s (the time grid is in integer ns), got {v!r}'
+
+
 def _fraction(v) -> str | None:
     return None if 0.0 <= v <= 1.0 else f'must be a fraction in [0, 1], got {v}'
 
@@ -164,8 +176,9 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
     Param('orbit.inclination_deg', 'double', default=0.0, doc='deg'),
     Param('orbit.raan_deg', 'double', default=0.0, doc='deg'),
     Param('orbit.arg_latitude_deg', 'double', default=0.0, doc='argument of latitude at t = 0 (deg)'),
-    Param('control_period', 'double', default=1.0, check=positive,
-          doc='zero-order-hold control period (s); state published each period'),
+    Param('control_period', 'double', default=1.0, check=_control_period,
+          doc='zero-order-hold control period (s, at least 1 ns: the time grid is in integer ns); '
+              'state published each period'),
     Param('duration', 'double', check=positive, doc='simulated duration (s)', batch=True),
     Param('integrator.max_step', 'double', default=0.1, check=positive,
           doc='largest RK4 step inside a control period (s)'),
@@ -180,12 +193,14 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
           doc='wall seconds to wait for a step\'s commands before applying the timeout policy'),
     Param('lockstep.timeout_policy', 'string', default='hold', choices=('hold', 'zero'),
           doc='on a missed step: hold the last command or apply zero'),
-    Param('link_faults.seed', 'int', default=0, doc='seed of the lost / late command draws'),
+    Param('link_faults.seed', 'int', default=0, check=non_negative,
+          doc='seed of the lost / late command draws (>= 0: numpy\'s seeds)'),
     Param('link_faults.drop', 'double', default=0.0, check=_fraction,
           doc='fraction of lockstep steps whose commands are lost (missed steps; adcs_sim/truth/link_faults.py)'),
     Param('link_faults.delay', 'double', default=0.0, check=_fraction,
           doc='fraction of lockstep steps whose commands come after the deadline (missed, then stale)'),
-    Param('noise.seed', 'int', default=0, doc='seed of the measurement noise generator', batch=True, cross='none'),
+    Param('noise.seed', 'int', default=0, check=non_negative, batch=True, cross='none',
+          doc='seed of the measurement noise generator (>= 0: numpy\'s seeds)'),
     Param('noise.attitude_std', 'double', default=0.0, check=non_negative,
           doc='star-tracker noise, rad (1 sigma per axis, small-angle rotation)'),
     Param('noise.rate_std', 'double', default=0.0, check=non_negative, doc='gyro noise, rad/s (1 sigma)'),
