@@ -7,12 +7,16 @@ Each bag also gets a report (:mod:`adcs_sim.app.report`): ``report.md`` with the
 metrics and figures (PNG + SVG), written to ``--out DIR``, else to ``<bag>/../report/`` (a
 ``report`` folder beside the bag folder) when that folder is writable, else to
 ``<run>-report/`` in the current directory. ``--compare`` writes one comparison of all the bags
-instead (``comparison.csv``, ``comparison.md``, overlaid figures) to ``--out DIR`` or
-``comparison/`` in the current directory (never among the inputs: bags under ``bags/`` are the
-repository's reference data); with ``--reference FILE`` (published figures per run, e.g.
-``docs/seed004/paper.yaml``) it adds a published-vs-ours table with the differences (one bag is enough
-then: a paper with one run, seed 002). The published figures are comparison rows or the metrics a run's
-report leads with for its kind (e.g. seed 000's q4 settling after the fault).
+instead (``comparison.csv``, ``comparison.md``, overlaid figures) to ``--out DIR``, default
+``comparison`` in the current directory (never among the inputs: bags under ``bags/`` are the
+repository's reference data). Every output folder is checked before any bag is read
+(:mod:`adcs_sim.app.outputs`): absent, empty, or a report of this tool (only ``report.md`` /
+``comparison.md`` with its CSV and figures: replaced whole, so no figure of an older report stays),
+writable, not a file or a FIFO, neither inside an input nor holding one. With ``--reference FILE``
+(published figures per run, e.g. ``docs/seed004/paper.yaml``) the comparison adds a published-vs-ours
+table with the differences (one bag is enough then: a paper with one run, seed 002). The published
+figures are comparison rows or the metrics a run's report leads with for its kind (e.g. seed 000's
+q4 settling after the fault).
 ``--no-report`` only prints the metrics. ``--foxglove-layout OUT.json`` and / or
 ``--plotjuggler-layout OUT.xml`` write the viewer layouts of one bag instead (no metrics, no
 report; :mod:`adcs_sim.app.layouts`): 3D view, attitude error, rates, wheels, torques, controller
@@ -22,27 +26,72 @@ A path that is not a readable bag gives a one-line error on stderr and exit stat
 bags are still analysed). A damaged bag (a CRC or bounds check fails; every check is in
 :mod:`adcs_sim.bag.records`) is analysed up to the damage with a one-line warning on stderr naming
 the byte offset and what was read, or refused with a one-line error when nothing before the
-damage can be analysed or the damage cannot be located. So is a truncated one (writer killed).
+damage can be analysed or the damage cannot be located. So is a truncated one (writer killed), and
+one still being written (the warning then names its writer: :mod:`adcs_sim.bag.lock`).
 """
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
+from adcs_msgs_py.params_file import one_line_warnings
 from adcs_sim.app.analysis import format_metrics, jsonable_metrics
 from adcs_sim.app.layouts import LayoutError, write_layouts
+from adcs_sim.app.outputs import OutputError, check_folder, writable_folder
 from adcs_sim.app.report.kinds import run_kind
-from adcs_sim.app.report.loading import BagError, default_report_dir, load_run
+from adcs_sim.app.report.loading import BagError, bag_folder, default_report_dir, load_run, run_name
+from adcs_sim.bag.lock import bag_writer
+
+
+REPORT_FILES = ('.md', '.png', '.svg', '.csv')   # what a report or a comparison folder holds
+
+
+def is_report(folder: Path) -> bool:
+    """A report or comparison this tool wrote: ``report.md`` or ``comparison.md``, and only
+    Markdown, CSV and figure files beside it (no sub-folder, no symlink, nothing else)."""
+    entries = list(folder.iterdir())
+    return (any(e.name in ('report.md', 'comparison.md') for e in entries)
+            and all(e.is_file() and not e.is_symlink() and e.suffix in REPORT_FILES for e in entries))
+
+
+def _inputs(args) -> list[Path]:
+    """What the tool reads: each bag's folder (or file) and the reference file."""
+    found = [bag_folder(p) or Path(p) for p in args.bags]
+    return found + ([args.reference] if args.reference is not None else [])
 
 
 def _report_dir(out: Path | None, path: str, name: str, several: bool) -> Path:
     if out is None:
         beside = default_report_dir(path)
-        return beside if os.access(beside.parent, os.W_OK) else Path.cwd() / f'{name}-report'
+        return beside if writable_folder(beside.parent) is None else Path.cwd() / f'{name}-report'
     return out / name if several else out
+
+
+def _report_dirs(args) -> dict[str, Path]:
+    """Each bag's report folder (``--compare``: the one comparison folder, under every bag),
+    checked before any bag is read; OutputError names the first unusable one."""
+    from adcs_sim.app.report.comparison import unique_names   # (matplotlib: only when a report is written)
+    named = [SimpleNamespace(name=run_name(p), path=p) for p in args.bags]
+    if args.compare:
+        dirs = dict.fromkeys(args.bags, args.out if args.out is not None else Path('comparison'))
+    else:
+        dirs = {p: _report_dir(args.out, p, name, len(args.bags) > 1)
+                for p, name in zip(args.bags, unique_names(named))}
+    for folder in dict.fromkeys(dirs.values()):
+        check_folder(folder, _inputs(args), owned=is_report)
+    return dirs
+
+
+def _replace(folder: Path) -> Path:
+    """Empty a report folder of ours just before its new report is written (not before: a bag
+    that does not load leaves the old report as it was), so no figure of the old one stays."""
+    if folder.is_dir() and is_report(folder):
+        for entry in folder.iterdir():
+            entry.unlink()
+    return folder
 
 
 def _load(paths: list[str], args) -> tuple[dict, int]:
@@ -51,6 +100,7 @@ def _load(paths: list[str], args) -> tuple[dict, int]:
     runs = {}
     status = 0
     for path in paths:
+        writer = bag_writer(path)   # looked at first: what a live writer has flushed is a prefix of its run
         try:
             runs[path] = run = load_run(path, tol_deg=args.tolerance_deg, eigen_tol_deg=args.eigen_tolerance_deg,
                                         stream=not args.compare)
@@ -59,7 +109,8 @@ def _load(paths: list[str], args) -> tuple[dict, int]:
             status = 1
             continue
         if run.data.problem is not None:
-            print(f'adcs-analyze: warning: {path}: {run.data.problem}; analysed the {run.message_count} '
+            problem = run.data.problem if writer is None else f'still being written by {writer}'
+            print(f'adcs-analyze: warning: {path}: {problem}; analysed the {run.message_count} '
                   f'messages read (up to t = {run.data.t_end:.6g} s)', file=sys.stderr)
     return runs, status
 
@@ -80,7 +131,8 @@ def _layouts(args) -> int:
         print('adcs-analyze: --foxglove-layout / --plotjuggler-layout take exactly one bag', file=sys.stderr)
         return 2
     try:
-        layout = write_layouts(args.bags[0], args.foxglove_layout, args.plotjuggler_layout)
+        layout = write_layouts(args.bags[0], args.foxglove_layout, args.plotjuggler_layout,
+                               inputs=_inputs(args))
     except LayoutError as exc:
         print(f'adcs-analyze: {exc}', file=sys.stderr)
         return 1
@@ -102,7 +154,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument('--json', action='store_true', help='print JSON instead of a table')
     parser.add_argument('--out', type=Path, default=None,
                         help='report folder (default <bag>/../report; with several bags, one sub-folder '
-                             'per run; with --compare, the comparison folder)')
+                             'per run; with --compare, the comparison folder, default ./comparison): '
+                             'absent, empty or a report of this tool (replaced)')
     parser.add_argument('--compare', action='store_true',
                         help='write one comparison of all the bags (CSV, Markdown, overlaid figures)')
     parser.add_argument('--reference', type=Path, default=None,
@@ -128,10 +181,19 @@ def _print_table(runs: dict, results: dict) -> None:
         print(format_metrics(metrics))
 
 
+@one_line_warnings('adcs-analyze')   # a section written twice, named once per line
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     if args.foxglove_layout is not None or args.plotjuggler_layout is not None:
         return _layouts(args)
+    if args.compare and len(args.bags) < (1 if args.reference else 2):
+        print('adcs-analyze: --compare needs at least two readable bags (one with --reference)', file=sys.stderr)
+        return 1
+    try:
+        dirs = {} if args.no_report else _report_dirs(args)
+    except OutputError as exc:
+        print(f'adcs-analyze: {"--out " if args.out is not None else ""}{exc}', file=sys.stderr)
+        return 2
     runs, status = _load(args.bags, args)
     results = {p: r.metrics(args.tolerance_deg, args.eigen_tolerance_deg) for p, r in runs.items()}
     status = max(status, _warn_compromised(runs))
@@ -149,7 +211,7 @@ def main(argv=None) -> int:
         if len(runs) < (1 if args.reference else 2):
             print('adcs-analyze: --compare needs at least two readable bags (one with --reference)', file=sys.stderr)
             return 1
-        out = args.out or Path.cwd() / 'comparison'
+        out = _replace(dirs[args.bags[0]])
         try:
             reference = comparison.load_reference(args.reference) if args.reference else None
             csv_path, md_path = comparison.write_comparison(list(runs.values()), out, args.tolerance_deg,
@@ -159,9 +221,8 @@ def main(argv=None) -> int:
             return 2
         print(f'comparison: {md_path} ({csv_path.name})', file=info)
         return status
-    for (path, run), name in zip(runs.items(), comparison.unique_names(list(runs.values()))):
-        out = _report_dir(args.out, path, name, len(runs) > 1)
-        md_path = single_run.write_report(run, out, args.tolerance_deg, args.eigen_tolerance_deg)
+    for path, run in runs.items():
+        md_path = single_run.write_report(run, _replace(dirs[path]), args.tolerance_deg, args.eigen_tolerance_deg)
         print(f'report: {md_path}', file=info)
     return status
 

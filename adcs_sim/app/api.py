@@ -29,11 +29,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from matplotlib.figure import Figure
 
 from adcs_msgs_py.params import BUILTIN_PARAMETERS, ParameterError, unflatten
-from adcs_msgs_py.params_file import load_params_file
+from adcs_msgs_py.params_file import dump_params, load_params_file, ros_value_problem
 from adcs_sim.app.analysis import RunData, attitude_errors, run_metrics
 from adcs_sim.app.batch import BatchResult, BatchSimulation
 from adcs_sim.app.montecarlo import read_results
@@ -58,17 +57,26 @@ def _plain(value: Any) -> Any:
 
 
 def _split_overrides(overrides: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
-    """``{'section.dotted.key': value}`` or ``{'section': {'dotted.key': value}}`` -> per section."""
+    """``{'section.dotted.key': value}`` or ``{'section': {'dotted.key': value}}`` -> per section,
+    each value one a params file gives a node (:func:`ros_value_problem`): the batch engine and the
+    graph (which reads the params file :meth:`Scenario.write` makes) then take the same values."""
     out: dict[str, dict[str, Any]] = {}
     for key, value in overrides.items():
         if isinstance(value, Mapping):
-            out.setdefault(key, {}).update({k: _plain(v) for k, v in value.items()})
-            continue
-        section, _, name = str(key).partition('.')
-        if not name:
-            raise ParameterError(str(key), "an override is 'section.key' (e.g. 'dynamics.duration') "
-                                 'or {section: {key: value}}')
-        out.setdefault(section, {})[name] = _plain(value)
+            section, values = str(key), {str(k): v for k, v in value.items()}
+        else:
+            section, _, name = str(key).partition('.')
+            if not name:
+                raise ParameterError(str(key), "an override is 'section.key' (e.g. 'dynamics.duration') "
+                                     'or {section: {key: value}}')
+            values = {name: value}
+        out.setdefault(section, {})   # an empty section added is a section (e.g. a fault_injector's defaults)
+        for name, v in values.items():
+            v = _plain(v)
+            problem = ros_value_problem(v)
+            if problem:
+                raise ParameterError(name, problem, section)
+            out[section][name] = v
     return out
 
 
@@ -163,7 +171,7 @@ class Scenario:
         tree = {section: {'ros__parameters': unflatten({k: _plain(v) for k, v in values.items()
                                                         if k not in BUILTIN_PARAMETERS})}
                 for section, values in self.given.items()}
-        return yaml.safe_dump(tree, sort_keys=False)
+        return dump_params(tree)
 
     def write(self, path: str | Path) -> Path:
         """Write the scenario as a params file that ``adcs-run`` runs.
@@ -210,9 +218,12 @@ class Scenario:
         BatchRuns
             ``batch[i]`` is run ``i`` as a :class:`RunResult`; ``batch.result`` the raw arrays.
         """
-        runs = [self.validated] if not variants else [self.override(v).validated for v in variants]
+        # Each variant's sections are already its own (override validates a copy); the scenario's
+        # own are copied before the simulation: nothing is copied after it, where a copy of a
+        # large batch could fail for memory and lose the computed runs (issue #31).
+        runs = [copy.deepcopy(self.validated)] if not variants else [self.override(v).validated for v in variants]
         result = BatchSimulation.from_runs(runs).run(progress=progress)
-        return BatchRuns(result, [copy.deepcopy(r) for r in runs])
+        return BatchRuns(result, runs)
 
     def run_graph(self, out: str | Path, progress: bool = False, tol_deg: float = 0.5,
                   restarts: int = 0) -> 'RunResult':

@@ -25,11 +25,15 @@ it into the viewer's own naming:
   (``/controller/status/<name>/mode``).
 
 A bag that is not a bag of the graph (not a bag, damaged beyond use, no ``state``) is a
-:class:`LayoutError` with a one-line message, as is an output that cannot be written.
+:class:`LayoutError` with a one-line message, as is an output that cannot be written. The outputs
+are checked before the bag is read (:mod:`adcs_sim.app.outputs`): never the bag or inside it, a
+folder, a FIFO, in a read-only folder, nor an existing file that is not a layout this tool wrote
+of that kind (recognised from its content: :func:`is_foxglove_layout`, :func:`is_plotjuggler_layout`).
 """
 from __future__ import annotations
 
 import json
+import os
 import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -37,6 +41,7 @@ from pathlib import Path
 
 from adcs_msgs_py import names
 from adcs_sim.app.analysis import ODOMETRY, VECTOR3_STAMPED, pointing_request
+from adcs_sim.app.outputs import OutputError, check_file
 from adcs_sim.app.report.loading import BagError, load_run
 from adcs_sim.bag.batches import ColumnReader
 from adcs_sim.bag.tf import TF_TYPE
@@ -294,8 +299,65 @@ def plotjuggler_layout(layout: Layout) -> ET.ElementTree:
 
 # --- writing --------------------------------------------------------------------------------------
 
-def write_layouts(bag, foxglove: Path | None = None, plotjuggler: Path | None = None) -> Layout:
-    """Write the layout(s) of ``bag``; :class:`LayoutError` with one line on any failure."""
+FOXGLOVE_KEYS = {'configById', 'globalVariables', 'userNodes', 'linkedGlobalVariables', 'playbackConfig', 'layout'}
+FOXGLOVE_PANEL = re.compile(r'(Plot|StateTransitions|3D)!adcs\w*')   # the panel ids foxglove_layout gives
+MAX_LAYOUT_BYTES = 1 << 20   # a layout of ours is a few kB: a larger file is not one
+
+
+def _read_small(path: Path) -> bytes | None:
+    with open(path, 'rb') as f:
+        data = f.read(MAX_LAYOUT_BYTES + 1)
+    return data if len(data) <= MAX_LAYOUT_BYTES else None
+
+
+def is_foxglove_layout(path: Path) -> bool:
+    """A Foxglove layout this tool wrote: the JSON :func:`foxglove_layout` makes (its top-level
+    keys exactly, every panel id one of ours: ``Plot!adcs0``, ``3D!adcsscene``...). A layout
+    exported from Foxglove, or any other file, is not (never overwritten)."""
+    try:
+        data = _read_small(path)
+        tree = json.loads(data) if data is not None else None
+    except (OSError, ValueError, RecursionError):
+        return False
+    return (isinstance(tree, dict) and set(tree) == FOXGLOVE_KEYS and isinstance(tree['configById'], dict)
+            and all(FOXGLOVE_PANEL.fullmatch(k) for k in tree['configById']))
+
+
+def is_plotjuggler_layout(path: Path) -> bool:
+    """A PlotJuggler layout this tool wrote: the XML :func:`plotjuggler_layout` makes (``<root>``
+    holding only ``tabbed_widget`` and ``use_relative_time_offset``, tabs named ``attitude`` /
+    ``actuators``). One saved by PlotJuggler (plugins, data files...) is not."""
+    try:
+        data = _read_small(path)
+        root = ET.fromstring(data) if data is not None else None
+    except (OSError, ET.ParseError, ValueError):
+        return False
+    if root is None or root.tag != 'root' or {c.tag for c in root} != {'tabbed_widget', 'use_relative_time_offset'}:
+        return False
+    return all(tab.tag in ('Tab', 'currentTabIndex') and tab.get('tab_name', 'attitude') in ('attitude', 'actuators')
+               for widget in root.iter('tabbed_widget') for tab in widget)
+
+
+def check_outputs(foxglove: Path | None, plotjuggler: Path | None, inputs=()) -> None:
+    """Before the bag is read: each output a writable file path, absent or a layout of ours of its
+    kind (:func:`adcs_sim.app.outputs.check_file`), not an input (the bag) nor inside one, not both
+    the same file. :class:`LayoutError` (one line) otherwise."""
+    wanted = [(p, owned) for p, owned in ((foxglove, is_foxglove_layout), (plotjuggler, is_plotjuggler_layout))
+              if p is not None]
+    try:
+        for path, owned in wanted:
+            check_file(path, inputs, owned=owned)
+    except OutputError as exc:
+        raise LayoutError(f'cannot write the layout: {exc}') from None
+    if len(wanted) == 2 and os.path.realpath(foxglove) == os.path.realpath(plotjuggler):
+        raise LayoutError(f'cannot write the layout: {plotjuggler}: given for both layouts')
+
+
+def write_layouts(bag, foxglove: Path | None = None, plotjuggler: Path | None = None, inputs=None) -> Layout:
+    """Write the layout(s) of ``bag``; :class:`LayoutError` with one line on any failure. The
+    outputs are checked before the bag is read (:func:`check_outputs`; ``inputs``: what the tool
+    reads, default the bag)."""
+    check_outputs(foxglove, plotjuggler, [bag] if inputs is None else inputs)
     layout = load_layout(bag)
     try:
         if foxglove is not None:

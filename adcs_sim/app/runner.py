@@ -38,10 +38,13 @@ from datetime import datetime
 from pathlib import Path
 
 from adcs_msgs_py import names
-from adcs_msgs_py.node import EXIT_INTRUSION, INTRUSION_LOG
+from adcs_msgs_py.node import EXIT_DISK_FULL, EXIT_FLIGHT_SOFTWARE, EXIT_INTRUSION, INTRUSION_LOG
 from adcs_msgs_py.params import ParameterError
+from adcs_msgs_py.params_file import one_line_warnings
 from adcs_sim.app.graph import PROGRESS_NODE, Graph, Progress, graph_env, lease_domain, recorded_state
+from adcs_sim.app.outputs import OutputError, check_folder
 from adcs_sim.app.registry import NODES
+from adcs_sim.app.scenario_checks import check_disk
 from adcs_sim.app.scenario_files import DEFAULT_SCENARIO, RunError, config_dirs, resolve_scenario, validate_scenario
 
 # Imported when first needed, not before the nodes start (the import of the analysis modules,
@@ -65,19 +68,23 @@ INTRUSION_RECORD_S = 30.0
 # (``startup.publishers``, adcs_msgs_py.guard.PublisherVetting); the recorder writes any other
 # publisher into the bag (``intrusions``), and the run then ends non-zero naming it.
 
-def allowed_publishers(sections) -> list[str]:
-    """``startup.publishers`` of every node of a run of ``sections`` (the scenario's node names)."""
+def allowed_publishers(sections, restarts: int = 0) -> list[str]:
+    """``startup.publishers`` of every node of a run of ``sections`` (the scenario's node names);
+    with ``restarts`` (``--restart N``), the controllers are restartable (a killed one's
+    predecessor stays in the graph for a while beside it: adcs_msgs_py.guard)."""
     by_role: dict[str, list[str]] = {}
     for name in sections:
         by_role.setdefault(NODES[name].role, []).append(name)
     allowed = {topic: [n for role in roles for n in by_role.get(role, [])]
                for topic, roles in names.PUBLISHER_ROLES.items()}
     allowed[names.RUN_NODES] = sorted({*sections, 'recorder', PROGRESS_NODE})
+    if restarts:
+        allowed[names.RESTARTABLE] = by_role.get('controller', [])
     return names.format_publishers(allowed)
 
 
-def publishers_arg(sections) -> list[str]:
-    return ['-p', f'startup.publishers:={json.dumps(allowed_publishers(sections))}']
+def publishers_arg(sections, restarts: int = 0) -> list[str]:
+    return ['-p', f'startup.publishers:={json.dumps(allowed_publishers(sections, restarts))}']
 
 
 def _compromised(found: list[str], bag_dir: Path) -> RunError | None:
@@ -165,7 +172,7 @@ def _start_graph(run: _Run, show_progress: bool):
     discovering a rogue or the injector late, fixed since by the runner's and the injector's waits
     for the recorder.) Returns the dynamics process."""
     graph, validated = run.graph, run.validated
-    common = ['--params-file', str(run.scenario), *publishers_arg(validated)]
+    common = ['--params-file', str(run.scenario), *publishers_arg(validated, run.restarts)]
     graph.start('recorder', NODES['recorder'].module,
                 [*common, '-p', f'output:={run.bag_dir}', '-p', f'scenario_file:={run.scenario}'])
     from adcs_sim.nodes.recorder import READY_LINE   # (its imports overlap the nodes' start)
@@ -231,8 +238,12 @@ def _supervise(run: _Run, dynamics) -> None:
         dead = graph.failed(watched)
         if not dead:
             continue
-        name, _ = dead
+        name, code = dead
         run.started = run.started or recorded_state(run.bag_dir)   # /clock may not have reached us yet
+        if code == EXIT_FLIGHT_SOFTWARE:   # it could not answer a step: started again, it would fail again
+            raise _flight_software_failed(run, name)
+        if name == 'recorder' and code == EXIT_DISK_FULL:   # its one line names the bag and the error
+            raise _flight_software_failed(run, name)
         if run.started and NODES[name].role == 'controller' and run.restarts_done < run.restarts:
             run.restarts_done += 1
             at = f' at t = {prog.sim_time:g} s' if prog is not None else ''
@@ -250,6 +261,18 @@ def _supervise(run: _Run, dynamics) -> None:
     run.started = True
 
 
+def _flight_software_failed(run: _Run, name: str) -> RunError:
+    """The one line of a flight-software node that stopped the run (exit EXIT_FLIGHT_SOFTWARE): its
+    error (node, time, error: adcs_controllers.laws.failure) and where the bag is."""
+    prefix = f'[{name}] error: '
+    lines = [line for line in run.graph.log_tail(name, 50).splitlines() if line.startswith(prefix)]
+    reason = lines[-1][len(prefix):] if lines else f'{run.graph.describe_exit(name)}: {run.graph.log_tail(name, 1)}'
+    if NODES[name].role in ('controller', 'estimator'):   # it answers states: the run had started
+        run.started = True
+    kept = f', bag kept in {run.bag_dir} (every step up to it)' if run.started else ''
+    return RunError(f'{reason}; graph stopped{kept}')
+
+
 def _stop_graph(run: _Run) -> None:
     """The run completed: stop the other nodes, then the recorder (which closes the bag)."""
     graph = run.graph
@@ -259,6 +282,8 @@ def _stop_graph(run: _Run) -> None:
     graph.stopping = True   # from here a signal cannot cut the shutdown short
     graph.stop_together(run.others)
     code = graph.stop('recorder')
+    if code == EXIT_DISK_FULL:   # the bag's summary did not fit: said in one line, as mid-run
+        raise _flight_software_failed(run, 'recorder')
     if code != 0:
         raise RunError(f'{graph.describe_exit("recorder")}:\n{graph.log_tail("recorder")}')
     if graph.signals:
@@ -278,7 +303,19 @@ def _finish(run: _Run, tol_deg: float):
     compromised = _compromised(analysed.intrusions, run.bag_dir)
     if compromised is not None:
         raise compromised
+    for line in analysed.unmatchable:   # could never deliver: the run is the run's (adcs_msgs_py.guard)
+        print(f'adcs-run: warning: {line}', file=sys.stderr, flush=True)
     return analysed
+
+
+def _remove_unrecorded(out: Path, given: bool) -> None:
+    """A run that recorded nothing leaves nothing: ``out``, or its content when the user gave
+    it as an empty folder (the folder is theirs)."""
+    for path in (out.iterdir() if given else [out]):
+        if path.is_dir():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
 
 
 def run_scenario(scenario: Path, out: Path, duration: float | None = None, progress: bool = True,
@@ -290,8 +327,12 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
     the lockstep loop at the next state; the steps without it are missed steps under the
     dynamics node's timeout policy). 0: a dead node stops the graph."""
     validated = validate_scenario(scenario, duration)
-    if out.exists() and any(out.iterdir()):
-        raise RunError(f'output folder {out} exists and is not empty')
+    check_disk(validated, out)   # the bag's size against the free disk at --out (issue #31)
+    try:   # absent or empty, writable, not a FIFO or a file, not the scenario's folder
+        check_folder(out, inputs=[scenario])
+    except OutputError as exc:
+        raise RunError(f'output folder {exc}') from None
+    given = out.exists()   # an empty folder of the user's: emptied, not removed, on a failed start
     lease = lease_domain(domain_id)   # before anything is written: a refused id leaves no folder
     log_dir = out / 'logs'
     log_dir.mkdir(parents=True, exist_ok=True)
@@ -320,7 +361,7 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
         if compromised is not None and compromised is not exc:
             raise compromised from exc   # a node that stopped on the intrusion: name the intruder
         if not (run.started or recorded_state(run.bag_dir)):   # never delete recorded data
-            shutil.rmtree(out, ignore_errors=True)
+            _remove_unrecorded(out, given)
         raise
     finally:
         if run.progress is not None:
@@ -336,6 +377,7 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
     return metrics
 
 
+@one_line_warnings('adcs-run')   # a section written twice, named once per line
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog='adcs-run', description=__doc__.splitlines()[0])
     parser.add_argument('scenario', nargs='?', default=None,

@@ -29,12 +29,15 @@ closed forms used (underdamped, ``ζ < 1``, as in the paper), with ``λ1 = ζ ω
   benchmark's initial torque ``kp1 |θ0| / 2``, the default limit here.
 
 CLI: ``python -m adcs_sim.app.tuning --inertia 10 --angle-deg 30 --kp1 0.02 --kd1 0.5
---gamma 0.01 [--max-torque 0.005] [--simulate]``.
+--gamma 0.01 [--max-torque 0.005] [--simulate]``. Every argument is bounded to what the model can
+take (:data:`BOUNDS`), the tuning must be finite and a ``--simulate`` run samplable
+(:data:`MAX_SAMPLES`, :data:`MAX_RADIANS`): otherwise one line on stderr naming the argument, exit 2.
 """
 from __future__ import annotations
 
 import argparse
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -225,6 +228,54 @@ def single_axis_settling_time(run: SingleAxisRun, tol: float) -> float:
 
 # --- CLI ---------------------------------------------------------------------------------------
 
+# What the single-axis model can take (SI): each positive value within 1e-9..1e9 (a nano-satellite's
+# 1e-3 kg m^2 to a station's 1e8; gains and rates alike), an eigenaxis angle in (0, 180] deg, a
+# settling band in (0, 100) %. Outside, the closed forms divide by zero or overflow.
+BOUNDS = {'inertia': (1e-9, 1e9), 'kp1': (1e-9, 1e9), 'kd1': (1e-9, 1e9), 'gamma': (1e-9, 1e9),
+          'max_torque': (1e-9, 1e9)}
+# --simulate samples every SIM_DT over 3 t_sl: at most MAX_SAMPLES samples (8 B each, a few arrays)
+# and MAX_RADIANS of the fastest mode's oscillation over the run (RK45 takes steps in proportion).
+SIM_DT, MAX_SAMPLES, MAX_RADIANS = 0.1, 10**7, 1e6
+MIN_ANGLE_DEG = 1e-6
+
+
+def _check_args(args) -> None:
+    """Every argument within what the model can take; ValueError '--option: why' otherwise."""
+    for name, (lo, hi) in BOUNDS.items():
+        value = getattr(args, name)
+        if value is not None and not lo <= value <= hi:
+            raise ValueError(f'--{name.replace("_", "-")}: must be in {lo:g}..{hi:g}, got {value:g}')
+    if not MIN_ANGLE_DEG <= abs(args.angle_deg) <= 180:
+        raise ValueError(f'--angle-deg: must be an eigenaxis angle of {MIN_ANGLE_DEG:g}..180 deg (either sign), '
+                         f'got {args.angle_deg:g}')
+    lo, hi = BOUNDS['max_torque']
+    initial = 0.5 * args.kp1 * math.radians(abs(args.angle_deg))
+    if args.max_torque is None and not lo <= initial <= hi:
+        raise ValueError(f'--max-torque: the default, the initial torque kp1 θ0 / 2 = {initial:g} N m, is outside '
+                         f'{lo:g}..{hi:g}: give one')
+    if not 0 < args.tol_percent < 100:
+        raise ValueError(f'--tol-percent: must be in (0, 100), got {args.tol_percent:g}')
+
+
+def _check_result(r: SingleAxisTuning, J: float, simulate: bool) -> None:
+    """The tuning is finite, and a simulation of it (``--simulate``) can be sampled and integrated."""
+    numbers = {'t_s': r.t_s, 't_sl': r.t_sl, 'coast rate': r.theta_dot_s, 'kp2': r.kp2, 'kd2': r.kd2,
+               'peak torque': r.peak_torque}
+    bad = [k for k, v in numbers.items() if not (math.isfinite(v) and v != 0.0)]
+    if bad:
+        raise ValueError(f'the values give a degenerate tuning ({", ".join(bad)} zero or not finite)')
+    if not simulate:
+        return
+    t_end = 3.0 * r.t_sl
+    if t_end / SIM_DT > MAX_SAMPLES:
+        raise ValueError(f'--simulate: 3 t_sl = {t_end:.3g} s is {t_end / SIM_DT:.3g} samples of {SIM_DT:g} s '
+                         f'(at most {MAX_SAMPLES:.0e})')
+    radians = t_end * math.sqrt(max(r.kp1, r.kp2) / (2.0 * J))
+    if radians > MAX_RADIANS:
+        raise ValueError(f'--simulate: the high-gain mode turns {radians:.3g} rad over 3 t_sl '
+                         f'(at most {MAX_RADIANS:.0e}: the integrator would not finish)')
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog='adcs-tune-gsmn',
@@ -245,9 +296,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     theta0 = math.radians(args.angle_deg)
     try:
+        _check_args(args)
         r = tune_single_axis(args.inertia, args.kp1, args.kd1, args.gamma, theta0, args.max_torque)
+        _check_result(r, args.inertia, args.simulate)
     except ValueError as exc:
-        parser.error(str(exc))
+        print(f'adcs-tune-gsmn: {exc}', file=sys.stderr)
+        return 2
     print(f'damping ratio ζ            {r.zeta:.4f}')
     print(f'switch-off time t_s        {r.t_s:.3f} s  (θ_s = {math.degrees(r.theta_s):.3f} deg, '
           f'coast rate {math.degrees(r.theta_dot_s):.5f} deg/s)')
