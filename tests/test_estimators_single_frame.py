@@ -64,6 +64,16 @@ def test_wahba_solvers_equal_align_vectors_batched_and_single(estimator, n_vec):
     assert (batched[:, 3] >= 0).all()
 
 
+def test_quest_gives_each_element_of_a_batch_the_bits_it_gets_alone():
+    """Newton's iteration for λmax stops per element (noisy vectors converge in different numbers of
+    steps): an element of a batch is not iterated further because another has not converged."""
+    q, b, r, w = scenario(200, 2, seed=31)
+    b = b + np.random.default_rng(32).normal(scale=np.geomspace(1e-8, 1e-1, 200)[:, None, None], size=b.shape)
+    batched = quest(b, r, w)
+    for i in range(200):
+        np.testing.assert_array_equal(batched[i], quest(b[i], r[i], w[i]), err_msg=f'element {i}')
+
+
 def test_quest_covers_both_branches_near_180_degrees():
     """Rotations within a few degrees of 180° take the q-method fallback, the rest Newton + Gibbs:
     both equal align_vectors."""

@@ -6,6 +6,7 @@ No ROS; ~6 s in total."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -293,6 +294,31 @@ def test_batch_equals_loop_bit_identical():
         assert_array_equal(on_b[i], on_i)
         assert_array_equal(tm_b[i], tm_i)
         assert_array_equal(on_b2[i], on_i2)
+
+
+def test_actuation_takes_one_off_level_per_run_with_a_shared_on_level():
+    """firing.off_level dispersed, on_level shared (as a campaign's batch stacks them): each run keeps
+    its own Schmitt trigger, fires as it does alone, and the off levels give different firings."""
+    from adcs_controllers.families import BACKSTEPPING
+    from adcs_sim.app.scenario_files import validate_scenario
+    section = validate_scenario(Path(__file__).parents[1] / 'config' / 'eseo_backstepping_slew.yaml')
+    p = section[BACKSTEPPING.schema.node]
+    offs = [0.002, 0.006, 0.012]
+    batch = bs.ThrusterActuation({**p, 'firing.off_level': np.array(offs)})
+    alone = [bs.ThrusterActuation({**p, 'firing.off_level': off}) for off in offs]
+    tau = np.array([0.0, 0.0, 0.017])   # demands of 0.020 N on two thrusters at scale 1 (on_level 0.013)
+    w, speed = np.zeros((3, 3)), np.zeros((3, 1))
+    fired = []
+    for scale in (1.0, 0.8, 0.5, 0.25, 0.05, 1.0):   # demands 0.020, 0.016, 0.010, 0.005, 0.001, 0.020
+        on_b, tm_b, _ = batch.command(np.tile(scale * tau, (3, 1)), w, speed)
+        for i, act in enumerate(alone):
+            on_i, tm_i, _ = act.command(scale * tau, w[i], speed[i])
+            assert_array_equal(on_b[i], on_i)
+            assert_array_equal(tm_b[i], tm_i)
+        fired.append(on_b.sum(axis=-1) > 0)
+    assert [list(f) for f in zip(*fired)] == [[True, True, True, True, False, True],
+                                              [True, True, True, False, False, True],
+                                              [True, True, False, False, False, True]]
 
 
 # --- reference trajectory ----------------------------------------------------------------------------------

@@ -242,6 +242,33 @@ def test_m2s_law_batch_equals_loop_bit_for_bit():
     assert fired  # extremum tracking changed a commanded rate on the way
 
 
+B_DIAGONALS = np.array([[1.2, 1.3, 1.4], [1.1, 1.5, 1.3], [1.4, 1.2, 1.25]])   # (3, 3): three runs, not a matrix
+B_MATRICES = np.array([[2.0, 0.1, 0.0, -0.1, 2.1, 0.2, 0.0, 0.1, 1.9],
+                       [1.8, 0.0, 0.3, 0.2, 2.2, 0.0, -0.2, 0.1, 2.0]])           # (2, 9): two runs
+
+
+@pytest.mark.parametrize('B, proposition', [(B_DIAGONALS, 1), (B_MATRICES, 2)], ids=['diagonal', 'full'])
+def test_inertia_free_laws_take_one_B_per_run(B, proposition):
+    """B dispersed (as a campaign's batch stacks it: one row of 3 or 9 values per run): each run of
+    either law gives the bits it gives alone, and its own torque."""
+    n = len(B)
+    q = Rotation.random(n, random_state=21).as_quat()
+    w = np.random.default_rng(22).normal(size=(n, 3)) * 0.1
+    for build in (lambda b: m2r.M2rLaw(m2r_params(1.0, B=b, proposition=proposition if len(b) else 1)),
+                  lambda b: m2s.M2sLaw(m2s_params(B=b))):
+        batch, alone = build(B), [build(B[i].tolist()) for i in range(n)]
+        for k in range(4):
+            u, st = batch.control(0.1 * k, q, w)
+            for i, law in enumerate(alone):
+                ui, sti = law.control(0.1 * k, q[i], w[i])
+                assert_array_equal(u[i], ui)
+                for key in st:
+                    assert_array_equal(np.broadcast_to(st[key], (n,) + np.shape(sti[key]))[i], sti[key], err_msg=key)
+            if k == 0:   # B reaches every run: its first torque is not that of B = I
+                u_identity = build([]).control(0.0, q, w)[0]
+                assert not np.any(np.all(u == u_identity, axis=-1))
+
+
 # --- Propositions 1 and 2 -------------------------------------------------------------------------
 
 @pytest.mark.parametrize('f', ['eq24', 'eq25'])

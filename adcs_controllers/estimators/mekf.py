@@ -64,8 +64,9 @@ def process_noise(dt: float, sigma_v, sigma_u) -> np.ndarray:
     """The discrete process noise ``Q`` (..., 6, 6) of the gyro model over ``dt`` (the standard
     small-rate form): ``Q11 = (σ_v² Δt + σ_u² Δt³/3) I``, ``Q12 = Q21 = −(σ_u² Δt²/2) I``,
     ``Q22 = σ_u² Δt I``."""
-    sv2 = np.asarray(sigma_v, dtype=float)[..., None, None] ** 2
-    su2 = np.asarray(sigma_u, dtype=float)[..., None, None] ** 2
+    # one batch shape for both (a campaign may disperse either: sigma_v (N,) with sigma_u scalar)
+    sv2, su2 = np.broadcast_arrays(np.asarray(sigma_v, dtype=float)[..., None, None] ** 2,
+                                   np.asarray(sigma_u, dtype=float)[..., None, None] ** 2)
     eye = np.eye(3)
     top = np.concatenate([(sv2 * dt + su2 * dt ** 3 / 3.0) * eye, -su2 * dt ** 2 / 2.0 * eye], axis=-1)
     bottom = np.concatenate([-su2 * dt ** 2 / 2.0 * eye, su2 * dt * eye], axis=-1)

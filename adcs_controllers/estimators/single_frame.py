@@ -13,7 +13,10 @@ the reference (inertial) frame, arrays (..., n, 3); weights ``w`` (..., n) or (n
 attitude matrix ``A`` maps reference to body, ``b = A r``; the project's quaternion ``q`` (scalar last,
 body in inertial, :func:`adcs_core.attitude.rotate_to_body`) has ``R(q) = Aᵀ``, and the book's
 scalar-last quaternion of ``A`` is numerically the same ``q``. Every estimate is returned with
-``q4 ≥ 0``. Wahba's loss is ``L(A) = ½ Σ w_i |b_i − A r_i|²``.
+``q4 ≥ 0``. Wahba's loss is ``L(A) = ½ Σ w_i |b_i − A r_i|²``. Matrix-vector products go through
+:func:`adcs_core.attitude.matvec` and dot products are summed in a fixed order (not ``einsum``, whose
+summation order depends on the shapes), and iterations stop per element: an element of a batch gets
+the bits it gets alone (a campaign's run as the run alone).
 
 Bad input raises :class:`ValueError` naming the first bad batch element: a non-finite or zero-length
 vector, a negative or non-finite weight, or an unobservable attitude (all weighted vectors parallel
@@ -23,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from adcs_core.attitude import cross, dot, scipy_rotation
+from adcs_core.attitude import cross, dot, matvec, scipy_rotation
 
 # Observability: the smallest eigenvalue of Σ w_i (I − b_i b_iᵀ), relative to Σ w_i, below which the
 # rotation about the common direction is undetermined (≈ the squared sine of the largest angle
@@ -84,6 +87,11 @@ def _checked(b, r, w):
     _check_observable(b, w, 'body vectors')
     _check_observable(r, w, 'reference vectors')
     return b, r, w
+
+
+def _dot4(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Dot product of 4-vectors along the last axis in a fixed order (as :func:`adcs_core.attitude.dot`)."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2] + a[..., 3] * b[..., 3]
 
 
 def _canonical(q: np.ndarray) -> np.ndarray:
@@ -151,7 +159,7 @@ def _characteristic(S, sigma, z):
     """Coefficients of Shuster's characteristic equation of K (Shuster & Oh 1981; Markley & Crassidis
     §5.3 QUEST): ``f(λ) = λ⁴ − (a + b) λ² − c λ + (a b + c σ − d)`` with ``κ = tr adj S``,
     ``Δ = det S``, ``a = σ² − κ``, ``b = σ² + zᵀz``, ``c = Δ + zᵀ S z``, ``d = zᵀ S² z``."""
-    Sz = np.einsum('...ij,...j->...i', S, z)
+    Sz = matvec(S, z)
     kappa = (S[..., 1, 1] * S[..., 2, 2] - S[..., 1, 2] * S[..., 2, 1]
              + S[..., 0, 0] * S[..., 2, 2] - S[..., 0, 2] * S[..., 2, 0]
              + S[..., 0, 0] * S[..., 1, 1] - S[..., 0, 1] * S[..., 1, 0])
@@ -164,16 +172,20 @@ def _characteristic(S, sigma, z):
 
 def quest_lambda_max(S, sigma, z, lam0) -> np.ndarray:
     """``λmax`` by Newton's iteration on the characteristic equation from ``λ0 = Σ w_i`` (exact for
-    noiseless vectors); stops at a relative step of 1e-15 or after ``NEWTON_MAX_ITER`` steps."""
+    noiseless vectors); each element stops at its own relative step of 1e-15 (the steps after it
+    are not taken: an element of a batch gets the bits it gets alone) or after ``NEWTON_MAX_ITER``
+    steps."""
     a, bb, c, d = _characteristic(S, sigma, z)
     const = a * bb + c * sigma - d
-    lam = np.array(lam0, dtype=float, copy=True)
+    lam = np.broadcast_to(np.asarray(lam0, dtype=float), np.broadcast_shapes(np.shape(lam0), np.shape(a))).copy()
+    done = np.zeros(lam.shape, dtype=bool)
     for _ in range(NEWTON_MAX_ITER):
         f = ((lam ** 2 - (a + bb)) * lam - c) * lam + const
         fp = (4.0 * lam ** 2 - 2.0 * (a + bb)) * lam - c
         step = np.where(fp != 0, f / np.where(fp != 0, fp, 1.0), 0.0)
-        lam = lam - step
-        if np.all(np.abs(step) <= 1e-15 * lam0):
+        lam = np.where(done, lam, lam - step)
+        done |= np.abs(step) <= 1e-15 * lam0
+        if np.all(done):
             break
     return lam
 
@@ -205,10 +217,11 @@ def quest(b, r, w=None) -> np.ndarray:
     K = _k_matrix(S, sigma, z)
     q, ok = _gibbs(S, sigma, z, quest_lambda_max(S, sigma, z, w.sum(axis=-1)))
     ok &= q[..., 3] >= QUEST_Q4_MIN           # decided on the first solution: near 180° it is garbage
-    lam = np.einsum('...i,...ij,...j->...', q, K, q)
+    lam = _dot4(q, matvec(K, q))
     q, ok2 = _gibbs(S, sigma, z, lam)
     with np.errstate(all='ignore'):
-        residual = np.sqrt(((np.einsum('...ij,...j->...i', K, q) - lam[..., None] * q) ** 2).sum(axis=-1))
+        e = matvec(K, q) - lam[..., None] * q
+        residual = np.sqrt(_dot4(e, e))
     fall = ~ok | ~ok2 | (q[..., 3] < QUEST_Q4_MIN) | ~(residual <= QUEST_RESIDUAL_MAX * w.sum(axis=-1))
     if fall.any():
         q[fall] = np.linalg.eigh(K[fall])[1][..., :, -1]

@@ -481,7 +481,8 @@ class ThrusterActuation:
         on = np.asarray(p['firing.on_level'], dtype=float)
         off = np.asarray(p['firing.off_level'], dtype=float)
         same = bool(np.array_equal(on, off))
-        on, off = (on[..., None], off[..., None]) if on.ndim else (float(on), float(off))  # per run
+        # per run when either is (one dispersed, the other shared): against each run's (..., n) demands
+        on, off = (on[..., None], off[..., None]) if on.ndim or off.ndim else (float(on), float(off))
         self.allocation = ThrusterWheelAllocation(
             _geometry(p['thrusters.positions'], n), _geometry(p['thrusters.directions'], n),
             np.asarray(p['thrusters.max_force'], dtype=float),

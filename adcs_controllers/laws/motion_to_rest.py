@@ -153,9 +153,11 @@ def prop2_bound(alpha, beta, B=None):
 
 
 def _prop1_applies(B) -> bool:
-    """Whether the proof of Proposition 1 holds for B: ``‖B⁻¹‖∞ ≤ σmax(B⁻¹)`` (max absolute row sum)."""
+    """Whether the proof of Proposition 1 holds for B (or each B of a batch (..., 3, 3)):
+    ``‖B⁻¹‖∞ ≤ σmax(B⁻¹)`` (max absolute row sum)."""
     Bi = _b_inv(B)
-    return bool(np.abs(Bi).sum(axis=-1).max() <= np.linalg.norm(Bi, 2) * (1 + 1e-12))
+    row_sums = np.abs(Bi).sum(axis=-1).max(axis=-1)
+    return bool(np.all(row_sums <= np.linalg.norm(Bi, 2, axis=(-2, -1)) * (1 + 1e-12)))
 
 
 def check_m2r_gains(alpha, beta, u_max, B=None, proposition: int = 1) -> None:
@@ -213,18 +215,24 @@ def given(p, key):
 
 def matrix_param(p, key, default):
     """An n x n gain from a section: empty -> ``default`` (n x n), a scalar (times ``default``),
-    n diagonal values, or n² row-major values."""
+    n diagonal values, or n² row-major values; the values on the last axis, any leading axes a
+    batch (one gain per run, as :meth:`Schema.stack` gives a dispersed key): (..., n, n). A
+    (3, 3) array is three runs' diagonals, not one matrix (a matrix is its 9 values)."""
     v = given(p, key)
     if v is None:
         return default
     v = np.asarray(v, dtype=float)
     n = default.shape[-1]
-    if v.size == 1:
-        return v.reshape(()) * default
-    if v.size == n:
-        return np.diag(v.reshape(n))
-    if v.size == n * n:
-        return v.reshape(n, n)
+    size = v.shape[-1] if v.ndim else 1
+    batch = v.shape[:-1]
+    if size == 1:
+        return v.reshape(batch + (1, 1)) * default
+    if size == n:   # exact zeros off the diagonal, as np.diag (not v * I: -0.0 for negative values)
+        out = np.zeros(batch + (n, n))
+        out[..., np.arange(n), np.arange(n)] = v
+        return out
+    if size == n * n:
+        return v.reshape(batch + (n, n))
     raise ValueError(f'{key} must be a scalar, {n} diagonal or {n * n} row-major values, got shape {v.shape}')
 
 
@@ -236,8 +244,9 @@ def actuation_matrix(p) -> np.ndarray | None:
 
 class InertiaFreeLaw(SectionLaw):
     """Common keys: ``A`` diag(A) (3 values, eq. 13), ``alpha``, ``beta`` (eq. 15-16 / 44), ``B``
-    (3 diagonal or 9 row-major values, empty: I), ``torquers.max_torque`` (u_max, N m; a pure-law
-    caller may give ``u_max`` instead: scalar, 3, (..., 1) or (..., 3)).
+    (3 diagonal or 9 row-major values, or one row of them per run, (N, 3) or (N, 9); empty: I),
+    ``torquers.max_torque`` (u_max, N m; a pure-law caller may give ``u_max`` instead: scalar, 3,
+    (..., 1) or (..., 3)).
 
     ``p`` is a validated section (:data:`adcs_controllers.families.M2R_SCHEMA` /
     ``M2S_SCHEMA``): every key is there, with the schema's default where the file has none; the

@@ -43,6 +43,7 @@ from typing import Callable
 
 import numpy as np
 
+from adcs_controllers.laws.failure import answer, estimate_step
 from adcs_core.attitude import quat_norm, quat_normalize
 from adcs_core.faults import FAULT_ERROR_MODES, split_snapshot
 from adcs_msgs_py.measurements import Estimate, Measurements, Reading, received_unit_vector
@@ -215,6 +216,7 @@ class BatchSimulation:
                 raise ParameterError(names[0], 'an estimator needs sensors: fit them in the dynamics section '
                                      '(sensors.*.enabled)')
             self.estimator = NODES[names[0]].family.build(sections[names[0]], references)
+            self.estimator_name = names[0]
         elif self.feedback == 'estimate':
             raise ParameterError('feedback', "'estimate' needs an estimator section", self.controller)
 
@@ -226,7 +228,8 @@ class BatchSimulation:
         else:                                # the dynamics section's sensor suite, as the node publishes it
             raw = self._measure(k, (k * self.period_ns) / NS_PER_S, x)
             bias_true = self.sensors.gyro.true_bias if self.sensors.gyro is not None else None
-        est, status = self.estimator.step(as_received(raw))
+        # the node's call: FlightSoftwareError (naming the runs of a non-finite estimate) where it stops
+        est, status = estimate_step(self.estimator_name, self.estimator, as_received(raw))
         rec = hist.setdefault('estimate', {'status': {}})
         values = {'q': est.q, 'w': est.w, 'bias': est.bias, 'cov': est.cov, 'rate_cov': est.rate_cov}
         if bias_true is not None:
@@ -330,11 +333,14 @@ class BatchSimulation:
             q_m, w_m = self.measurement.measure(x[:, :4], x[:, 4:7])
         q_m = quat_normalize(q_m)  # what a controller does to the attitude it receives
         momentum = self.law.output == 'wheel_momentum'
+        # FlightSoftwareError where the controller node stops (the law raises); the node counts a
+        # refused state (ValueError) instead, which a batch cannot skip for one run: it fails too
         if self.needs_wheel_momentum:
             speed = x[:, wheel_sl][:, self.momentum_index]
-            out, status = self.law.control(t, q_m, w_m, self.actuation.wheel_momentum(speed))
+            out, status = answer(self.controller, k * self.period_ns, lambda: self.law.control(
+                t, q_m, w_m, self.actuation.wheel_momentum(speed)))
         else:
-            out, status = self.law.control(t, q_m, w_m)
+            out, status = answer(self.controller, k * self.period_ns, lambda: self.law.control(t, q_m, w_m))
         if observe is not None:
             observe(k, t, status)
         if momentum:
@@ -437,6 +443,26 @@ class BatchSimulation:
                            thruster_on_time=hist['on'], thruster_impulse=hist['impulse'],
                            pointing=self.pointing, sensors=hist.get('sensors', {}),
                            estimate=hist.get('estimate'))
+
+
+# Float64 values a run records per control step (BatchSimulation._history: q, w, u; per wheel its
+# speed, per thruster its on-time and impulse) and, with an estimator, per step its estimate (q, w,
+# bias, the 6x6 and 3x3 covariances, the true bias) and its status (the bias, and per sensor its NIS,
+# innovation, use and missing / rejected counts).
+STATE_VALUES = 4 + 3 + 3
+ESTIMATE_VALUES = 4 + 3 + 3 + 36 + 9 + 3 + 3
+STATUS_VALUES_PER_SENSOR = 5
+
+
+def run_bytes(sections: dict, steps: int) -> int:
+    """Memory one run of a batch of ``sections`` (validated, as :class:`BatchSimulation` takes them)
+    records over ``steps`` control steps: what each run of a campaign's chunk holds until its row
+    is made (without ``record_sensors``)."""
+    d = sections['dynamics']
+    values = STATE_VALUES + len(d['wheels.names']) + 2 * len(d['thrusters.names'])
+    values += sum(ESTIMATE_VALUES + STATUS_VALUES_PER_SENSOR * len(p['sensors'])
+                  for name, p in sections.items() if name in NODES and NODES[name].role == 'estimator')
+    return 8 * values * (steps + 1)
 
 
 SensorSource = Callable[[int, int, np.ndarray, np.ndarray], Measurements]

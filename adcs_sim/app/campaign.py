@@ -24,7 +24,8 @@ Distributions (``shape`` is the nominal value's: a scalar or a list):
 * ``euler213_uniform`` (quaternions): 2-1-3 Euler angles each uniform in ``[-max_deg, max_deg]``
   (``max_deg``: one value or three in sequence order y, x, z), as seed 004 states its slews;
 * ``so3_uniform`` (quaternions): uniformly distributed on SO(3) (:meth:`Rotation.random`);
-* ``run_index`` (integers, e.g. ``dynamics.noise.seed``): ``offset`` + the run's index.
+* ``run_index`` (integers, e.g. ``dynamics.noise.seed``): ``offset`` + the run's index;
+* ``bernoulli`` (booleans, e.g. ``m2s_controller.vag``): true with probability ``p``.
 
 A scenario whose controller points a body axis (seed 003: ``sigma``, ``tau`` in its section) adds
 the pointing metrics of :func:`adcs_sim.app.analysis.pointing_metrics` (first entry and settling at
@@ -38,13 +39,23 @@ plant's, a torque limit known to both). Run ``i`` draws from its own generator
 batch-independent, its results — are the same bit for bit however the campaign is split.
 
 Everything is checked before anything runs: the campaign's own keys, each dispersion (unknown
-section or parameter, a parameter the batch engine cannot vary, std < 0, low > high, lengths),
-and every run's drawn parameters against the node schemas (a negative inertia drawn names its
-run and key). :func:`run_chunk` then simulates a list of runs with the batch engine; a run that
-diverges is a failed row with its inputs, and the campaign goes on.
+section or parameter, a parameter the batch engine cannot vary, std < 0, low > high, lengths, a
+range that overflows, an offset past 64-bit integers), the requirements (finite, min <= max), and
+every run's drawn parameters against the node schemas (a negative inertia drawn names its run and
+key); the counts against what the seeding and this machine can take
+(:data:`adcs_sim.app.campaign_checks.MAX_RUNS`, the memory of a chunk's batch and of every run's
+row: :meth:`Campaign.check_memory`). :func:`run_chunk` then simulates a list of runs with the batch
+engine; a run that diverges, or whose model raises (an SGP4 failure, a law or an estimator that
+cannot answer), is a failed row with its inputs and its reason, the other runs of its batch are
+unchanged, and the campaign goes on.
+
+The file's keys, counts, metrics, requirements and memory are checked by
+:mod:`adcs_sim.app.campaign_checks`; each dispersion's arguments, and how it draws, by
+:mod:`adcs_sim.app.campaign_draws`.
 """
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -52,32 +63,21 @@ from typing import Any
 
 import numpy as np
 import yaml
-from scipy.spatial.transform import Rotation
 
-from adcs_core.attitude import EULER_213
 from adcs_msgs_py.params import ParameterError, unflatten
-from adcs_msgs_py.params_file import load_params_file
 from adcs_sim.app.analysis import RunData, attitude_errors_deg, pointing_error_deg, run_metrics
-from adcs_sim.app.batch import BatchSimulation
+from adcs_sim.app.batch import BatchSimulation, run_bytes
 from adcs_sim.app.batch_metrics import batch_metric_columns, metric_columns
+from adcs_sim.app.campaign_checks import (CampaignError, campaign_metrics, campaign_numbers,
+                                          campaign_requirements, campaign_scenario, campaign_section,
+                                          check_campaign_memory, resolve_campaign, runs_key)
+from adcs_sim.app.campaign_draws import Dispersion, dispersion_args
 from adcs_sim.app.estimation import estimation_metric_names
 from adcs_sim.app.registry import NODES
-from adcs_sim.app.scenario_files import RunError, config_dirs, resolve_scenario, validate_scenario
 from adcs_sim.app.seeding import run_generators
+from adcs_sim.truth.schema import step_timing
 
-DISTRIBUTIONS = {
-    'normal': ({'std'}, {'mean', 'link'}),
-    'uniform': (set(), {'low', 'high', 'plus_minus', 'link'}),
-    'euler213_uniform': ({'max_deg'}, {'link'}),
-    'so3_uniform': (set(), {'link'}),
-    'run_index': (set(), {'offset', 'link'}),
-}
-CAMPAIGN_KEYS = {'scenario', 'runs', 'seed', 'chunk_size', 'tolerance_deg', 'metrics', 'requirements',
-                 'dispersions', 'series_every'}
-
-
-class CampaignError(ValueError):
-    """The campaign file is malformed or a run's drawn parameters are impossible."""
+log = logging.getLogger(__name__)
 
 
 def metric_names(tol_deg: float, pointing: bool = False) -> list[str]:
@@ -88,161 +88,6 @@ def metric_names(tol_deg: float, pointing: bool = False) -> list[str]:
                     t_u=t[:1], u=np.zeros((1, 3)), missed_steps=0,
                     pointing=(np.array([1.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0])) if pointing else None)
     return list(metric_columns(run_metrics(dummy, tol_deg)))
-
-
-@dataclass
-class Dispersion:
-    """How one parameter is drawn (see the module docstring)."""
-
-    section: str
-    key: str
-    distribution: str
-    args: dict[str, Any]
-    links: list[tuple[str, str]] = field(default_factory=list)
-
-    @property
-    def target(self) -> str:
-        return f'{self.section}.{self.key}'
-
-    def draw(self, rng: np.random.Generator, nominal: Any, index: int) -> Any:
-        """One value for run ``index``, in the nominal value's form (float, int or list)."""
-        raw, values = self.sampler(nominal)
-        return values(np.array([raw(rng, index)])).tolist()[0]
-
-    def sampler(self, nominal: Any):
-        """``(raw, values)``, the arguments broadcast once (:meth:`Campaign.draws` makes one per
-        dispersion): ``raw(rng, index)`` is what run ``index``'s generator draws for this dispersion
-        (deviates uniform on [0, 1), standard normals, an SO(3) quaternion, the index), and
-        ``values(raws)`` turns the raws of many runs, stacked (runs, ...), into their values at
-        once (an array, one row per run; for ``euler213_uniform`` the quaternions of the 2-1-3
-        angles, in degrees, by one scipy call, which converts row by row).
-
-        The same numbers as numpy's ``rng.uniform(low, high)`` and ``rng.normal(mean, std)`` run by
-        run: numpy draws those as ``low + (high - low) * u`` and ``mean + std * z`` from the same
-        deviates (``random_uniform`` / ``random_normal`` of its distributions code, the range
-        ``high - low`` computed first), here one multiply and one add over all the runs
-        (``tests/test_campaign_draws.py`` compares them with numpy's calls)."""
-        kind, a = self.distribution, self.args
-        if kind == 'run_index':
-            offset = int(a.get('offset', 0))
-            return (lambda rng, index: offset + index), np.asarray
-        if kind == 'so3_uniform':   # Rotation.random: 4 normals, then from_quat's normalisation
-            return (lambda rng, index: rng.normal(size=(4,))), _unit_rows
-        if kind == 'euler213_uniform':
-            high = np.ascontiguousarray(np.broadcast_to(np.asarray(a['max_deg'], dtype=float), (3,)))
-            low = -high
-            angles = _uniform(low, high)
-            return (lambda rng, index: rng.random(3)), \
-                lambda raws: Rotation.from_euler(EULER_213, angles(raws), degrees=True).as_quat()
-        base = np.asarray(nominal, dtype=float)
-        full = lambda v: np.array(np.broadcast_to(np.asarray(v, dtype=float), base.shape))  # noqa: E731
-        shape = base.shape or None
-        if kind == 'normal':
-            mean, std = full(a.get('mean', base)), full(a['std'])
-            return (lambda rng, index: rng.standard_normal(shape)), lambda raws: mean + std * raws
-        if 'plus_minus' in a:
-            half = full(a['plus_minus'])
-            values = _uniform(base - half, base + half)
-        else:
-            values = _uniform(full(a['low']), full(a['high']))
-        return (lambda rng, index: rng.random(shape)), values
-
-
-def _unit_rows(q: np.ndarray) -> np.ndarray:
-    """Each row of ``q`` (runs, 4) divided by its norm as scipy's ``Rotation`` normalises a
-    quaternion (``_normalize4``: ``sqrt((x x + y y + z z) + w w)``)."""
-    norm = np.sqrt((q[:, 0] * q[:, 0] + q[:, 1] * q[:, 1] + q[:, 2] * q[:, 2]) + q[:, 3] * q[:, 3])
-    return q / norm[:, None]
-
-
-def _uniform(low: np.ndarray, high: np.ndarray):
-    """``u -> low + (high - low) u``: numpy's ``Generator.uniform`` of deviates ``u`` (which refuses
-    a range that overflows)."""
-    span = high - low
-    if not np.all(np.isfinite(span)):
-        raise OverflowError('Range exceeds valid bounds')
-    return lambda raws: low + span * raws
-
-
-# --- reading a campaign file (Campaign.load) ---------------------------------------------------
-
-def _campaign_section(path: Path) -> dict:
-    """The ``campaign:`` mapping of the file at ``path``, its keys checked."""
-    try:
-        tree = yaml.safe_load(path.read_text(encoding='utf-8'))
-    except OSError as exc:
-        raise CampaignError(f'cannot read campaign {path}: {exc.strerror}') from None
-    except yaml.YAMLError as exc:
-        raise CampaignError(f'{path} is not valid YAML: {exc}') from None
-    if not isinstance(tree, dict) or set(tree) != {'campaign'} or not isinstance(tree['campaign'], dict):
-        raise CampaignError(f'{path}: expected one top-level mapping `campaign:`')
-    c = tree['campaign']
-    unknown = sorted(set(c) - CAMPAIGN_KEYS)
-    if unknown:
-        raise CampaignError(f'campaign.{unknown[0]}: unknown key; known: {sorted(CAMPAIGN_KEYS)}')
-    if 'scenario' not in c:
-        raise CampaignError('campaign.scenario: required (the scenario file to disperse)')
-    return c
-
-
-def _campaign_scenario(c: dict, path: Path) -> tuple[Path, dict, dict]:
-    """(scenario path, validated sections, sections as written) of ``campaign.scenario``: relative
-    to the campaign file, else a scenario name or path as ``adcs-run`` takes it."""
-    scenario = Path(str(c['scenario']))
-    candidate = scenario if scenario.is_absolute() else path.parent / scenario
-    try:
-        scenario_path = candidate.resolve() if candidate.exists() else resolve_scenario(str(scenario))
-        defaults = validate_scenario(scenario_path)
-        nominal = load_params_file(str(scenario_path))
-    except (RunError, ParameterError) as exc:
-        raise CampaignError(f'campaign.scenario: {exc}') from None
-    return scenario_path, defaults, nominal
-
-
-def _campaign_numbers(c: dict, runs: int | None) -> tuple[int, int, int, float, int]:
-    """(runs, seed, chunk_size, tolerance_deg, series_every), checked (``runs`` overrides the file's)."""
-    runs = _integer(c, 'runs', runs)
-    if runs < 1:
-        raise CampaignError(f'campaign.runs: must be at least 1, got {runs}')
-    seed = _integer(c, 'seed', None, default=0)
-    if seed < 0:
-        raise CampaignError(f'campaign.seed: must be >= 0, got {seed}')
-    chunk = _integer(c, 'chunk_size', None, default=100)
-    if chunk < 1:
-        raise CampaignError(f'campaign.chunk_size: must be at least 1, got {chunk}')
-    tol = c.get('tolerance_deg', 0.5)
-    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0 < tol < 180:
-        raise CampaignError(f'campaign.tolerance_deg: must be a number in (0, 180), got {tol!r}')
-    series_every = _integer(c, 'series_every', None, default=0)
-    if series_every < 0:
-        raise CampaignError(f'campaign.series_every: must be >= 0 (0: no series), got {series_every}')
-    return runs, seed, chunk, float(tol), series_every
-
-
-def _campaign_metrics(c: dict, known: list[str]) -> list[str]:
-    """``campaign.metrics`` (default: every known metric), each name expanded to its columns."""
-    metrics = c.get('metrics') or known
-    if not isinstance(metrics, list):
-        raise CampaignError('campaign.metrics: must be a list of metric names')
-    expanded = []
-    for m in metrics:
-        cols = [k for k in known if k == m or k.startswith(f'{m}[')]
-        if not cols:
-            raise CampaignError(f'campaign.metrics: unknown metric {m!r}; known: {known}')
-        expanded += cols
-    return list(dict.fromkeys(expanded))
-
-
-def _campaign_requirements(c: dict, known: list[str]) -> dict[str, dict[str, float]]:
-    """``campaign.requirements``: ``{metric: {min: x} and/or {max: x}}``, checked."""
-    requirements = c.get('requirements') or {}
-    for m, bound in requirements.items():
-        if m not in known:
-            raise CampaignError(f'campaign.requirements.{m}: unknown metric; known: {known}')
-        if not isinstance(bound, dict) or not bound or set(bound) - {'min', 'max'} or not all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in bound.values()):
-            raise CampaignError(f'campaign.requirements.{m}: expected {{min: x}} and/or {{max: x}}')
-    return {m: {k: float(v) for k, v in b.items()} for m, b in requirements.items()}
 
 
 @dataclass
@@ -261,6 +106,7 @@ class Campaign:
     requirements: dict[str, dict[str, float]]
     dispersions: list[Dispersion]
     series_every: int = 0   # keep each run's error series every this many steps (0: none)
+    runs_key: str = 'campaign.runs'   # where the run count comes from (the file, or --runs)
     checked: bool = False   # every run's draw validated (check_runs): run_chunk need not repeat it
     # check_runs' draws of every run, with what they were drawn from (seed, dispersions): draws()
     # takes a chunk's rows from them instead of seeding each run's generator again
@@ -269,17 +115,19 @@ class Campaign:
     @classmethod
     def load(cls, path, runs: int | None = None) -> 'Campaign':
         """Read and check a campaign file (``runs`` overrides its run count). Raises CampaignError."""
-        path = _resolve_campaign(Path(path))
-        c = _campaign_section(path)
-        scenario_path, defaults, nominal = _campaign_scenario(c, path)
-        runs, seed, chunk, tol, series_every = _campaign_numbers(c, runs)
+        path = resolve_campaign(Path(path))
+        c = campaign_section(path)
+        scenario_path, defaults, nominal = campaign_scenario(c, path)
+        where_runs = runs_key(runs)
+        runs, seed, chunk, tol, series_every = campaign_numbers(c, runs)
         known = metric_names(tol, pointing=_points_an_axis(defaults)) + _estimation_columns(defaults)
-        metrics = _campaign_metrics(c, known)
-        requirements = _campaign_requirements(c, known)
+        metrics = campaign_metrics(c, known)
+        requirements = campaign_requirements(c, known)
         campaign = cls(path=path.resolve(), scenario_path=scenario_path, nominal=nominal,
                        defaults=defaults, runs=runs,
                        seed=seed, chunk_size=chunk, tol_deg=tol, metrics=metrics,
-                       requirements=requirements, dispersions=[], series_every=series_every)
+                       requirements=requirements, dispersions=[], series_every=series_every,
+                       runs_key=where_runs)
         dispersions = c.get('dispersions') or {}
         if not isinstance(dispersions, dict):
             raise CampaignError('campaign.dispersions: must be a mapping <section>.<parameter>: {...}')
@@ -308,51 +156,15 @@ class Campaign:
     def _dispersion(self, target: str, spec: Any) -> Dispersion:
         where = f'campaign.dispersions.{target}'
         section, key, param = self._target(where, target)
-        if not isinstance(spec, dict) or 'distribution' not in spec:
-            raise CampaignError(f'{where}: expected a mapping with `distribution:` '
-                                f'(one of {sorted(DISTRIBUTIONS)})')
-        kind = spec['distribution']
-        if kind not in DISTRIBUTIONS:
-            raise CampaignError(f'{where}.distribution: unknown {kind!r}; known: {sorted(DISTRIBUTIONS)}')
-        required, optional = DISTRIBUTIONS[kind]
-        args = {k: v for k, v in spec.items() if k != 'distribution'}
-        extra = sorted(set(args) - required - optional)
-        if extra:
-            raise CampaignError(f'{where}.{extra[0]}: not a field of {kind} '
-                                f'(fields: {sorted(required | optional)})')
-        missing = sorted(required - set(args))
-        if missing:
-            raise CampaignError(f'{where}.{missing[0]}: required by {kind}')
         nominal = self._nominal_value(section, key)
-        quaternion = param.kind == 'double_array' and param.length == 4
-        if kind in ('euler213_uniform', 'so3_uniform') and not quaternion:
-            raise CampaignError(f'{where}: {kind} draws attitudes; {target} is not a quaternion')
-        if kind == 'run_index' and param.kind != 'int':
-            raise CampaignError(f'{where}: run_index draws integers; {target} is a {param.kind}')
-        if kind in ('normal', 'uniform') and param.kind not in ('double', 'double_array'):
-            raise CampaignError(f'{where}: {kind} draws real numbers; {target} is a {param.kind}')
-        shape = np.shape(nominal)
-        for name in ('std', 'mean', 'low', 'high', 'plus_minus', 'max_deg', 'offset'):
-            if name not in args:
-                continue
-            value = _numbers(f'{where}.{name}', args[name], (3,) if name == 'max_deg' else shape,
-                             integer=name == 'offset')
-            if name in ('std', 'plus_minus', 'max_deg') and np.any(value < 0):
-                raise CampaignError(f'{where}.{name}: must be >= 0, got {args[name]!r}')
-            args[name] = value
-        if kind == 'uniform':
-            if 'plus_minus' in args and ({'low', 'high'} & set(args)):
-                raise CampaignError(f'{where}: give either low/high or plus_minus, not both')
-            if 'plus_minus' not in args:
-                if not {'low', 'high'} <= set(args):
-                    raise CampaignError(f'{where}: uniform needs low and high (or plus_minus)')
-                if np.any(args['low'] > args['high']):
-                    raise CampaignError(f'{where}: low must not exceed high '
-                                        f'(low {args["low"].tolist()}, high {args["high"].tolist()})')
+        kind, args = dispersion_args(where, target, spec, param, nominal, self.runs)
         links = []
-        for link in args.pop('link', []) or []:
+        link_spec = args.pop('link', None) or []
+        if not isinstance(link_spec, list):
+            raise CampaignError(f'{where}.link: expected a list of <section>.<parameter>, got {link_spec!r}')
+        for link in link_spec:
             lsection, lkey, _ = self._target(f'{where}.link', link)
-            if np.shape(self._nominal_value(lsection, lkey)) != shape:
+            if np.shape(self._nominal_value(lsection, lkey)) != np.shape(nominal):
                 raise CampaignError(f'{where}.link: {link} does not have the shape of {target}')
             links.append((lsection, lkey))
         return Dispersion(section, key, kind, args, links)
@@ -393,7 +205,8 @@ class Campaign:
                 out.append(raw(rng, index))
         if not indices:
             return [np.zeros(0) for _ in samplers]
-        return [values(np.array(r)) for (_, values), r in zip(samplers, raws)]
+        with np.errstate(over='ignore', invalid='ignore'):   # a draw that overflows: the schema refuses it
+            return [values(np.array(r)) for (_, values), r in zip(samplers, raws)]
 
     def _draw_key(self) -> tuple:
         """What the draws depend on besides the run index (seed, dispersions, run count)."""
@@ -450,6 +263,8 @@ class Campaign:
         targets = [d.target for d in self.dispersions]
         first = self._changes(dict(zip(targets, [c[0].tolist() for c in columns])))
         stacked = self._changes(dict(zip(targets, columns)))
+        duration = np.max(stacked.get('dynamics', {}).get('duration', self.defaults['dynamics']['duration']))
+        self.check_memory(int(step_timing({**self.defaults['dynamics'], 'duration': duration})[1]))
         pending = [s for s in self.nominal if s in stacked and not NODES[s].schema.validate_stacked(
             self.defaults[s], stacked[s], first[s])]
         if pending:
@@ -459,6 +274,15 @@ class Campaign:
                 for section in pending:
                     self._revalidate(i, inputs, section, changes.get(section, {}))
         self.checked = True
+
+    def check_memory(self, steps: int) -> None:
+        """The campaign fits this machine's memory (CampaignError naming the key otherwise): a chunk's
+        batch, its runs of ``steps`` control steps (the longest run's) recorded and their metrics
+        computed, and every run's row (and error series) until the tables are written
+        (:func:`adcs_sim.app.campaign_checks.check_campaign_memory`)."""
+        values = len(self.metrics) + sum(int(np.size(self._nominal_value(d.section, d.key))) for d in self.dispersions)
+        check_campaign_memory(self.runs_key, self.runs, self.chunk_size, steps, run_bytes(self.defaults, steps),
+                              values, self.series_every)
 
     def batch_sections(self, indices: list[int], inputs: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
         """The sections of runs ``indices`` (their draws ``inputs``) stacked for the batch engine:
@@ -510,12 +334,32 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
     """Simulate runs ``indices`` as one batch; one row per run: ``run``, ``status`` (``ok``,
     ``failed`` or ``violated``), ``reason``, the dispersed inputs and the metric columns.
 
-    A pure function of its arguments (what a Dask worker executes).
+    A pure function of its arguments (what a Dask worker executes). A run whose model raises (its
+    SGP4 fails, a law or an estimator cannot answer: :class:`adcs_controllers.laws.failure.FlightSoftwareError`,
+    or any other error of its simulation) is a ``failed`` row with the error as its reason and NaN
+    metrics; the batch is split in halves until that run is alone, so the others' rows are those
+    they get without it (a run's numbers do not depend on the runs sharing its batch).
     """
-    inputs = campaign.draws(indices)
-    result = BatchSimulation(campaign.batch_sections(indices, inputs), len(indices)).run()
-    with np.errstate(all='ignore'):  # a diverged run's metrics overflow to inf: that is the result
-        metrics = batch_metric_columns(result, campaign.tol_deg)  # metric_columns(result.metrics(j, tol))
+    return _rows(campaign, indices, campaign.draws(indices))[0]
+
+
+def _rows(campaign: Campaign, indices: list[int], inputs: list[dict]) -> tuple[list[dict], int]:
+    """:func:`run_chunk`'s rows of runs ``indices`` (their draws ``inputs``): one batch, or its halves
+    if it raises; and how many of them raised alone."""
+    try:
+        result = BatchSimulation(campaign.batch_sections(indices, inputs), len(indices)).run()
+        with np.errstate(all='ignore'):  # a diverged run's metrics overflow to inf: that is the result
+            metrics = batch_metric_columns(result, campaign.tol_deg)  # metric_columns(result.metrics(j, tol))
+    except Exception as exc:  # noqa: BLE001 - any error of a run's model is its failure, in its row
+        if len(indices) == 1:
+            return [_failed_row(campaign, indices[0], inputs[0], exc)], 1
+        half = len(indices) // 2
+        (first, a), (second, b) = (_rows(campaign, indices[:half], inputs[:half]),
+                                   _rows(campaign, indices[half:], inputs[half:]))
+        if not a + b:   # no run fails alone: the batch engine's own fault
+            log.warning('runs %d..%d raised %s as one batch but each ran alone: their rows are the runs '
+                        "alone's (a batch engine bug)", indices[0], indices[-1], _one_line(exc))
+        return first + second, a + b
     rows = []
     for j, index in enumerate(indices):
         columns = metrics[j]
@@ -524,12 +368,27 @@ def run_chunk(campaign: Campaign, indices: list[int]) -> list[dict]:
             status, reason = 'failed', result.failure[j]
         elif violations := campaign.verdict(columns):
             status, reason = 'violated', '; '.join(violations)
+        # a metric this run has none of (a sensor it never used, a NEES of other degrees of freedom): NaN
         row = {'run': index, 'status': status, 'reason': reason, 'inputs': inputs[j],
-               'metrics': {m: columns[m] for m in campaign.metrics}}
+               'metrics': {m: columns.get(m, math.nan) for m in campaign.metrics}}
         if campaign.series_every:
             row['series'] = error_series(result, j, campaign.series_every)
         rows.append(row)
-    return rows
+    return rows, 0
+
+
+def _one_line(exc: BaseException) -> str:
+    return f'{type(exc).__name__}: {" ".join(str(exc).split())}'
+
+
+def _failed_row(campaign: Campaign, index: int, inputs: dict, exc: Exception) -> dict:
+    """The row of run ``index`` whose simulation raised ``exc``: failed, the error as its reason, no
+    metric (NaN) and no series."""
+    row = {'run': index, 'status': 'failed', 'reason': _one_line(exc), 'inputs': inputs,
+           'metrics': {m: math.nan for m in campaign.metrics}}
+    if campaign.series_every:
+        row['series'] = {'t': np.zeros(0), 'error_deg': np.zeros(0, dtype=np.float32), 'kind': 'none'}
+    return row
 
 
 def error_series(result, j: int, every: int) -> dict:
@@ -545,44 +404,10 @@ def error_series(result, j: int, every: int) -> dict:
 def _estimation_columns(sections: dict) -> list[str]:
     """The estimation metrics of a scenario with an estimator section (each run's row gets them)."""
     return [name for section, params in sections.items() if section in NODES and NODES[section].role == 'estimator'
-            for name in estimation_metric_names(params['sensors'])]
+            # a filter with bias states models their random walk (gyro.sigma_u): its NEES has 6 dof
+            for name in estimation_metric_names(params['sensors'], bias_states='gyro.sigma_u' in params)]
 
 
 def _points_an_axis(sections: dict) -> bool:
     """Whether a scenario's controller points a body axis (seed 003: ``sigma`` and ``tau``)."""
     return any('sigma' in params and 'tau' in params for params in sections.values())
-
-
-def _resolve_campaign(path: Path) -> Path:
-    """A campaign path, or a bare file name found in the ``campaigns`` folder of the configs."""
-    if path.exists() or path.is_absolute() or len(path.parts) != 1:
-        return path
-    for d in config_dirs():
-        if (d / 'campaigns' / path.name).exists():
-            return d / 'campaigns' / path.name
-    return path
-
-
-def _integer(c: dict, key: str, override: int | None, default: int | None = None) -> int:
-    value = override if override is not None else c.get(key, default)
-    if value is None:
-        raise CampaignError(f'campaign.{key}: required')
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise CampaignError(f'campaign.{key}: expected an integer, got {value!r}')
-    return value
-
-
-def _numbers(where: str, value: Any, shape: tuple, integer: bool = False) -> np.ndarray:
-    """A finite number or list broadcastable to ``shape``; CampaignError otherwise."""
-    flat = value if isinstance(value, list) else [value]
-    if not flat or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in flat):
-        raise CampaignError(f'{where}: expected a number or a list of numbers, got {value!r}')
-    arr = np.asarray(value, dtype=np.int64 if integer else float)
-    if not np.all(np.isfinite(arr)):
-        raise CampaignError(f'{where}: must be finite, got {value!r}')
-    try:
-        np.broadcast_to(arr, shape)
-    except ValueError:
-        raise CampaignError(f'{where}: {np.size(arr)} values do not fit the parameter '
-                            f'({math.prod(shape) or 1} values)') from None
-    return arr

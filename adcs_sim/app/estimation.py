@@ -203,13 +203,16 @@ def estimation_metrics(s: EstimationSeries, settle_s: float = 0.0) -> dict:
     return out
 
 
-def estimation_metric_names(sensors) -> list[str]:
+def estimation_metric_names(sensors, bias_states: bool = True) -> list[str]:
     """The keys :func:`estimation_metrics` gives for a batch run of an estimator using ``sensors``
-    (a Monte Carlo table's estimation columns), from the function itself on a two-step stand-in."""
+    (a Monte Carlo table's estimation columns), from the function itself on a two-step stand-in;
+    ``bias_states``: the estimator estimates the gyro bias (the MEKF: a 6-dof NEES), else its
+    covariance has no bias block (a single-frame estimator: 3 dof)."""
     one, eye = np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), np.broadcast_to(np.eye(3) * 1e-6, (2, 3, 3))
     z = np.zeros((2, 3))
+    cov = np.eye(6) * 1e-6 if bias_states else np.diag([1e-6] * 3 + [0.0] * 3)
     s = EstimationSeries(t=np.array([0.0, 1.0]), q=one, w=z, att_cov=eye, rate_cov=eye, q_true=one, w_true=z,
-                         bias=z, bias_true=z, cov=np.broadcast_to(np.eye(6) * 1e-6, (2, 6, 6)),
+                         bias=z, bias_true=z, cov=np.broadcast_to(cov, (2, 6, 6)),
                          nis={name: np.ones(2) for name in sensors if name != 'gyro'})
     return list(estimation_metrics(s))
 

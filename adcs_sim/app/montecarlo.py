@@ -26,7 +26,16 @@ Output folder (``--out``, default ``runs/<campaign>_<timestamp>``):
 * with ``--paired-with DIR`` (another campaign's output over the same draws, e.g. another law):
   ``paired.md`` / ``paired.json``, the run-by-run relative change of every metric.
 
-Exit status: 0 done (even with failed runs: they are results), 2 bad campaign (nothing ran).
+The output folder is checked before any run (:mod:`adcs_sim.app.outputs`): absent or empty,
+writable, not a file or a FIFO, not holding the campaign, its scenario or ``--paired-with``. An
+existing campaign output is replaced only with ``--overwrite``, and only if it holds nothing but
+what this tool writes (:func:`is_campaign_output`); its files are removed once the runs are done,
+before the new ones are written. ``--export-run`` never replaces a file. ``--scheduler ADDR`` is
+checked before any run: malformed, refused at once; no answer within ``CONNECT_TIMEOUT_S`` (5 s),
+refused in one line.
+
+Exit status: 0 done (even with failed runs: they are results), 2 bad campaign, output or scheduler
+(nothing ran).
 """
 from __future__ import annotations
 
@@ -36,7 +45,9 @@ import json
 import logging
 import math
 import os
+import re
 import shutil
+import socket
 import sys
 from datetime import datetime
 from pathlib import Path
@@ -46,9 +57,12 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
+from adcs_msgs_py.params_file import one_line_warnings
 from adcs_sim.app.campaign import Campaign, CampaignError, run_chunk
+from adcs_sim.app.outputs import OutputError, check_file, check_folder
 
 PERCENTILES = (5, 50, 95)
+MAX_WORKERS = 4 * (os.cpu_count() or 1)   # LocalCluster processes: more only thrash
 
 
 # --- execution ---------------------------------------------------------------------------------
@@ -78,7 +92,7 @@ def execute(campaign: Campaign, scheduler: str = 'local', workers: int | None = 
                                        silence_logs=logging.ERROR)
                 client = Client(cluster)
             else:
-                cluster, client = None, Client(scheduler)
+                cluster, client = None, _connect(Client, scheduler)
             try:
                 futures = client.map(run_chunk, [campaign] * len(chunks), chunks, pure=False)
                 for future in as_completed(futures):
@@ -93,6 +107,63 @@ def execute(campaign: Campaign, scheduler: str = 'local', workers: int | None = 
         bar.close()
     rows.sort(key=lambda r: r['run'])
     return rows
+
+
+# Seconds to connect to a scheduler given by address (Dask's own default is 30 s, then two
+# tracebacks): a scheduler on a reachable host answers in milliseconds; 5 s leaves room for a
+# loaded machine or a remote host, and is what a user waits for a wrong address.
+CONNECT_TIMEOUT_S = 5.0
+SCHEDULER_ADDRESS = re.compile(r'(?:(?P<protocol>tcp|tls)://)?(?P<host>[A-Za-z0-9._-]+|\[[0-9A-Fa-f:.]+\])'
+                               r':(?P<port>[0-9]{1,5})')
+
+
+def scheduler_endpoint(address: str) -> tuple[str, int]:
+    """(host, port) of a Dask scheduler address ``[tcp://|tls://]host:port``; CampaignError
+    naming it otherwise (before anything is read or run)."""
+    match = SCHEDULER_ADDRESS.fullmatch(address)
+    if match is None or not 1 <= int(match['port']) <= 65535:
+        raise CampaignError(f"--scheduler {address!r}: not 'local', 'none' nor a scheduler address "
+                            'tcp://host:port (port 1..65535)')
+    return match['host'].strip('[]'), int(match['port'])
+
+
+def check_scheduler(address: str) -> None:
+    """A Dask scheduler answers at ``address`` within CONNECT_TIMEOUT_S, else CampaignError in
+    one line (checked before any run). A ``tcp://`` scheduler speaks first (its handshake, a
+    msgpack map naming ``compression``): a server that accepts and stays silent is refused here,
+    since the Dask client's own handshake read has no timeout (it waited forever). ``tls://``:
+    the connection only (TLS waits for the client)."""
+    if address in ('local', 'none'):
+        return
+    host, port = scheduler_endpoint(address)
+    why = None
+    try:
+        with socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S) as conn:
+            if not address.startswith('tls://'):
+                conn.settimeout(CONNECT_TIMEOUT_S)
+                first = conn.recv(256)
+                why = None if b'compression' in first else (
+                    'it closed the connection' if not first else 'what answered is not a Dask scheduler')
+    except TimeoutError:
+        why = 'nothing answered'
+    except OSError as exc:
+        why = exc.strerror or str(exc)
+    if why is not None:
+        raise CampaignError(f'--scheduler {address}: no Dask scheduler answered within {CONNECT_TIMEOUT_S:g} s: '
+                            f'{why}')
+
+
+def _connect(client_type, address: str):
+    """A Dask client of the scheduler at ``address``; CampaignError in one line if no Dask
+    scheduler answers there within CONNECT_TIMEOUT_S. Any error is that: a server of another
+    kind makes the client fail in any way (seen: a 3 EiB allocation from the frame size it read)."""
+    scheduler_endpoint(address)
+    try:
+        return client_type(address, timeout=CONNECT_TIMEOUT_S)
+    except Exception as exc:  # noqa: BLE001 - whatever answered is not a usable scheduler
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise CampaignError(f'--scheduler {address}: no Dask scheduler answered within '
+                            f'{CONNECT_TIMEOUT_S:g} s ({first[:200]})') from None
 
 
 # --- results ---------------------------------------------------------------------------------
@@ -273,7 +344,7 @@ def write_series(rows: list[dict], out: Path, figure: bool = True) -> list[Path]
         e = r['series']['error_deg']
         err[i, :e.size] = e
     np.savez_compressed(out / 'series.npz', t=t, error_deg=err, runs=np.array([r['run'] for r in rows]))
-    if not figure:
+    if not figure or not t.size:   # no run has a series (every one failed before its first step)
         return []
     from matplotlib.figure import Figure
 
@@ -360,7 +431,63 @@ def _json_default(v):
 
 # --- CLI -------------------------------------------------------------------------------------
 
-def main(argv=None) -> int:
+# What write_outputs (and --paired-with) write: a folder holding only these is a campaign output
+# of this tool, the one kind of folder --overwrite replaces.
+CAMPAIGN_FILES = frozenset({'campaign.yaml', 'results.csv', 'results.parquet', 'summary.json', 'summary.md',
+                            'series.npz', 'paired.json', 'paired.md'})
+CAMPAIGN_FOLDERS = {'replay': re.compile(r'run_[0-9]+\.yaml'),
+                    'figures': re.compile(r'(hist_.+|error_all_runs)\.(png|svg)')}
+
+
+def _plain_file(entry: os.DirEntry) -> bool:
+    return entry.is_file(follow_symlinks=False)
+
+
+def is_campaign_output(folder: Path) -> bool:
+    """A campaign output of this tool: ``campaign.yaml`` and ``summary.json``, and nothing but
+    the files :func:`write_outputs` writes (``replay/run_<i>.yaml``, ``figures/hist_*``...); no
+    symlink, no other file or folder."""
+    names = set()
+    with os.scandir(folder) as entries:
+        for entry in entries:
+            names.add(entry.name)
+            pattern = CAMPAIGN_FOLDERS.get(entry.name)
+            if pattern is not None and entry.is_dir(follow_symlinks=False):
+                with os.scandir(entry.path) as inner:
+                    if not all(_plain_file(e) and pattern.fullmatch(e.name) for e in inner):
+                        return False
+            elif entry.name not in CAMPAIGN_FILES or not _plain_file(entry):
+                return False
+    return {'campaign.yaml', 'summary.json'} <= names
+
+
+def clear_campaign_output(folder: Path) -> None:
+    """Remove an old campaign's outputs (:func:`is_campaign_output` checked again first), so
+    the new campaign's are never mixed with them."""
+    if not folder.is_dir() or next(folder.iterdir(), None) is None:
+        return
+    if not is_campaign_output(folder):
+        raise CampaignError(f'--out {folder}: no longer only a campaign output: not replaced')
+    for entry in list(folder.iterdir()):
+        if entry.is_dir():
+            for inner in entry.iterdir():
+                inner.unlink()
+            entry.rmdir()
+        else:
+            entry.unlink()
+
+
+def _check_outputs(args, campaign: Campaign, out: Path) -> None:
+    """Every output of this invocation usable, before any run (OutputError otherwise)."""
+    inputs = [campaign.path, campaign.scenario_path, args.paired_with]
+    if args.export_run is not None:
+        check_file(out, inputs)   # an export never replaces a file
+    else:
+        check_folder(out, inputs, owned=is_campaign_output if args.overwrite else None)
+
+
+@one_line_warnings('adcs-montecarlo')   # a scenario section written twice, named once per line
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog='adcs-montecarlo', description=__doc__.splitlines()[0])
     parser.add_argument('campaign', help='campaign YAML file')
     parser.add_argument('--runs', type=int, default=None, help='number of runs (overrides the file)')
@@ -374,30 +501,44 @@ def main(argv=None) -> int:
     parser.add_argument('--paired-with', type=Path, default=None, metavar='DIR',
                         help="another campaign's output folder over the same draws: write paired.md/json, "
                              'the run-by-run relative change of every metric')
+    parser.add_argument('--overwrite', action='store_true',
+                        help='replace --out if it is the output of an earlier campaign (only then: a folder '
+                             'holding anything else is refused); its files are removed before the new ones')
     parser.add_argument('--no-figures', action='store_true', help='skip the histograms')
     parser.add_argument('--quiet', action='store_true', help='no progress bar')
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv=None) -> int:
+    args = _parser().parse_args(argv)
     try:
         if args.runs is not None and args.runs < 1:
             raise CampaignError(f'--runs: must be at least 1, got {args.runs}')
-        if args.workers is not None and args.workers < 1:
-            raise CampaignError(f'--workers: must be at least 1, got {args.workers}')
+        if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
+            raise CampaignError(f'--workers: must be in 1..{MAX_WORKERS} (4 per core), got {args.workers}')
+        if args.scheduler not in ('local', 'none'):
+            scheduler_endpoint(args.scheduler)
         campaign = Campaign.load(args.campaign, args.runs)
+        if args.export_run is not None and not 0 <= args.export_run < campaign.runs:
+            raise CampaignError(f'--export-run: run {args.export_run} is not in 0..{campaign.runs - 1}')
+        if args.paired_with is not None and not (args.paired_with / 'results.csv').is_file():
+            raise CampaignError(f'--paired-with: no results.csv in {args.paired_with}')
         if args.export_run is not None:
-            if not 0 <= args.export_run < campaign.runs:
-                raise CampaignError(f'--export-run: run {args.export_run} is not in 0..{campaign.runs - 1}')
-            target = args.out or Path(f'run_{args.export_run}.yaml')
-            target.write_text(campaign.scenario_text(args.export_run))
-            print(f'adcs-montecarlo: run {args.export_run} written to {target} (replay: adcs-run {target})')
+            out = args.out or Path(f'run_{args.export_run}.yaml')
+        else:
+            out = args.out or Path('runs') / f'{Path(args.campaign).stem}_{datetime.now():%Y%m%d_%H%M%S}'
+        _check_outputs(args, campaign, out)
+        if args.export_run is not None:
+            out.write_text(campaign.scenario_text(args.export_run))
+            print(f'adcs-montecarlo: run {args.export_run} written to {out} (replay: adcs-run {out})')
             return 0
-    except CampaignError as exc:
-        print(f'adcs-montecarlo: {exc}', file=sys.stderr)
+        check_scheduler(args.scheduler)
+        rows = execute(campaign, args.scheduler, args.workers, progress=not args.quiet)
+        if args.overwrite:
+            clear_campaign_output(out)
+    except (CampaignError, OutputError) as exc:
+        print(f'adcs-montecarlo: {"--out " if isinstance(exc, OutputError) else ""}{exc}', file=sys.stderr)
         return 2
-    if args.paired_with is not None and not (args.paired_with / 'results.csv').exists():
-        print(f'adcs-montecarlo: --paired-with: no results.csv in {args.paired_with}', file=sys.stderr)
-        return 2
-    out = args.out or Path('runs') / f'{Path(args.campaign).stem}_{datetime.now():%Y%m%d_%H%M%S}'
-    rows = execute(campaign, args.scheduler, args.workers, progress=not args.quiet)
     summary = write_outputs(campaign, rows, out, figures=not args.no_figures)
     print(summary_markdown(summary))
     if args.paired_with is not None:

@@ -26,6 +26,7 @@ MIX_MULT_L, MIX_MULT_R = 0xca01f9dd, 0x4973f715
 XSHIFT = 16
 MASK32, MASK128 = 0xFFFFFFFF, (1 << 128) - 1
 PCG_MULT = (2549297995355413924 << 64) + 4865540595714422341   # PCG_DEFAULT_MULTIPLIER_128
+MAX_RUN_INDEX = MASK32             # the run index is the spawn key's one 32-bit word
 
 
 def _words(n: int) -> list[int]:
@@ -77,7 +78,7 @@ def pcg64_states(seed: int, indices) -> list[dict]:
     """``np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(i,))).state`` of each run index i
     (ints in [0, 2**32): one word of spawn key)."""
     indices = np.asarray(indices, dtype=np.int64)
-    if indices.size and not (0 <= indices.min() and indices.max() <= MASK32) or seed < 0:
+    if indices.size and not (0 <= indices.min() and indices.max() <= MAX_RUN_INDEX) or seed < 0:
         raise ValueError('run indices must be in [0, 2**32) and the seed >= 0')
     h, words = INIT_B, []
     with np.errstate(over='ignore'):   # uint32 arithmetic: modulo 2**32, as numpy's C

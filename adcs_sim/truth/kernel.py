@@ -358,6 +358,8 @@ class KernelPlan:
         kinds = [getattr(a, 'kernel_kind', None) for a in plant.actuators]
         if not ENABLED or None in kinds or len(set(kinds)) != len(kinds):
             return None
+        if plant.disturbance is not None and plant.disturbance.batched:   # one environment for every run
+            return None
         return cls(plant)
 
     def warm(self, plant) -> None:

@@ -280,8 +280,14 @@ class Disturbance:
     phase: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self) -> None:
-        for name in ('constant', 'amplitude', 'frequency', 'phase'):
-            setattr(self, name, np.asarray(getattr(self, name), dtype=float).reshape(3))
+        for name in ('constant', 'amplitude', 'frequency', 'phase'):   # (3,), or (N, 3) dispersed in a batch
+            value = np.asarray(getattr(self, name), dtype=float)
+            setattr(self, name, value.reshape(value.shape[:-1] + (3,)) if value.ndim > 1 else value.reshape(3))
+
+    @property
+    def batched(self) -> bool:
+        """Whether the runs of a batch have their own disturbances (the compiled kernel shares one)."""
+        return any(getattr(self, name).ndim > 1 for name in ('constant', 'amplitude', 'frequency', 'phase'))
 
     @property
     def active(self) -> bool:
