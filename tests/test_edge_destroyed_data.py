@@ -25,6 +25,7 @@ from conftest import ROOT, alive, children, make_scenario, states_on_disk
 
 from adcs_sim.app.analyze import main as analyze_main
 from adcs_sim.app.repair import main as repair_main
+from adcs_sim.bag.lock import bag_writer
 from adcs_sim.bag.reader import is_complete, read_metadata, read_raw
 from adcs_sim.bag.writer import BagWriter
 
@@ -104,8 +105,8 @@ class TestDestroyedOrHiddenData:
 
     def test_repair_of_a_live_runs_bag_is_refused_and_the_run_keeps_its_bag_and_metrics(self, tmp_path, spawn):
         """The issue's must-show: ``adcs-bag-repair`` on the bag of a run under way. The run is frozen
-        mid-run (its dynamics node stopped with SIGSTOP, a lockstep timeout longer than any stop) so
-        the attempt is certain to meet a live recorder; afterwards the run completes with every step
+        (its dynamics node stopped with SIGSTOP as soon as it exists, a lockstep timeout longer than
+        any stop) so the attempt is certain to meet a live recorder; afterwards the run completes with every step
         in its bag and the metrics of the whole run."""
         steps = 600
         scenario = make_scenario(tmp_path, {'dynamics': {'duration': float(steps), 'lockstep.timeout': 600.0},
@@ -115,20 +116,26 @@ class TestDestroyedOrHiddenData:
         proc = spawn([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
                       '--no-progress'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
         deadline = time.monotonic() + 120
-        while states_on_disk(bag) < 2:
+        dynamics = None   # stopped as soon as it exists: the run cannot have ended, however fast the machine
+        while dynamics is None:
             assert proc.poll() is None, proc.communicate()
-            assert time.monotonic() < deadline, 'the run did not start'
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                proc.wait(timeout=0.1)
-        nodes = children(proc.pid)
-        spawn.adopt(nodes)
-        dynamics = next(pid for pid, cmd in nodes.items() if 'adcs_sim.nodes.dynamics' in cmd)
-        recorder = next(pid for pid, cmd in nodes.items() if 'adcs_sim.nodes.recorder' in cmd)
+            assert time.monotonic() < deadline, 'the run did not start its dynamics node'
+            dynamics = next((pid for pid, cmd in children(proc.pid).items() if 'adcs_sim.nodes.dynamics' in cmd), None)
+            if dynamics is None:
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    proc.wait(timeout=0.01)
         os.kill(dynamics, signal.SIGSTOP)
         try:
+            while bag_writer(bag) is None:   # the recorder has taken its bag (its lock held)
+                assert proc.poll() is None, proc.communicate()
+                assert time.monotonic() < deadline, 'the recorder did not take its bag'
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    proc.wait(timeout=0.05)
+            nodes = children(proc.pid)
+            spawn.adopt(nodes)
+            recorder = next(pid for pid, cmd in nodes.items() if 'adcs_sim.nodes.recorder' in cmd)
             assert alive(dynamics), 'the run ended before it could be stopped'
-            recorded = states_on_disk(bag)
-            assert 2 <= recorded < steps + 1
+            assert states_on_disk(bag) < steps + 1
             before = sorted(p.name for p in bag.iterdir())
             code, _, err = run_tool(repair_main, str(bag))
             assert code == 1 and len(err) == 1 and writer_named(err[0], recorder), err

@@ -10,7 +10,7 @@ import shutil
 
 import pytest
 from conftest import ROOT
-from edge_paths import one_line
+from helpers.edge_paths import one_line
 
 from adcs_sim.app.analyze import main as analyze
 from adcs_sim.app import layouts

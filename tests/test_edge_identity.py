@@ -177,7 +177,7 @@ def test_a_publisher_of_another_type_is_reported_and_the_run_goes_on(tmp_path, m
     every state: the run completes (exit 0), ``adcs-run`` warns naming the node, topic and type,
     the bag's ``intrusions`` record has it as a warning, nothing is quarantined and the run is the
     clean run, bit for bit."""
-    steps = 300
+    steps = 3000   # the recorder discovers the rogue while the run goes on (a 300-step run once ended first)
     code, err, out = run_with_rogue(tmp_path, monkeypatch, topics.WHEELS_CMD, start_s=0.0,
                                     duration_s=steps, msg_type=String)
     assert code == 0, err

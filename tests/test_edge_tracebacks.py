@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 import yaml
 from conftest import CONFIG, ROOT, make_scenario
-from edge_paths import fifo, one_line, read_only
+from helpers.edge_paths import fifo, one_line, read_only, tiny_campaign
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -32,13 +32,7 @@ def _reached(*args, **kwargs):
 
 
 def _campaign(folder: Path, runs: int = 3) -> Path:
-    folder.mkdir(parents=True, exist_ok=True)
-    scenario = make_scenario(folder, {'dynamics': {'duration': 5.0}})
-    path = folder / 'campaign.yaml'
-    path.write_text(yaml.safe_dump({'campaign': {
-        'scenario': str(scenario), 'runs': runs, 'seed': 3, 'chunk_size': runs,
-        'dispersions': {'pd_controller.kd': {'distribution': 'uniform', 'plus_minus': 0.01}}}}))
-    return path
+    return tiny_campaign(folder, 5.0, 3, runs)
 
 
 @contextlib.contextmanager

@@ -8,9 +8,7 @@ from __future__ import annotations
 import copy
 
 import pytest
-import yaml
-from conftest import make_scenario
-from edge_paths import fifo, one_line, read_only
+from helpers.edge_paths import fifo, one_line, read_only, tiny_campaign
 
 from adcs_sim.app import montecarlo
 from adcs_sim.app.api import Scenario
@@ -18,14 +16,7 @@ from adcs_sim.app.batch import BatchSimulation
 
 
 def _campaign(tmp_path, runs: int = 3):
-    folder = tmp_path / 'in'
-    folder.mkdir()
-    scenario = make_scenario(folder, {'dynamics': {'duration': 4.0}})
-    path = folder / 'campaign.yaml'
-    path.write_text(yaml.safe_dump({'campaign': {
-        'scenario': str(scenario), 'runs': runs, 'seed': 5, 'chunk_size': runs,
-        'dispersions': {'pd_controller.kd': {'distribution': 'uniform', 'plus_minus': 0.01}}}}))
-    return path
+    return tiny_campaign(tmp_path / 'in', 4.0, 5, runs)
 
 
 @pytest.fixture

@@ -1,5 +1,5 @@
-"""Output paths of every kind for the issue #31 edge tests (tests/test_edge_*.py): a FIFO, a
-folder that refuses writes even to root, a file, a missing parent.
+"""Output paths of every kind for the edge tests (tests/test_edge_*.py): a FIFO, a
+folder that refuses writes even to root, a file, a missing parent; a tiny campaign.
 
 The tests run as root in CI, where ``chmod 0o555`` stops nothing (``os.access`` says writable):
 a read-only folder is then made immutable (``FS_IMMUTABLE_FL``, what ``chattr +i`` sets; root
@@ -14,6 +14,8 @@ import os
 from pathlib import Path
 
 import pytest
+import yaml
+from conftest import make_scenario
 
 FS_IOC_GETFLAGS, FS_IOC_SETFLAGS, FS_IMMUTABLE_FL = 0x80086601, 0x40086602, 0x10
 
@@ -62,3 +64,14 @@ def one_line(err: str, *names) -> str:
     for name in names:
         assert str(name) in lines[0], (name, lines[0])
     return lines[0]
+
+
+def tiny_campaign(folder: Path, duration: float, seed: int, runs: int = 3) -> Path:
+    """A campaign file in ``folder`` (created): ``runs`` PD runs of ``duration`` s, kd dispersed."""
+    folder.mkdir(parents=True, exist_ok=True)
+    scenario = make_scenario(folder, {'dynamics': {'duration': duration}})
+    path = folder / 'campaign.yaml'
+    path.write_text(yaml.safe_dump({'campaign': {
+        'scenario': str(scenario), 'runs': runs, 'seed': seed, 'chunk_size': runs,
+        'dispersions': {'pd_controller.kd': {'distribution': 'uniform', 'plus_minus': 0.01}}}}))
+    return path
