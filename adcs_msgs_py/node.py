@@ -60,6 +60,7 @@ UNMATCHABLE_LOG = 'unmatchable publisher: '   # the warning for a publisher of a
 EXIT_RUN_STOPPED = 5   # the run cannot go on (e.g. the plant state is no longer finite)
 EXIT_FLIGHT_SOFTWARE = 6   # a controller or estimator could not answer a step (FlightSoftwareFailed)
 EXIT_DISK_FULL = 7   # the recorder cannot write its bag: no space or quota left (DiskFull)
+ACK_POLL_S = 0.001   # wait_acked with an executor: the longest wait before spinning it once
 
 
 class GraphTimeout(RuntimeError):
@@ -317,22 +318,36 @@ class AdcsNode(Node):
                 raise GraphTimeout(f'{self.get_name()}: timed out after {timeout:g} s waiting for {what}')
             executor.spin_once(timeout_sec=min(remaining, 0.1))
 
-    def wait_acked(self, publishers, timeout: float) -> None:
+    def wait_acked(self, publishers, timeout: float, executor=None) -> None:
         """Block until every reader has acknowledged what ``publishers`` (None entries skipped)
-        sent, or ``timeout`` wall seconds per publisher."""
+        sent, or ``timeout`` wall seconds per publisher. With ``executor`` (a caller outside any
+        callback), spin it between waits of ACK_POLL_S: a reader in this process (an in-process
+        graph) then takes what it holds, instead of a full reader never acknowledging while this
+        thread waits for it; an acknowledgement still ends the wait at once."""
         for pub in publishers:
-            if pub is not None and not pub.wait_for_all_acked(Duration(seconds=timeout)):
+            if pub is not None and not self._acked(pub, timeout, executor):
                 self.get_logger().warning(
                     f'{pub.topic_name}: not every reader acknowledged within {timeout:g} s; a reader '
                     'that stays this far behind may miss messages (adcs_msgs_py.topics)',
                     throttle_duration_sec=5.0)
 
-    def pace_recorder(self, step: int, publishers, timeout: float) -> None:
+    @staticmethod
+    def _acked(pub, timeout: float, executor) -> bool:
+        if executor is None:
+            return pub.wait_for_all_acked(Duration(seconds=timeout))
+        deadline = time.monotonic() + timeout
+        while not pub.wait_for_all_acked(Duration(seconds=min(ACK_POLL_S, max(deadline - time.monotonic(), 0.0)))):
+            if time.monotonic() >= deadline:
+                return False
+            executor.spin_once(timeout_sec=0.0)
+        return True
+
+    def pace_recorder(self, step: int, publishers, timeout: float, executor=None) -> None:
         """Every :data:`~adcs_msgs_py.topics.ACK_INTERVAL` steps, when a recorder is expected,
         :meth:`wait_acked`: the recorder never falls the writers' history depth behind and loses
         messages (adcs_msgs_py.topics)."""
         if self.params['startup.expect_recorder'] and step % topics.ACK_INTERVAL == 0:
-            self.wait_acked(publishers, timeout)
+            self.wait_acked(publishers, timeout, executor)
 
     def wait_for_publishers(self, required: dict, timeout: float) -> None:
         """Wait until each publisher has at least the given number of matched subscriptions. When

@@ -449,9 +449,9 @@ class DynamicsNode(AdcsNode):
         # free flight nothing else paces the loop, so wait for the acknowledgements every step.
         recorded = self._step_publishers + [self.pub_applied, self.pub_thrusters, *self.pub_visual.values()]
         if awaited:
-            self.pace_recorder(self.step_ns // self.period_ns, recorded, timeout)
+            self.pace_recorder(self.step_ns // self.period_ns, recorded, timeout, executor)
         else:
-            self.wait_acked(recorded, timeout)
+            self.wait_acked(recorded, timeout, executor)
             executor.spin_once(timeout_sec=0.0)
 
     def _missed(self) -> None:
