@@ -23,7 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import gammaincinv
 
 from adcs_controllers.estimators.mekf import attitude_error
 from adcs_core.attitude import rotation_from_quaternion
@@ -54,8 +54,8 @@ class EstimationSeries:
 
 def chi2_bounds(dof: int, runs: int = 1, confidence: float = CONFIDENCE) -> tuple[float, float]:
     """The two-sided ``confidence`` interval of the mean of ``runs`` χ²(``dof``) values."""
-    a = (1.0 - confidence) / 2.0
-    lo, hi = chi2.ppf([a, 1.0 - a], dof * runs) / runs
+    a = (1.0 - confidence) / 2.0   # chi2.ppf(q, k) is 2 gammaincinv(k/2, q), bit for bit: scipy.stats
+    lo, hi = 2.0 * gammaincinv(dof * runs / 2.0, [a, 1.0 - a]) / runs   # costs 0.8 s to import, every tool
     return float(lo), float(hi)
 
 
