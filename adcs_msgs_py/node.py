@@ -342,12 +342,12 @@ class AdcsNode(Node):
             executor.spin_once(timeout_sec=0.0)
         return True
 
-    def pace_recorder(self, step: int, publishers, timeout: float, executor=None) -> None:
+    def pace_recorder(self, step: int, publishers, timeout: float) -> None:
         """Every :data:`~adcs_msgs_py.topics.ACK_INTERVAL` steps, when a recorder is expected,
         :meth:`wait_acked`: the recorder never falls the writers' history depth behind and loses
         messages (adcs_msgs_py.topics)."""
         if self.params['startup.expect_recorder'] and step % topics.ACK_INTERVAL == 0:
-            self.wait_acked(publishers, timeout, executor)
+            self.wait_acked(publishers, timeout)
 
     def wait_for_publishers(self, required: dict, timeout: float) -> None:
         """Wait until each publisher has at least the given number of matched subscriptions. When

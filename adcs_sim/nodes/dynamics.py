@@ -448,9 +448,9 @@ class DynamicsNode(AdcsNode):
         # The controllers answering is not enough when a recorder listens (pace_recorder); in
         # free flight nothing else paces the loop, so wait for the acknowledgements every step.
         recorded = self._step_publishers + [self.pub_applied, self.pub_thrusters, *self.pub_visual.values()]
-        if awaited:
-            self.pace_recorder(self.step_ns // self.period_ns, recorded, timeout, executor)
-        else:
+        if awaited:   # blocking: a spin here could apply a command of this step that missed its deadline
+            self.pace_recorder(self.step_ns // self.period_ns, recorded, timeout)
+        else:   # free flight: no command to take, so spin for a recorder in this process (wait_acked)
             self.wait_acked(recorded, timeout, executor)
             executor.spin_once(timeout_sec=0.0)
 
