@@ -151,3 +151,18 @@ class TestDestroyedOrHiddenData:
         assert metrics['duration_s'] == steps and metrics['missed_steps'] == 0
         code, analysed, err = run_tool(analyze_main, str(bag), '--json', '--no-report')
         assert code == 0 and err == [] and json.loads('\n'.join(analysed))[str(bag)] == metrics
+
+
+def test_reanalysis_replaces_its_own_report_and_keeps_a_file_it_did_not_write(tmp_path):
+    """A report folder given again to ``adcs-analyze --out``: the old report's files (its Markdown
+    and what it links) are replaced; a file the report does not name, though of a report's kind
+    (the user's notes.md), is not the tool's and stays as it was."""
+    out = tmp_path / 'report'
+    assert run_tool(analyze_main, str(COMMITTED), '--out', str(out))[0] == 0
+    figure = out / 'attitude_error.png'
+    first = figure.stat().st_mtime_ns
+    (out / 'notes.md').write_text('mine\n')
+    code, _, err = run_tool(analyze_main, str(COMMITTED), '--out', str(out))
+    assert code == 0, err
+    assert (out / 'notes.md').read_text() == 'mine\n'
+    assert figure.is_file() and (out / 'report.md').is_file() and figure.stat().st_mtime_ns >= first

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from pathlib import Path
 from types import SimpleNamespace
@@ -85,11 +86,19 @@ def _report_dirs(args) -> dict[str, Path]:
     return dirs
 
 
+def _old_report(folder: Path) -> list[Path]:
+    """The files of the report in ``folder``: its Markdown, the comparison table and every figure
+    or table the Markdown links (a file the report does not name is not the tool's: it stays)."""
+    texts = [folder / n for n in ('report.md', 'comparison.md') if (folder / n).is_file()]
+    named = set(re.findall(r'\(([^()\s/]+\.(?:png|svg|csv))\)', ''.join(p.read_text(errors='replace') for p in texts)))
+    return texts + [folder / n for n in sorted(named | {'comparison.csv'}) if (folder / n).is_file()]
+
+
 def _replace(folder: Path) -> Path:
-    """Empty a report folder of ours just before its new report is written (not before: a bag
-    that does not load leaves the old report as it was), so no figure of the old one stays."""
+    """Remove the report of ours in ``folder`` just before its new report is written (not before:
+    a bag that does not load leaves the old report as it was), so no figure of the old one stays."""
     if folder.is_dir() and is_report(folder):
-        for entry in folder.iterdir():
+        for entry in _old_report(folder):
             entry.unlink()
     return folder
 
