@@ -21,7 +21,7 @@ import numpy as np
 
 from adcs_controllers.families import BACKSTEPPING, state_topic
 from adcs_controllers.laws.base import LawOutputRejected, checked_control
-from adcs_controllers.laws.failure import FlightSoftwareError, answer
+from adcs_controllers.laws.failure import answer
 from adcs_controllers.nodes.base import FlightSoftwareStop, StampPairs, WheelStatePairing
 from adcs_core.faults import FaultTracker
 from adcs_msgs_py import cdr
@@ -93,15 +93,8 @@ class BacksteppingController(FlightSoftwareStop, WheelStatePairing, AdcsNode):
 
     def step(self, t_ns: int, q: np.ndarray, w: np.ndarray, speed: np.ndarray) -> None:
         self.steps += 1
-        if self.failure is not None:   # stopping: no later step is answered
-            return
-        try:
-            self._answer(t_ns, q, w, speed)
-        except FlightSoftwareError as exc:
-            self.failed(exc)
-        finally:   # after the commands (off their critical path), at the dynamics' pacing steps
-            self.pace_recorder(self.steps - 1, (self.pub_thrusters, self.pub_wheels, self.pub_status),
-                               self.params['startup.timeout'])
+        self.answer_step(self.steps, lambda: self._answer(t_ns, q, w, speed),
+                         (self.pub_thrusters, self.pub_wheels, self.pub_status))
 
     def _answer(self, t_ns: int, q: np.ndarray, w: np.ndarray, speed: np.ndarray) -> None:
         """Compute and publish the commands (and the status) of the state stamped ``t_ns``."""

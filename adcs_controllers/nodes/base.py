@@ -69,6 +69,19 @@ class FlightSoftwareStop:
             raise FlightSoftwareError(self.get_name(), t_ns, f'the law refused {self.refusals_in_a_row} states '
                                       f'in a row, the last: {reason}')
 
+    def answer_step(self, step: int, answer, recorded) -> None:
+        """``answer()`` the node's ``step``-th step (from 1) unless it is stopping; a
+        FlightSoftwareError stops it (:meth:`failed`); then, after the answer (off its critical
+        path), pace the recorder on the ``recorded`` publishers at the dynamics' pacing steps."""
+        if self.failure is not None:   # stopping: no later step is answered
+            return
+        try:
+            answer()
+        except FlightSoftwareError as exc:
+            self.failed(exc)
+        finally:
+            self.pace_recorder(step - 1, recorded, self.params['startup.timeout'])
+
     def failed(self, error: FlightSoftwareError) -> None:
         if self.failure is None:
             self.failure = error
@@ -240,14 +253,7 @@ class ControllerNode(FlightSoftwareStop, WheelStatePairing, AdcsNode):
 
     def _step(self, t_ns: int, q: np.ndarray, w: np.ndarray, h: np.ndarray | None = None) -> None:
         self.states += 1
-        if self.failure is not None:   # stopping: no later step is answered
-            return
-        try:
-            self._answer(t_ns, q, w, h)
-        except FlightSoftwareError as exc:
-            self.failed(exc)
-        finally:   # after the command (off its critical path), at the dynamics' pacing steps
-            self.pace_recorder(self.states - 1, (self.pub_cmd, self.pub_status), self.params['startup.timeout'])
+        self.answer_step(self.states, lambda: self._answer(t_ns, q, w, h), (self.pub_cmd, self.pub_status))
 
     def _answer(self, t_ns: int, q: np.ndarray, w: np.ndarray, h: np.ndarray | None) -> None:
         """Compute and publish the command (and the status) of the state stamped ``t_ns``."""

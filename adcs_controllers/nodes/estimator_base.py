@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from adcs_controllers.estimators.families import EstimatorFamily
-from adcs_controllers.laws.failure import FlightSoftwareError, estimate_step
+from adcs_controllers.laws.failure import estimate_step
 from adcs_controllers.nodes.base import FlightSoftwareStop
 from adcs_msgs_py import cdr
 from adcs_msgs_py import conversions_determination as cd
@@ -124,14 +124,7 @@ class EstimatorNode(FlightSoftwareStop, AdcsNode):
         """Run the family's step on the sensors' readings stamped ``t_ns``; publish its estimate and status."""
         self.steps += 1
         self.last_ns = t_ns
-        if self.failure is not None:   # stopping: no later step is answered
-            return
-        try:
-            self._answer(t_ns, readings)
-        except FlightSoftwareError as exc:
-            self.failed(exc)
-        finally:   # after the estimate (off its critical path), at the dynamics' pacing steps
-            self.pace_recorder(self.steps - 1, (self.pub_estimate, self.pub_status), self.params['startup.timeout'])
+        self.answer_step(self.steps, lambda: self._answer(t_ns, readings), (self.pub_estimate, self.pub_status))
 
     def _answer(self, t_ns: int, readings: dict) -> None:
         est, status = estimate_step(self.get_name(), self.estimator, Measurements(t_ns, **readings))
