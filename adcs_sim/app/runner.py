@@ -240,9 +240,9 @@ def _supervise(run: _Run, dynamics) -> None:
             continue
         name, code = dead
         run.started = run.started or recorded_state(run.bag_dir)   # /clock may not have reached us yet
-        if code == EXIT_FLIGHT_SOFTWARE:   # it could not answer a step: started again, it would fail again
-            raise _flight_software_failed(run, name)
-        if name == 'recorder' and code == EXIT_DISK_FULL:   # its one line names the bag and the error
+        # A node that could not answer a step (started again, it would fail again), or the recorder
+        # on a full disk (its one line names the bag and the error): the run stops, in one line.
+        if code == EXIT_FLIGHT_SOFTWARE or (name == 'recorder' and code == EXIT_DISK_FULL):
             raise _flight_software_failed(run, name)
         if run.started and NODES[name].role == 'controller' and run.restarts_done < run.restarts:
             run.restarts_done += 1

@@ -301,9 +301,13 @@ def _in_file_order(parts: list, name: str):
             np.concatenate([c.fields[name] for c in parts])[order])
 
 
+def _scenario_text(metadata: dict) -> str | None:
+    return metadata.get('scenario', {}).get('text')
+
+
 def _target(metadata: dict, bag) -> tuple[np.ndarray, object]:
     """(q_ref, pointing request) of the scenario in ``bag``'s metadata, as RunData sets them."""
-    scenario = rd._scenario(metadata.get('scenario', {}).get('text'), bag)
+    scenario = rd._scenario(_scenario_text(metadata), bag)
     if scenario is None:
         return np.array([0.0, 0.0, 0.0, 1.0]), None
     return rd.target_attitude(scenario), rd.pointing_request(scenario)
@@ -327,6 +331,7 @@ class _Pass:
         self.diagnostics: dict[str, list] = defaultdict(list)
         self.seen: dict[str, int] = defaultdict(int)
         self.target = None            # (q_ref, pointing) the attitude streams use
+        self.target_text = None       # the scenario text it was read from
 
     def run(self) -> None:
         for batch in self.reader:
@@ -345,6 +350,7 @@ class _Pass:
             self.torque.setdefault(topic, TorqueStream(topic)).add(*_in_file_order(parts, 'vector'))
         elif type_name == rd.ODOMETRY:
             if self.target is None:
+                self.target_text = _scenario_text(self.reader.metadata)
                 self.target = _target(self.reader.metadata, self.reader.bag)
             if topic not in self.attitude:
                 self.attitude[topic] = AttitudeStream(topic, *self.target, self.tol, self.eigen_tol)
@@ -358,7 +364,9 @@ class _Pass:
         state = self.attitude.get(ns + topics.STATE)
         if state is None or not state.rows:
             raise rd._no_state(path, reader, ns + topics.STATE)
-        target = _target(reader.metadata, reader.bag)
+        # the scenario read again only when its text changed (rcl's reading of it is not free)
+        same_text = _scenario_text(reader.metadata) == self.target_text
+        target = self.target if same_text else _target(reader.metadata, reader.bag)
         if not _same_target(target, self.target):
             raise Unstreamable('the scenario (target, pointing request) was written after the state')
         truth = self.attitude.get(ns + topics.TRUTH_STATE)
