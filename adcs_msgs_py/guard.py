@@ -298,7 +298,7 @@ class PublisherVetting:
             time.sleep(0.005)
         expected = self.types.get(topic)
         other_type = [i for i in infos if expected is not None and i.topic_type != expected]
-        infos = [i for i in infos if i not in other_type]
+        infos = [i for i in infos if expected is None or i.topic_type == expected]
         self.matched[topic], self.listed[topic] = matched, len(infos)
         self._report_unmatchable(topic, other_type, expected)
         by_node: dict[str, list[str]] = {}

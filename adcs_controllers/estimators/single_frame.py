@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from adcs_core.attitude import cross, dot, matvec, scipy_rotation
+from adcs_core.attitude import cross, dot, matvec, quat_norm, scipy_rotation
 
 # Observability: the smallest eigenvalue of Σ w_i (I − b_i b_iᵀ), relative to Σ w_i, below which the
 # rotation about the common direction is undetermined (≈ the squared sine of the largest angle
@@ -220,8 +220,7 @@ def quest(b, r, w=None) -> np.ndarray:
     lam = _dot4(q, matvec(K, q))
     q, ok2 = _gibbs(S, sigma, z, lam)
     with np.errstate(all='ignore'):
-        e = matvec(K, q) - lam[..., None] * q
-        residual = np.sqrt(_dot4(e, e))
+        residual = quat_norm(matvec(K, q) - lam[..., None] * q)
     fall = ~ok | ~ok2 | (q[..., 3] < QUEST_Q4_MIN) | ~(residual <= QUEST_RESIDUAL_MAX * w.sum(axis=-1))
     if fall.any():
         q[fall] = np.linalg.eigh(K[fall])[1][..., :, -1]

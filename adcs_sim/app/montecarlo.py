@@ -139,8 +139,7 @@ def check_scheduler(address: str) -> None:
     why = None
     try:
         with socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S) as conn:
-            if not address.startswith('tls://'):
-                conn.settimeout(CONNECT_TIMEOUT_S)
+            if not address.startswith('tls://'):   # the socket keeps create_connection's timeout
                 first = conn.recv(256)
                 why = None if b'compression' in first else (
                     'it closed the connection' if not first else 'what answered is not a Dask scheduler')

@@ -29,7 +29,7 @@ from adcs_msgs_py.blocks import (
     thruster_params,
     wheel_params,
 )
-from adcs_msgs_py.params import Param, ParameterError, Schema, all_positive, non_negative, positive, vectorised
+from adcs_msgs_py.params import Param, ParameterError, Schema, all_positive, non_negative, positive
 from adcs_sim.truth.plant import Disturbance, Plant, ReactionWheels, Torquers
 from adcs_sim.truth.sensor_schema import check_sensors, sensor_params
 from adcs_sim.truth.thrusters import Thrusters
@@ -141,7 +141,6 @@ MIN_CONTROL_PERIOD = 1e-9
 MAX_CONTROL_PERIOD = 2 ** 31 - 1   # s (68 years)
 
 
-@vectorised(lambda a: bool(np.all((a >= MIN_CONTROL_PERIOD) & (a <= MAX_CONTROL_PERIOD))))
 def _control_period(v) -> str | None:
     return None if MIN_CONTROL_PERIOD <= v <= MAX_CONTROL_PERIOD else \
         f'must be in [{MIN_CONTROL_PERIOD:g}, {MAX_CONTROL_PERIOD}] s (the time grid is in integer ns), got {v!r}'
