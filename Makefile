@@ -22,7 +22,7 @@ run: $(VENV)/.installed
 	$(VENV)/bin/adcs-run $(SCENARIO) --report
 
 test: $(VENV)/.installed
-	$(PY) -m pytest -q -n 2 --dist loadfile tests
+	$(PY) -m pytest -q -n 2 --dist loadfile --durations=25 tests
 
 # BENCH_FLAGS=--basilisk adds the Basilisk comparisons (bsk installed into a throwaway venv in /tmp).
 # Not here (tens of minutes): benchmarks/long_run_memory.py, the real 24 h graph run.
