@@ -71,11 +71,11 @@ def test_batch_metrics_equal_run_metrics_for_pointing_and_faults(tmp_path):
 
 
 def test_the_compiled_error_quaternions_are_numpys():
-    """error_quaternions (batch_metrics' compiled kernel) against error_quaternion and the norm of
+    """error_quaternions (metrics_kernel's compiled kernel) against error_quaternion and the norm of
     its vector part (numpy) on (runs, samples) arrays: one target or one per run, random and
     awkward values (NaN, inf, signed zeros), the same bits."""
     from adcs_core.attitude import error_quaternion, quat_normalize
-    from adcs_sim.app.batch_metrics import error_quaternions
+    from adcs_sim.app.metrics_kernel import error_quaternions
     rng = np.random.default_rng(11)
     q = rng.normal(size=(7, 301, 4)) * np.array([1.0, 1e-3, 1e3, 1.0])
     q[1, 5] = [np.nan, 0.0, 0.0, 1.0]

@@ -156,6 +156,57 @@ def test_package_graph_is_acyclic():
     assert 'adcs_sim' not in edges['adcs_controllers'] and not edges['adcs_core'], edges
 
 
+def module_cycles(imports: dict[str, set[str]]) -> list[list[str]]:
+    """The import circles among project modules: each strongly connected component of more than one
+    module (Tarjan), its modules sorted. Function-level imports count: a lazy import that closes a
+    circle only hides it."""
+    graph = {m: sorted(d for d in deps if d in imports) for m, deps in imports.items()}
+    index, low, on_stack, stack, found = {}, {}, set(), [], []
+    for root in sorted(graph):
+        if root in index:
+            continue
+        work = [(root, iter(graph[root]))]
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        on_stack.add(root)
+        while work:   # iterative depth-first walk (no recursion limit on a long chain)
+            node, children = work[-1]
+            child = next(children, None)
+            if child is None:
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[node])
+                if low[node] == index[node]:
+                    component = []
+                    while True:
+                        member = stack.pop()
+                        on_stack.discard(member)
+                        component.append(member)
+                        if member == node:
+                            break
+                    if len(component) > 1:
+                        found.append(sorted(component))
+            elif child not in index:
+                index[child] = low[child] = len(index)
+                stack.append(child)
+                on_stack.add(child)
+                work.append((child, iter(graph[child])))
+            elif child in on_stack:
+                low[node] = min(low[node], index[child])
+    return found
+
+
+def test_module_cycles_finds_a_circle_and_only_that():
+    imports = {'a': {'b'}, 'b': {'c'}, 'c': {'a', 'd'}, 'd': set(), 'e': {'e2'}, 'e2': {'e'}, 'f': {'a'}}
+    assert sorted(module_cycles(imports)) == [['a', 'b', 'c'], ['e', 'e2']]
+    assert module_cycles({'a': {'b'}, 'b': {'c'}, 'c': set()}) == []
+
+
+def test_no_module_imports_itself_back():
+    """No import circle between modules, however indirect, lazy imports included."""
+    assert module_cycles(IMPORTS) == []
+
+
 def test_ros_stays_in_the_nodes_and_the_interface():
     wrong = []
     for module, deps in IMPORTS.items():

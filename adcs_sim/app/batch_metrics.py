@@ -18,32 +18,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
 
 from adcs_core.attitude import euler_213, pointing_error
 from adcs_sim.app import metrics_kernel as mk
 from adcs_sim.app.analysis import POINTING_BANDS_DEG, run_metrics, zoh_durations
 from adcs_sim.app.estimation import estimation_metrics, series_from_batch
-
-
-@njit(parallel=True, cache=True, error_model='numpy', nogil=True)
-def error_quaternions(q, q_ref, qe, vnorm):
-    """qe[r, k] = error_quaternion(q[r, k], q_ref[r]) and vnorm[r, k] = |qe[r, k, :3]| (q (R, K, 4),
-    q_ref (R, 4)): :func:`adcs_core.attitude.quat_multiply` of ``quat_conjugate(q_ref)`` and ``q``
-    (``(p4 q_v + q4 p_v) + p_v x q_v``, ``p4 q4 - ((p1 q1 + p2 q2) + p3 q3)``) and
-    :func:`numpy.linalg.norm`'s ``sqrt((x1² + x2²) + x3²)`` (numpy sums 3 terms in sequence), the
-    same operations in the same order as :func:`~adcs_core.attitude.eigenaxis_angle`'s numpy, compiled
-    without fastmath: the same bits, ~20x fewer passes over the (runs, samples) arrays."""
-    for r in prange(q.shape[0]):
-        p0, p1, p2, p3 = -q_ref[r, 0], -q_ref[r, 1], -q_ref[r, 2], q_ref[r, 3]
-        for k in range(q.shape[1]):
-            x0, x1, x2, x3 = q[r, k, 0], q[r, k, 1], q[r, k, 2], q[r, k, 3]
-            e0 = (p3 * x0 + x3 * p0) + (p1 * x2 - p2 * x1)
-            e1 = (p3 * x1 + x3 * p1) + (p2 * x0 - p0 * x2)
-            e2 = (p3 * x2 + x3 * p2) + (p0 * x1 - p1 * x0)
-            qe[r, k, 0], qe[r, k, 1], qe[r, k, 2] = e0, e1, e2
-            qe[r, k, 3] = p3 * x3 - ((p0 * x0 + p1 * x1) + p2 * x2)
-            vnorm[r, k] = np.sqrt((e0 * e0 + e1 * e1) + e2 * e2)
+from adcs_sim.app.metrics_kernel import error_quaternions
 
 
 def settling_times(t: np.ndarray, error: np.ndarray, tol: float) -> np.ndarray:

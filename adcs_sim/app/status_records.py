@@ -18,6 +18,8 @@ from collections.abc import Iterator, Sequence
 import numpy as np
 
 WIDE = 64   # bytes: a longer value goes to an object column
+# Status keys of the commanded torque (a report plots them in the torque figure, not with the other values).
+TORQUE_KEYS = ('u_x', 'u_y', 'u_z')
 
 
 class _Layout:

@@ -15,11 +15,9 @@ from adcs_msgs_py import names as topics
 from adcs_sim.app.analysis import RunData, run_metrics
 from adcs_sim.app.report import envelope
 from adcs_sim.app.run_data import TooLong
-from adcs_sim.app.status_records import status_keys, status_names, status_values
+from adcs_sim.app.status_records import TORQUE_KEYS, status_keys, status_names, status_values
 
 ERROR_LEVEL = 2  # diagnostic_msgs/DiagnosticStatus.ERROR
-# Status keys of the commanded torque (plotted in the torque figure, not with the other status values).
-TORQUE_KEYS = ('u_x', 'u_y', 'u_z')
 
 # Exceptions that mean "this input is not a readable bag" (reported in one line, no traceback).
 BAG_ERRORS: tuple[type[BaseException], ...] = (OSError, ValueError, EOFError, struct.error, McapError)
@@ -84,7 +82,7 @@ class Run:
         if self.long is None:
             return run_metrics(self.data, tol_deg, eigen_tol_deg)
         if self.long.tol != (tol_deg, eigen_tol_deg):   # streamed again at these tolerances
-            from adcs_sim.app.report.long_run import load_long, release_memory
+            from adcs_sim.app.report.long_run import load_long, release_memory   # see _load_long
             self.data, self.long = load_long(self.path, tol_deg, eigen_tol_deg)
             release_memory()
         return self.long.metrics
@@ -129,6 +127,8 @@ def load_run(path, name: str | None = None, tol_deg: float = 0.5, eigen_tol_deg:
 def _load_long(path, tol_deg: float, eigen_tol_deg: float | None):
     """(data, summary) of a long run streamed, or (the whole run, None) where streaming does not
     cover it (long_run.Unstreamable)."""
+    # imported at first use: long_run and the streamed metrics it brings are ~0.08 s of every
+    # adcs-analyze start (python -X importtime), and only a long run needs them
     from adcs_sim.app.report.long_run import Unstreamable, load_long, release_memory
     try:
         return load_long(path, tol_deg, eigen_tol_deg)

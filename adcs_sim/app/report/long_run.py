@@ -43,9 +43,8 @@ from adcs_sim.app.report import envelope
 from adcs_sim.app.report.envelope import log_positive
 from adcs_sim.app.report.kinds import PHASE_KEYS, _unit, param_value, run_kind
 from adcs_sim.app.report.lead import actuator_fault
-from adcs_sim.app.report.loading import TORQUE_KEYS
 from adcs_sim.app.run_data import RunData
-from adcs_sim.app.status_records import StatusRecords
+from adcs_sim.app.status_records import TORQUE_KEYS, StatusRecords
 from adcs_sim.bag.batches import ColumnReader
 from adcs_sim.bag.columns import decode_batch, decode_diagnostics, header_time
 
