@@ -2,8 +2,8 @@
 actuation, declared once (pure; no rclpy).
 
 A family (:class:`ControllerFamily`) is what a controller node executable is: the node
-(:mod:`adcs_controllers.nodes`) builds ``family.law(section)`` and ``family.actuation(section)``
-from its validated section, and the batch engine (:mod:`adcs_sim.app.batch`) builds the very same
+(:mod:`adcs_controllers.nodes`) builds ``family.build(section)`` (its law, and its actuation: one
+class per kind of actuator) from its validated section, and the batch engine (:mod:`adcs_sim.app.batch`) builds the very same
 objects, so a graph run and its batch run execute the same code. The application's registry
 (:mod:`adcs_sim.app.registry`) lists :data:`FAMILIES` beside the simulator's own nodes.
 
@@ -17,7 +17,12 @@ from typing import Any, Callable
 
 import numpy as np
 
-from adcs_controllers.laws.allocation import Actuation
+from adcs_controllers.laws.allocation import (
+    ACTUATION_KINDS,
+    Actuation,
+    TorquerActuation,
+    WheelActuation,
+)
 from adcs_controllers.laws.backstepping import BacksteppingLaw, ThrusterActuation, actuator_matrix, positive_null_vector
 from adcs_controllers.laws.inverse_optimal import DEFAULT_LGV, LGV_READINGS, GsmnLaw, KtLaw, MinNormLaw
 from adcs_controllers.laws.motion_to_rest import M2rLaw, actuation_matrix, check_m2r_gains
@@ -42,11 +47,13 @@ from adcs_msgs_py.params import Param, ParameterError, Schema, all_positive, non
 
 
 def _actuator_check(v: dict) -> None:
-    if v['actuator'] == 'wheels':
-        check_wheels(v, with_physics=False)
-        if not v['wheels.names']:
-            raise ParameterError('wheels.names', "actuator 'wheels' needs the wheel names, axes and "
-                                 'torque limits (the controller\'s model of the wheels)')
+    ACTUATION_KINDS[v['actuator']].check_section(v)
+
+
+def _require_actuation(v: dict, kind: type[Actuation], why: str) -> None:
+    """The section's ``actuator`` must be ``kind``'s (``why``: the law's reason)."""
+    if ACTUATION_KINDS[v['actuator']] is not kind:
+        raise ParameterError('actuator', f"{why}: it needs actuator '{kind.kind}'")
 
 
 def feedback_param() -> Param:
@@ -159,9 +166,7 @@ def _two_wheel_check(v: dict) -> None:
 
 def _zero_momentum_check(v: dict) -> None:
     _two_wheel_check(v)
-    if v['actuator'] != 'wheels':
-        raise ParameterError('actuator', "the zero-momentum law commands wheel speeds: it needs "
-                             "actuator 'wheels'")
+    _require_actuation(v, WheelActuation, 'the zero-momentum law commands wheel speeds')
     check_per_wheel(v, required=['wheels.spin_inertia'], optional=['wheels.bias_speed'],
                     why=' (wheel speed = commanded momentum / spin inertia + bias, eq. 13)')
 
@@ -247,9 +252,8 @@ def _distinct_positive(vs) -> str | None:
 def _inertia_free_check(v: dict) -> None:
     """Both seed 001 laws act through ideal torquers (the paper's "continuously variable torques
     without momentum storage"); the torquer limit is the paper's u_max."""
-    if v['actuator'] != 'torquers':
-        raise ParameterError('actuator', "the seed 001 laws command external torques: set actuator "
-                             "'torquers' (and torquers.enabled in the dynamics section)")
+    _require_actuation(v, TorquerActuation, 'the seed 001 laws command external torques (and need '
+                       'torquers.enabled in the dynamics section)')
     B = actuation_matrix(v)
     if B is not None and np.linalg.matrix_rank(B) != 3:
         raise ParameterError('B', f'the actuation matrix must be invertible (u = -B^-1(...)), got {v["B"]!r}')
@@ -343,8 +347,7 @@ def _pointing_check(v: dict) -> None:
     """Wheels with their spin inertia (the node forms h = sum a_i Js_i Omega_i from wheels/state),
     and the pointing request feasible: eq. (14), |alpha| <= pi/2 - |lambda|."""
     _actuator_check(v)
-    if v['actuator'] != 'wheels':
-        raise ParameterError('actuator', "the pointing laws need the wheels' momentum: actuator 'wheels'")
+    _require_actuation(v, WheelActuation, "the pointing laws need the wheels' momentum")
     check_per_wheel(v, required=['wheels.spin_inertia'],
                     why=' (h = sum_i a_i Js_i Omega_i from wheels/state)')
     lam, _ = body_axis_angles(np.asarray(v['sigma'], dtype=float))
@@ -484,13 +487,14 @@ RUN_KINDS = {
 class ControllerFamily:
     """One controller node: its section's ``schema``, its ``law`` (a class or builder called with the
     validated section) and, for a law with actuators of its own (seed 002's thrusters), its
-    ``actuation`` builder (default: :class:`~adcs_controllers.laws.allocation.Actuation`, wheel
-    allocation and saturation, or the ideal torquers). ``kind``: what a run of the law is, which
+    ``actuation`` class (default: the section's ``actuator`` in
+    :data:`~adcs_controllers.laws.allocation.ACTUATION_KINDS`: wheel allocation and saturation, or
+    the ideal torquers). ``kind``: what a run of the law is, which
     the reports lead with (:data:`RUN_KINDS`)."""
 
     schema: Schema
     law: Callable[[dict], Any]
-    actuation: Callable[[dict], Any] | None = None
+    actuation: type[Actuation] | None = None
     kind: str = 'regulation'
 
     @property
@@ -503,9 +507,13 @@ class ControllerFamily:
         """The node's module (``python -m`` target, ``setup.py`` entry point)."""
         return f'adcs_controllers.nodes.{self.schema.node}'
 
+    def actuation_class(self, p: dict) -> type[Actuation]:
+        """The class of a validated section's actuation (its commands, topics, fault following)."""
+        return self.actuation or ACTUATION_KINDS[p['actuator']]
+
     def build(self, p: dict) -> tuple[Any, Any]:
         """``(law, actuation)`` from a validated section: what the node and the batch engine run."""
-        return self.law(p), (self.actuation or Actuation)(p)
+        return self.law(p), self.actuation_class(p)(p)
 
 
 def _pointing(law_class):

@@ -49,6 +49,7 @@ from sensor_msgs.msg import JointState
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py.conversions import NS_PER_S, InvalidMessage
+from adcs_msgs_py.topics import TOPICS
 from adcs_msgs_py.typestore import typestore
 
 _SLOT_FORMATS = {'double': 'd', 'float': 'f', 'int32': 'i', 'uint32': 'I', 'int64': 'q', 'uint64': 'Q'}
@@ -407,6 +408,17 @@ _PADS = (b'', b'\0', b'\0\0', b'\0\0\0')
 # Encapsulation (CDR, little endian), then after the stamp: frame_id '' and one status.
 _ENCAPSULATION = b'\x00\x01\x00\x00'
 _EMPTY_FRAME_ONE_STATUS = _U32(1) + b'\0' + _PADS[3] + _U32(1)
+
+
+def command_codec(topic: str) -> 'JointStateCodec | VectorCodec':
+    """The codec of command topic ``topic`` by its message type (:data:`adcs_msgs_py.topics.TOPICS`):
+    a JointState (``wheels/cmd``, ``thrusters/cmd``) or a Vector3Stamped (``torque_cmd``)."""
+    msg_type = TOPICS[topic].msg_type
+    if msg_type is JointState:
+        return JointStateCodec(topic)
+    if msg_type is Vector3Stamped:
+        return VectorCodec(topic)
+    raise ValueError(f'{topic}: {type_name(msg_type)} is not a command message type')
 
 
 def status_bytes(t_ns: int, name: str, values: Mapping[str, object], level: str = 'OK', message: str = '',

@@ -45,14 +45,13 @@ def law_timer(sections: dict, controller: str, after_fault: bool):
     """A zero-argument call of the section's law as its node makes it, and a label."""
     law, act = NODES[controller].family.build(sections[controller])
     label = type(law).__name__
-    if act.kind == 'wheels':
-        law.on_wheels(act.axes, act.available)
-        faults = next((s for s in sections if NODES[s].role == 'faults'), None)
-        if after_fault and faults is not None:
-            for _, snapshot in fault_schedule(sections[faults]):
-                if act.follow_faults(snapshot):
-                    law.on_wheels(act.axes, act.available)
-                    label += ' (after the faults)'
+    act.inform(law)
+    faults = next((s for s in sections if NODES[s].role == 'faults'), None)
+    if after_fault and faults is not None:
+        for _, snapshot in fault_schedule(sections[faults]):
+            if act.follow_faults(snapshot):
+                act.inform(law)
+                label += ' (after the faults)'
     d = sections['dynamics']
     plant = build_plant(d)
     x = initial_state(plant, d)

@@ -160,7 +160,7 @@ def test_runner_node_failing_at_start_stops_graph(tmp_path, monkeypatch, capsys)
 
     info = registry.NODES['pd_controller']
     monkeypatch.setitem(registry.NODES, 'pd_controller',
-                        registry.NodeInfo('crash_at_start', info.schema, info.role))
+                        registry.NodeInfo('crash_at_start', info.schema, info.role, info.family))
     monkeypatch.setenv('PYTHONPATH', str(ROOT / 'tests' / 'helpers'))
     scenario = make_scenario(tmp_path, {'dynamics': {'startup.timeout': 60.0}})
     out = tmp_path / 'out'

@@ -144,7 +144,8 @@ def test_a_law_that_raises_stops_its_node_but_a_refused_state_is_counted(ros_dom
     with InProcessGraph(scenario) as graph:
         ctl = graph.add(PdController)
         sent = []
-        ctl.pub_cmd.publish = sent.append
+        (pub_cmd,) = ctl.pub_cmds.values()   # the one command topic of its actuation
+        pub_cmd.publish = sent.append
         q, w = [0.0, 0.0, 0.0, 1.0], [0.01, 0.0, 0.0]
         law = ctl.law.control
         monkeypatch.setattr(ctl.law, 'control', lambda *a: (_ for _ in ()).throw(ValueError('refused')))
@@ -173,7 +174,8 @@ def test_a_law_that_refuses_every_state_stops_its_node(ros_domain, tmp_path, mon
     with InProcessGraph(make_scenario(tmp_path)) as graph:
         ctl = graph.add(PdController)
         sent = []
-        ctl.pub_cmd.publish = sent.append
+        (pub_cmd,) = ctl.pub_cmds.values()   # the one command topic of its actuation
+        pub_cmd.publish = sent.append
         law = ctl.law.control
         monkeypatch.setattr(ctl.law, 'control', lambda *a: (_ for _ in ()).throw(ValueError('singular')))
         q, w = [0.0, 0.0, 0.0, 1.0], [0.01, 0.0, 0.0]

@@ -32,7 +32,7 @@ from hypothesis import strategies as st
 from adcs_controllers.families import M2R_SCHEMA, M2S_SCHEMA
 from adcs_controllers.laws import backstepping as bs
 from adcs_controllers.laws import single_axis as sa
-from adcs_controllers.laws.allocation import Actuation
+from adcs_controllers.laws.allocation import ACTUATION_KINDS, WheelActuation, build_actuation
 from adcs_controllers.laws.base import LawOutputRejected, checked_control, checked_output
 from adcs_controllers.laws.motion_to_rest import M2rLaw
 from adcs_controllers.laws.motion_to_spin import M2sLaw
@@ -221,7 +221,7 @@ WHEEL_MOMENTUM = st.lists(st.floats(-10, 10), min_size=3, max_size=3).map(np.arr
 
 def _build(name: str, **over):
     p = NODES[name].schema.validate({**SECTIONS[name], **over})
-    act = Actuation(p) if p.get('actuator') in ('wheels', 'torquers') else None
+    act = build_actuation(p) if p.get('actuator') in ACTUATION_KINDS else None
     return NODES[name].law(p), act, p
 
 
@@ -236,7 +236,7 @@ def _control(law, name, t, q, w, h):
        available=st.lists(st.booleans(), min_size=3, max_size=3))
 def test_registered_law_output_is_finite_and_commands_within_limits(name, q, w, t, h, available):
     law, act, p = _build(name)
-    if act is not None and act.kind == 'wheels':
+    if isinstance(act, WheelActuation):
         mask = np.array(available[:len(act.wheel_names)] + [True] * max(0, len(act.wheel_names) - 3))
         act.set_available(mask)              # failed / stuck wheels: allocation over the rest
         law.on_wheels(act.axes, act.available)
@@ -266,7 +266,7 @@ def test_registered_law_output_is_finite_and_commands_within_limits(name, q, w, 
             assert math.isfinite(v), (name, status)
 
 
-@pytest.mark.parametrize('name', [n for n in CONTROLLERS if _build(n)[1] is not None and _build(n)[1].kind == 'wheels'])
+@pytest.mark.parametrize('name', [n for n in CONTROLLERS if isinstance(_build(n)[1], WheelActuation)])
 @given(q=unit_quaternions(), w=RATES, h=WHEEL_MOMENTUM)
 def test_zero_torque_limits_command_zero(name, q, w, h):
     """Zero motor-torque limits (a wheel that can give nothing): the commands are exactly zero."""
@@ -380,7 +380,8 @@ def test_controller_node_refuses_a_non_finite_law_output(ros_domain, tmp_path):
     with InProcessGraph(scenario) as graph:
         ctl = graph.add(KtController)
         sent = []
-        ctl.pub_cmd.publish = sent.append
+        (pub_cmd,) = ctl.pub_cmds.values()   # the one command topic of its actuation
+        pub_cmd.publish = sent.append
         target = np.asarray(ctl.law.q_ref)
         flip = np.array([1.0, 0.0, 0.0, 0.0])       # 180 deg about x, composed with the target
         ctl._on_state(cv.state_to_msg(0, quat_multiply(target, flip), [0.0, 0.0, 0.0]))
@@ -388,6 +389,6 @@ def test_controller_node_refuses_a_non_finite_law_output(ros_domain, tmp_path):
         ctl._on_state(cv.state_to_msg(1, target, [0.01, 0.0, 0.0]))
         assert len(sent) == 1 and ctl.rejects.counts['law'] == 1
         from rclpy.serialization import deserialize_message
-        cmd = deserialize_message(sent[0], ctl.pub_cmd.msg_type)   # the node publishes CDR bytes (adcs_msgs_py.cdr)
+        cmd = deserialize_message(sent[0], pub_cmd.msg_type)   # the node publishes CDR bytes (adcs_msgs_py.cdr)
         assert all(math.isfinite(v) for v in (list(cmd.effort) if hasattr(cmd, 'effort')
                                                else [cmd.vector.x, cmd.vector.y, cmd.vector.z]))

@@ -60,10 +60,10 @@ def test_backstepping_controller_counts_a_late_fault(ros_domain, tmp_path):
         ctrl = graph.add(BacksteppingController)
         q, w, speed = np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3), np.zeros(1)
         period = int(1e9)
-        ctrl.step(0, q, w, speed)
-        ctrl.step(period, q, w, speed)
+        ctrl.on_pair(0, q, w, speed)
+        ctrl.on_pair(period, q, w, speed)
         # a snapshot due at t = 1 s arrives after that step was answered: applied at the next, late
         ctrl.faults.add(period, 0, 1, {'rw_pitch': FaultState('failed', 0.0, 1.0)})
-        ctrl.step(2 * period, q, w, speed)
+        ctrl.on_pair(2 * period, q, w, speed)
         assert ctrl.faults.late == 1
         assert ctrl.faults.applied == 0

@@ -170,7 +170,7 @@ def test_backstepping_controller_survives_any_state_wheel_state_or_fault(graphs,
     ctrl = nodes['backstepping_controller']
     known = {n: i for i, n in enumerate(ctrl.wheel_names)}
     feed(ctrl, ctrl.sub_state, state, lambda: cv.state_from_msg(state))
-    feed(ctrl, ctrl.sub_wheel_state, wheels, lambda: cv.wheel_speeds_from_msg(wheels, ctrl.wheel_names))
+    feed(ctrl, ctrl.sub_wheels, wheels, lambda: cv.wheel_speeds_from_msg(wheels, ctrl.wheel_names))
     feed(ctrl, ctrl.sub_faults, faults, lambda: cv.faults_from_msg(faults, known))
 
 

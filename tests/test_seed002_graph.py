@@ -48,7 +48,7 @@ def test_backstepping_pair_in_lockstep_equals_batch(ros_domain, tmp_path):
     assert run.thruster_names == NAMES and run.thruster_on_time.shape == (n, 4)
     # the controller answered n + 1 states; the last answer is after the run's end
     fired = int(np.count_nonzero(run.thruster_on_time > 0))
-    assert fired > 0 and ctrl.firings - fired == status_last_firing(run)
+    assert fired > 0 and ctrl.actuation.firings - fired == status_last_firing(run)
     first, last = run.controller_status[0][2], run.controller_status[-1][2]
     assert float(first['angle_deg']) == pytest.approx(135.68, abs=0.01)
     assert float(last['V2']) < float(first['V2'])

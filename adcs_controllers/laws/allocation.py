@@ -15,6 +15,9 @@ import numpy as np
 
 from adcs_core.attitude import matvec
 from adcs_core.faults import FAULT_UNUSABLE_MODES, NOMINAL
+from adcs_msgs_py.blocks import check_wheels
+from adcs_msgs_py.names import TORQUE_CMD, WHEELS_CMD
+from adcs_msgs_py.params import ParameterError
 
 
 def wheel_allocation_matrix(axes: np.ndarray, available: np.ndarray | None = None) -> np.ndarray:
@@ -55,30 +58,113 @@ def body_torque_from_wheels(axes: np.ndarray, tau: np.ndarray) -> np.ndarray:
 
 
 class Actuation:
-    """The controller's side of its actuators: desired body torque -> actuator commands.
-
-    Built from a validated controller section (``actuator``, ``wheels.*``, ``saturation``,
-    ``torquers.max_torque``; limits may carry a batch axis). :meth:`command` is what the
-    controller node publishes and what the batch engine applies, so both saturate and allocate
-    identically.
+    """The controller's side of its actuators: desired body torque -> actuator commands. One
+    subclass per kind (the ``actuator`` parameter): :class:`WheelActuation`, :class:`TorquerActuation`
+    and seed 002's :class:`~adcs_controllers.laws.backstepping.ThrusterActuation`; what differs
+    between kinds is in their methods, so that the controller node and the batch engine never ask
+    which kind they hold. Built from a validated controller section (:func:`build_actuation`); limits
+    may carry a batch axis. :meth:`command` is what the controller node publishes and what the
+    batch engine applies, so both saturate and allocate identically.
     """
 
+    kind = ''   # the value of the controller section's ``actuator`` parameter
+    #: the dynamics section's actuators this kind commands (the batch engine checks they exist)
+    plant_actuators: tuple[str, ...] = ()
+    #: the wheels it commands by name (their faults are followed), in the command's order
+    wheel_names: list[str] = []
+    #: the topics its commands go out on (:meth:`command_messages`)
+    command_topics: tuple[str, ...] = ()
+
+    @staticmethod
+    def check_section(v: dict) -> None:
+        """Validate what a controller section needs for this kind (schema check; ParameterError)."""
+
+    def command(self, torque: np.ndarray):
+        raise NotImplementedError
+
+    def command_messages(self, values) -> list[tuple[str, list[str] | None, str | None, np.ndarray]]:
+        """The command messages of ``values`` (what :meth:`command` gave): ``(topic, joint names or
+        None for a vector message, JointState field or None, array)`` each; the node encodes them."""
+        raise NotImplementedError
+
+    def plant_commands(self, values, speed_mode: bool = False) -> dict[str, tuple[np.ndarray, ...]]:
+        """The batch engine's commands of ``values``: ``{plant actuator: (values,)}``, or for wheels
+        ``(values, speed-mode flags)`` (the plant's WheelCommand, which this layer does not import)."""
+        raise NotImplementedError
+
+    def thruster_on_time(self, values):
+        """The thruster on-times in ``values`` (0.0: this kind fires none)."""
+        return 0.0
+
+    #: whether :meth:`command_values` needs the wheel speeds (seed 002's allocation does)
+    needs_wheel_speed = False
+
+    def command_values(self, torque: np.ndarray, w: np.ndarray, wheel_speed: np.ndarray | None):
+        """The command values of desired body torque ``torque`` for rate ``w`` and wheel speeds
+        ``wheel_speed`` (None unless :attr:`needs_wheel_speed`): :meth:`command`'s values."""
+        return self.command(torque)[0]
+
+    def actuate(self, torque: np.ndarray, w: np.ndarray, wheel_speed: np.ndarray | None):
+        """The controller node's step: ``(command values, the body torque they ask for, status
+        values of this kind)``."""
+        values, applied = self.command(torque)
+        return values, applied, {}
+
+    def usable_status(self) -> dict:
+        """The status values naming the usable actuators (after the rejected-message count)."""
+        return {'available_wheels': self.usable() or 'none'}
+
+    def follow_faults(self, snapshot) -> bool:
+        """Follow a fault snapshot ``{actuator name: FaultState}``; whether the usable actuators changed
+        (the node and the batch engine then :meth:`inform` the law). Kinds with nothing to follow: False."""
+        return False
+
+    def inform(self, law) -> str | None:
+        """Tell ``law`` which actuators it has now (a wheel law re-plans over the usable wheels); the
+        law's note, if any."""
+        return None
+
+    def usable(self) -> str:
+        """The usable actuators' names, comma-separated ('' for a kind with no named actuators)."""
+        return ''
+
+    def wheel_momentum(self, speed: np.ndarray) -> np.ndarray:
+        raise ValueError('the wheel momentum needs wheels with their spin inertia '
+                         '(wheels.spin_inertia in the controller section)')
+
+    def command_momentum(self, h: np.ndarray) -> np.ndarray:
+        raise ValueError('a wheel momentum command needs wheels with their spin inertia '
+                         '(wheels.spin_inertia in the controller section)')
+
+
+class WheelActuation(Actuation):
+    """Reaction wheels: minimum-norm motor torques over the available wheels, saturated per wheel
+    (``clip``) or as a vector (``scale``); or wheel speeds for a commanded momentum. Keys:
+    ``wheels.names/axes/max_torque`` (``spin_inertia``, ``bias_speed`` where needed), ``saturation``."""
+
+    kind = 'wheels'
+    plant_actuators = ('wheels',)
+    command_topics = (WHEELS_CMD,)
+
     def __init__(self, p: dict) -> None:
-        self.kind = p['actuator']
         self.saturation = p['saturation']
-        if self.kind == 'wheels':
-            names = p['wheels.names']
-            self.wheel_names = list(names)
-            self.axes = np.asarray(p['wheels.axes'], dtype=float).reshape(len(names), 3)
-            self.axes = self.axes / np.linalg.norm(self.axes, axis=1, keepdims=True)
-            self.limit = np.asarray(p['wheels.max_torque'], dtype=float)
-            spin = p.get('wheels.spin_inertia', [])
-            self.spin_inertia = np.asarray(spin, dtype=float) if len(spin) else None
-            bias = p.get('wheels.bias_speed', [])
-            self.bias_speed = np.asarray(bias, dtype=float) if len(bias) else np.zeros(len(names))
-            self.set_available(np.ones(len(names), dtype=bool))
-        else:
-            self.limit = np.asarray(p['torquers.max_torque'], dtype=float)[..., None] * np.ones(3)
+        names = p['wheels.names']
+        self.wheel_names = list(names)
+        self.axes = np.asarray(p['wheels.axes'], dtype=float).reshape(len(names), 3)
+        self.axes = self.axes / np.linalg.norm(self.axes, axis=1, keepdims=True)
+        self.limit = np.asarray(p['wheels.max_torque'], dtype=float)
+        spin = p.get('wheels.spin_inertia', [])
+        self.spin_inertia = np.asarray(spin, dtype=float) if len(spin) else None
+        bias = p.get('wheels.bias_speed', [])
+        self.bias_speed = np.asarray(bias, dtype=float) if len(bias) else np.zeros(len(names))
+        self.set_available(np.ones(len(names), dtype=bool))
+
+    @staticmethod
+    def check_section(v: dict) -> None:
+        check_wheels(v, with_physics=False)
+        if not v['wheels.names']:
+            raise ParameterError('wheels.names', "actuator 'wheels' needs the wheel names, axes and "
+                                 'torque limits (the controller\'s model of the wheels)')
 
     def set_available(self, available: np.ndarray) -> None:
         """Re-allocate over the wheels marked available (a wheel failure)."""
@@ -96,17 +182,28 @@ class Actuation:
         self.set_available(available)
         return True
 
-    def command(self, torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(command values, body torque they produce) for desired body torque ``torque`` (..., 3).
+    def inform(self, law) -> str | None:
+        return law.on_wheels(self.axes, self.available)
 
-        Wheels: minimum-norm motor torques over the available wheels, saturated per wheel
-        (``clip``) or as a vector (``scale``); torquers: the torque saturated per axis.
-        """
-        if self.kind == 'wheels':
-            tau = saturate(matvec(self.allocation, torque), self.limit, self.saturation)
-            return tau, body_torque_from_wheels(self.axes, tau)
-        applied = saturate(torque, self.limit, self.saturation)
-        return applied, applied
+    def usable(self) -> str:
+        return ','.join(n for n, ok in zip(self.wheel_names, self.available) if ok)
+
+    def command(self, torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(motor torques, body torque they produce) for desired body torque ``torque`` (..., 3)."""
+        tau = saturate(matvec(self.allocation, torque), self.limit, self.saturation)
+        return tau, body_torque_from_wheels(self.axes, tau)
+
+    def command_messages(self, values):
+        return [(WHEELS_CMD, self.wheel_names, 'effort', values)]
+
+    def momentum_messages(self, speed: np.ndarray):
+        """The speed commands of a commanded momentum (:meth:`command_momentum`), to the available
+        wheels only (the others are not named: they keep their last command, and produce no torque)."""
+        ok = self.available
+        return [(WHEELS_CMD, [n for n, a in zip(self.wheel_names, ok) if a], 'velocity', speed[ok])]
+
+    def plant_commands(self, values, speed_mode: bool = False):
+        return {'wheels': (values, np.full(np.shape(values), speed_mode))}
 
     def wheel_momentum(self, speed: np.ndarray) -> np.ndarray:
         """The wheels' angular momentum RELATIVE to the body in body axes, ``h = sum_i a_i Js_i Ω_i``
@@ -115,9 +212,8 @@ class Actuation:
         convention (:mod:`adcs_sim.truth.plant`: its ``Js_i a_i·ω`` part is in ``J ω``). Needs
         ``wheels.spin_inertia``. One fixed summation order (:func:`adcs_core.attitude.matvec`), so the
         node and the batch engine get the same bits."""
-        if self.kind != 'wheels' or self.spin_inertia is None:
-            raise ValueError('the wheel momentum needs wheels with their spin inertia '
-                             '(wheels.spin_inertia in the controller section)')
+        if self.spin_inertia is None:
+            return super().wheel_momentum(speed)
         return matvec(np.ascontiguousarray(self.axes.T), np.asarray(speed, dtype=float) * self.spin_inertia)
 
     def command_momentum(self, h: np.ndarray) -> np.ndarray:
@@ -125,7 +221,40 @@ class Actuation:
         momentum ``h`` (..., 3) in body axes: minimum-norm over the available wheels (zero for the
         others), divided by the spin inertias (``wheels.spin_inertia``, required), plus each
         available wheel's bias speed (``wheels.bias_speed``, default 0)."""
-        if self.kind != 'wheels' or self.spin_inertia is None:
-            raise ValueError('a wheel momentum command needs wheels with their spin inertia '
-                             '(wheels.spin_inertia in the controller section)')
+        if self.spin_inertia is None:
+            return super().command_momentum(h)
         return -matvec(self.allocation, h) / self.spin_inertia + np.where(self.available, self.bias_speed, 0.0)
+
+
+class TorquerActuation(Actuation):
+    """Ideal body torquers (seed 001's "continuously variable torques"): the torque saturated per
+    axis at ``torquers.max_torque`` (``clip``) or as a vector (``scale``)."""
+
+    kind = 'torquers'
+    plant_actuators = ('torquers',)
+    command_topics = (TORQUE_CMD,)
+
+    def __init__(self, p: dict) -> None:
+        self.saturation = p['saturation']
+        self.limit = np.asarray(p['torquers.max_torque'], dtype=float)[..., None] * np.ones(3)
+
+    def command(self, torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(torquer torques, the same body torque) for desired body torque ``torque`` (..., 3)."""
+        applied = saturate(torque, self.limit, self.saturation)
+        return applied, applied
+
+    def command_messages(self, values):
+        return [(TORQUE_CMD, None, None, values)]
+
+    def plant_commands(self, values, speed_mode: bool = False):
+        return {'torquers': (values,)}
+
+
+#: The actuation of each value of a controller section's ``actuator`` that the common actuation
+#: builder makes (seed 002's thrusters are built by their own family).
+ACTUATION_KINDS: dict[str, type[Actuation]] = {c.kind: c for c in (WheelActuation, TorquerActuation)}
+
+
+def build_actuation(p: dict) -> Actuation:
+    """The actuation of a validated controller section (its ``actuator``)."""
+    return ACTUATION_KINDS[p['actuator']](p)

@@ -63,6 +63,7 @@ import math
 
 import numpy as np
 
+from adcs_controllers.laws.allocation import Actuation
 from adcs_controllers.laws.base import SectionLaw
 from adcs_core.attitude import (
     cross,
@@ -76,6 +77,7 @@ from adcs_core.attitude import (
     transpose,
 )
 from adcs_core.orbit import CircularOrbit, orbit_frame_attitude, orbit_rate
+from adcs_msgs_py.names import THRUSTERS_CMD, WHEELS_CMD
 
 __all__ = [
     'MODE_TRACKING', 'eseo_thruster_layout', 'eseo_actuator_matrix', 'actuator_matrix',
@@ -452,6 +454,13 @@ class BacksteppingLaw(SectionLaw):
         status['q_d'] = np.broadcast_to(q_d, np.shape(q))
         return tau, status
 
+    def published_status(self, status: dict) -> dict:
+        """The status the node publishes: the mode, V1, V2 (eq. 27, 31), W (eq. 33), η̃ and the
+        eigenaxis error in degrees."""
+        return {'mode': self.mode_names[int(status['mode'])],
+                'V1': float(status['V1']), 'V2': float(status['V2']), 'W': float(status['W']),
+                'eta_err': float(status['q_err'][3]), 'angle_deg': math.degrees(float(status['angle']))}
+
 
 def _geometry(values, n: int) -> np.ndarray:
     """Flattened per-thruster vectors (3 n,) or a batch (N, 3 n) -> (n, 3) or (N, n, 3)."""
@@ -459,7 +468,7 @@ def _geometry(values, n: int) -> np.ndarray:
     return arr.reshape(arr.shape[:-1] + (n, 3))
 
 
-class ThrusterActuation:
+class ThrusterActuation(Actuation):
     """The controller's side of seed 002's actuators, built from a validated controller section:
     desired torque ``τ_a`` -> thruster on-times and the pitch wheel's motor torque
     (:class:`ThrusterWheelAllocation`: eq. 20-21 pseudo-inverse allocation, thrust mapping,
@@ -472,11 +481,14 @@ class ThrusterActuation:
     """
 
     kind = 'thrusters'
+    plant_actuators = ('thrusters', 'wheels')
+    command_topics = (THRUSTERS_CMD, WHEELS_CMD)
 
     def __init__(self, p: dict) -> None:
         n = len(p['thrusters.names'])
         self.thruster_names = list(p['thrusters.names'])
         self.wheel_names = list(p['wheels.names'])
+        self.firings = 0   # thruster-periods fired so far (the node's status: actuate)
         axis = np.asarray(p['wheels.axes'], dtype=float)
         on = np.asarray(p['firing.on_level'], dtype=float)
         off = np.asarray(p['firing.off_level'], dtype=float)
@@ -498,3 +510,39 @@ class ThrusterActuation:
         speed = np.asarray(wheel_speed, dtype=float)[..., 0]
         on_time, tau_m, info = self.allocation.command(tau, w, speed)
         return on_time, np.asarray(tau_m, dtype=float)[..., None], info
+
+    def command_messages(self, values):
+        """``values``: ``(on_time, wheel motor torques)``: thrusters/cmd (on-times as efforts) and
+        wheels/cmd (motor torque)."""
+        on_time, wheel_torque = values
+        return [(THRUSTERS_CMD, self.thruster_names, 'effort', on_time),
+                (WHEELS_CMD, self.wheel_names, 'effort', wheel_torque)]
+
+    def plant_commands(self, values, speed_mode: bool = False):
+        """The wheel's motor torque (the thrusters' on-times: :meth:`thruster_on_time`)."""
+        return {'wheels': (values[1], np.zeros(np.shape(values[1]), dtype=bool))}
+
+    def thruster_on_time(self, values):
+        return values[0]
+
+    needs_wheel_speed = True
+
+    def command_values(self, torque, w, wheel_speed):
+        on_time, wheel_torque, _ = self.command(torque, w, wheel_speed)
+        return on_time, wheel_torque
+
+    def actuate(self, torque, w, wheel_speed):
+        """The node's step (one run): the commands, the torque they ask of the actuators (as if each
+        fired thruster gave its full force over the period: the status' u_x..), and the wheel torque,
+        whether the wheel was free, the thrusters firing now and the thruster-periods fired so far."""
+        on_time, wheel_torque, info = self.command(torque, w, wheel_speed)
+        fired = int(np.count_nonzero(on_time > 0.0))
+        self.firings += fired
+        alloc = self.allocation
+        u = alloc.B[:, :alloc.n] @ (on_time / alloc.period * alloc.max_force) - alloc.wheel_axis * wheel_torque[0]
+        return (on_time, wheel_torque), u, {
+            'wheel_torque': float(wheel_torque[0]), 'wheel_free': str(bool(info['wheel_free'])).lower(),
+            'firing_now': fired, 'firing_count': self.firings}
+
+    def usable_status(self) -> dict:
+        return {}

@@ -12,7 +12,7 @@ function does the numpy code's operations in the numpy code's order, so a run ge
   (``v = (p4 q_v + q4 p_v) + p_v × q_v``, ``s = p4 q4 - ((p1 q1 + p2 q2) + p3 q3)``: numpy sums 3
   components in sequence, ``tests/test_fused_loop.py`` checks it on batches of 1 and 500),
   ``w - w_ref``, the optional shortest-path flip, ``-matvec(I, kp q_v + kd w_e)``;
-* :func:`wheel_command_row`: :meth:`~adcs_controllers.laws.allocation.Actuation.command` for
+* :func:`wheel_command_row`: :meth:`~adcs_controllers.laws.allocation.WheelActuation.command` for
   wheels: ``matvec(M, u)`` with the minimum-norm allocation matrix ``M`` (n, 3), then
   :func:`~adcs_controllers.laws.allocation.saturate` (``clip``: numpy's ``np.clip`` rule, NaN
   propagating; ``scale``: ``tau / maximum(max(|tau| / limit), 1)``).

@@ -8,7 +8,7 @@ engine builds from the same family, so it runs the very same object. The base cl
   available wheels, saturation: :class:`~adcs_controllers.laws.allocation.Actuation`);
 * publishes commands on ``wheels/cmd`` (minimum-norm allocation, saturation) or ``torque_cmd``;
   a law whose ``output`` is ``'wheel_momentum'`` gets wheel SPEED commands instead
-  (:meth:`~adcs_controllers.laws.allocation.Actuation.command_momentum`);
+  (:meth:`~adcs_controllers.laws.allocation.WheelActuation.command_momentum`);
 * before subscribing to ``state``, waits until its command publisher is matched by the dynamics
   node (and the recorder, when one is expected) — so by the time the dynamics node sees this
   controller subscribed, every command it sends will be delivered and recorded;
@@ -16,7 +16,7 @@ engine builds from the same family, so it runs the very same object. The base cl
 * follows the latched ``faults`` topic (:mod:`adcs_core.faults`): at the state stamped ``t_k`` it
   applies the latest fault state stamped ``<= t_k`` (the dynamics node's rule), re-allocating
   over the wheels that can still produce a commanded torque (not ``failed``, not ``stuck``;
-  :meth:`~adcs_controllers.laws.allocation.Actuation.set_available`) and restoring a wheel on
+  :meth:`~adcs_controllers.laws.allocation.WheelActuation.set_available`) and restoring a wheel on
   ``recovered``, and telling the law (``law.on_wheels``: a reconfiguring law changes phase
   there, :mod:`adcs_controllers.laws.reconfiguration`). With ``startup.expect_faults`` it waits
   for the complete schedule before it subscribes to the state. ``available_wheels`` and ``late_faults`` are in its status.
@@ -26,7 +26,7 @@ engine builds from the same family, so it runs the very same object. The base cl
   state only to matched subscribers, has matched it by the time it sees this controller's state
   subscription: one participant's endpoint announcements are processed in order), keeps the two
   per stamp in a small buffer and computes when both of a stamp are in, with
-  ``h = sum_i a_i Js_i Ω_i`` (:meth:`~adcs_controllers.laws.allocation.Actuation.wheel_momentum`,
+  ``h = sum_i a_i Js_i Ω_i`` (:meth:`~adcs_controllers.laws.allocation.WheelActuation.wheel_momentum`,
   the batch engine's function). Laws without the flag never see the wheel state.
 * stops the run when it cannot answer a step (:class:`FlightSoftwareStop`: exit status 6 naming the
   node, the time and the error, :mod:`adcs_controllers.laws.failure`); a law refusing a state is
@@ -154,28 +154,26 @@ class ControllerNode(FlightSoftwareStop, WheelStatePairing, AdcsNode):
         super().__init__(context)
         p = self.params
         self.law, self.actuation = self.family.build(p)
-        self.actuator = p['actuator']
-        if self.actuator == 'wheels':
-            self.wheel_names = self.actuation.wheel_names
-        self.pub_cmd = self.publisher(topics.WHEELS_CMD if self.actuator == 'wheels' else topics.TORQUE_CMD)
+        self.wheel_names = self.actuation.wheel_names
+        # one publisher and codec per command topic of the actuation (its command_messages)
+        self.pub_cmds = {t: self.publisher(t) for t in self.actuation.command_topics}
+        self.cmd_cdr = {t: cdr.command_codec(t) for t in self.actuation.command_topics}
         self.pub_status = self.publisher(topics.CONTROLLER_STATUS)
         self.state_topic = state_topic(p)   # state, or estimate/state (feedback: estimate)
         # Messages in and out as CDR bytes (adcs_msgs_py.cdr), through the same conversions' checks.
         self.state_cdr = cdr.StateCodec(self.state_topic)
         self.wheel_state_cdr = cdr.JointStateCodec(topics.WHEELS_STATE)
-        self.cmd_cdr = (cdr.JointStateCodec(topics.WHEELS_CMD) if self.actuator == 'wheels'
-                        else cdr.VectorCodec(topics.TORQUE_CMD))
         self.sub_state = None
         self.states = 0  # steps computed (the acknowledgement pacing counts them)
         self.sub_wheels = None
         self.needs_wheel_momentum = bool(getattr(self.law, 'needs_wheel_momentum', False))
+        # the state paired with the wheel speeds of its step: for the law's h, or the allocation's
+        self.pairs_wheels = self.needs_wheel_momentum or self.actuation.needs_wheel_speed
         self.pairs = StampPairs()  # (q, w) and the wheel speeds of one stamp
         self.faults = FaultTracker()
-        self.wheel_index = ({n: i for i, n in enumerate(self.wheel_names)}
-                            if self.actuator == 'wheels' else {})
+        self.wheel_index = {n: i for i, n in enumerate(self.wheel_names)}
         self.sub_faults = self.subscription(topics.FAULTS, self._on_faults)
-        if self.actuator == 'wheels':
-            self._note(self.law.on_wheels(self.actuation.axes, self.actuation.available))
+        self._note(self.actuation.inform(self.law))
 
     def _note(self, note: str | None) -> None:
         if note:
@@ -194,9 +192,9 @@ class ControllerNode(FlightSoftwareStop, WheelStatePairing, AdcsNode):
     def connect(self) -> None:
         """Wait for the command publisher to be matched, then subscribe to the state."""
         recorder = 1 if self.params['startup.expect_recorder'] else 0
-        self.wait_for_publishers({self.pub_cmd: 1 + recorder, self.pub_status: recorder},
-                                 self.params['startup.timeout'])
-        if self.needs_wheel_momentum:
+        self.wait_for_publishers({**{pub: 1 + recorder for pub in self.pub_cmds.values()},
+                                  self.pub_status: recorder}, self.params['startup.timeout'])
+        if self.pairs_wheels:
             self.sub_wheels = self.subscription(topics.WHEELS_STATE, self._on_wheel_state, raw=True)
         self.sub_state = self.subscription(self.state_topic, self._on_state, raw=True)
 
@@ -221,17 +219,10 @@ class ControllerNode(FlightSoftwareStop, WheelStatePairing, AdcsNode):
     def apply_due_faults(self, t_ns: int) -> None:
         """Re-allocate over the usable wheels if the fault state due at ``t_ns`` changed."""
         snapshot = self.faults.due(t_ns)
-        if snapshot is None or self.actuator != 'wheels':
-            return
-        if self.actuation.follow_faults(snapshot):
+        if snapshot is not None and self.actuation.follow_faults(snapshot):
             self.get_logger().info(f't = {t_ns / cv.NS_PER_S:g} s: allocating over '
-                                   f'{self.available_wheels() or "no wheels"}')
-            self._note(self.law.on_wheels(self.actuation.axes, self.actuation.available))
-
-    def available_wheels(self) -> str:
-        if self.actuator != 'wheels':
-            return ''
-        return ','.join(n for n, ok in zip(self.wheel_names, self.actuation.available) if ok)
+                                   f'{self.actuation.usable() or "no wheels"}')
+            self._note(self.actuation.inform(self.law))
 
     # --- state -> command -------------------------------------------------------------------
 
@@ -241,21 +232,25 @@ class ControllerNode(FlightSoftwareStop, WheelStatePairing, AdcsNode):
         if parsed is None:
             return
         t_ns, q, w = parsed
-        if not self.needs_wheel_momentum:
+        if not self.pairs_wheels:
             self._step(t_ns, q, w)
             return
         self._pair_state(t_ns, q, w)
 
     def on_pair(self, t_ns: int, q: np.ndarray, w: np.ndarray, speed: np.ndarray) -> None:
-        """Compute the step ``t_ns`` once its state and wheel speeds are both here, with
-        ``h = sum_i a_i Js_i Ω_i``."""
-        self._step(t_ns, q, w, self.actuation.wheel_momentum(speed))
+        """Compute the step ``t_ns`` once its state and wheel speeds are both here (with
+        ``h = sum_i a_i Js_i Ω_i`` for a law that needs it)."""
+        h = self.actuation.wheel_momentum(speed) if self.needs_wheel_momentum else None
+        self._step(t_ns, q, w, h, speed)
 
-    def _step(self, t_ns: int, q: np.ndarray, w: np.ndarray, h: np.ndarray | None = None) -> None:
+    def _step(self, t_ns: int, q: np.ndarray, w: np.ndarray, h: np.ndarray | None = None,
+              speed: np.ndarray | None = None) -> None:
         self.states += 1
-        self.answer_step(self.states, lambda: self._answer(t_ns, q, w, h), (self.pub_cmd, self.pub_status))
+        self.answer_step(self.states, lambda: self._answer(t_ns, q, w, h, speed),
+                         (*self.pub_cmds.values(), self.pub_status))
 
-    def _answer(self, t_ns: int, q: np.ndarray, w: np.ndarray, h: np.ndarray | None) -> None:
+    def _answer(self, t_ns: int, q: np.ndarray, w: np.ndarray, h: np.ndarray | None,
+                speed: np.ndarray | None = None) -> None:
         """Compute and publish the command (and the status) of the state stamped ``t_ns``."""
         name = self.get_name()
         answer(name, t_ns, lambda: self.apply_due_faults(t_ns))
@@ -267,12 +262,13 @@ class ControllerNode(FlightSoftwareStop, WheelStatePairing, AdcsNode):
             self.refused(t_ns, str(exc))
             return
         self.refusals_in_a_row = 0
+        extra = {}
         if output == 'wheel_momentum':
-            speed = answer(name, t_ns, lambda: self.actuation.command_momentum(value))
-            self.publish_momentum(t_ns, speed)
+            speeds = answer(name, t_ns, lambda: self.actuation.command_momentum(value))
+            self.publish_commands(t_ns, self.actuation.momentum_messages(speeds))
         else:
-            values, applied = answer(name, t_ns, lambda: self.actuation.command(value))
-            self.publish_torque(t_ns, values)
+            values, applied, extra = answer(name, t_ns, lambda: self.actuation.actuate(value, w, speed))
+            self.publish_commands(t_ns, self.actuation.command_messages(values))
         if self.pub_status.get_subscription_count():  # after the command: off the critical path
             status = self.law.published_status(status)
             if output == 'wheel_momentum':  # h_x..: the wheel momentum commanded (speed mode)
@@ -280,23 +276,17 @@ class ControllerNode(FlightSoftwareStop, WheelStatePairing, AdcsNode):
             else:  # u_x.. what the actuators are commanded (saturated); demand_max: the law's |u|_inf
                 status.update({'u_x': applied[0], 'u_y': applied[1], 'u_z': applied[2],
                                'demand_max': float(np.max(np.abs(value)))})
-            status.update({'rejected_messages': self.rejects.total,
-                           'available_wheels': self.available_wheels() or 'none',
-                           'late_faults': self.faults.late})
+            status.update(extra)   # the actuation's own (seed 002: the wheel, the firings)
+            status['rejected_messages'] = self.rejects.total
+            status.update(self.actuation.usable_status())
+            status['late_faults'] = self.faults.late
             self.pub_status.publish(cdr.status_bytes(t_ns, self.get_name(), status))
 
-    def publish_momentum(self, t_ns: int, speed: np.ndarray) -> None:
-        """Send the wheel speed commands of a commanded momentum (``actuation.command_momentum``) to
-        the available wheels (the others are not named: they keep their last command, and produce
-        no torque)."""
-        ok = self.actuation.available
-        self.pub_cmd.publish(self.cmd_cdr.encode(   # wheel_cmd_to_msg(..., velocity=...)'s bytes
-            t_ns, [n for n, a in zip(self.wheel_names, ok) if a], velocity=speed[ok]))
-
-    def publish_torque(self, t_ns: int, values: np.ndarray) -> None:
-        """Send the actuator commands of a body torque (``actuation.command``: wheel torques or
-        torquer torques, :class:`~adcs_controllers.laws.allocation.Actuation`)."""
-        if self.actuator == 'wheels':   # the bytes of wheel_cmd_to_msg(..., effort=...) / vector_to_msg
-            self.pub_cmd.publish(self.cmd_cdr.encode(t_ns, self.wheel_names, effort=values))
-        else:
-            self.pub_cmd.publish(self.cmd_cdr.encode(t_ns, values))
+    def publish_commands(self, t_ns: int, messages) -> None:
+        """Send the actuation's command messages (:meth:`~adcs_controllers.laws.allocation.Actuation.command_messages`
+        ``(topic, joint names or None, field, values)``) stamped ``t_ns``: the bytes of
+        ``wheel_cmd_to_msg`` / ``thruster_cmd_to_msg`` (joint names) or ``vector_to_msg``."""
+        for topic, joints, field, values in messages:
+            codec = self.cmd_cdr[topic]
+            data = codec.encode(t_ns, values) if joints is None else codec.encode(t_ns, joints, **{field: values})
+            self.pub_cmds[topic].publish(data)

@@ -54,7 +54,7 @@ from adcs_sim.app.estimation import estimation_metrics, series_from_batch
 from adcs_sim.app.registry import NODES
 from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.fault_schedule import fault_schedule
-from adcs_sim.truth.plant import ReactionWheels, WheelCommand
+from adcs_sim.truth.plant import ReactionWheels
 from adcs_sim.truth.schema import build_plant, build_truth_environment, initial_state, step_timing
 from adcs_sim.truth.sensor_schema import build_sensors
 from adcs_sim.truth.sensor_suite import sensor_environment
@@ -163,10 +163,10 @@ class BatchSimulation:
         if self.controller is not None:
             p = sections[self.controller]
             self.law, self.actuation = NODES[self.controller].family.build(p)
-            if self.actuation.kind == 'wheels':
-                self.law.on_wheels(self.actuation.axes, self.actuation.available)
-            if self.actuation.kind not in self.plant.slices:
-                raise ParameterError('actuator', f'the controller commands {self.actuation.kind} '
+            self.actuation.inform(self.law)
+            missing = [a for a in self.actuation.plant_actuators if a not in self.plant.slices]
+            if missing:
+                raise ParameterError('actuator', f'the controller commands {", ".join(missing)} '
                                      'but the dynamics section has none', self.controller)
         self._build_estimator(sections, sensors, references)
         # The regulation target the metrics measure errors from (as analysis.target_attitude):
@@ -256,25 +256,20 @@ class BatchSimulation:
         if self.wheels is None:
             return due
         self.wheels.apply_faults(snapshot)
-        if self.actuation is not None and self.actuation.kind == 'wheels' \
-                and self.actuation.follow_faults(snapshot):
-            self.law.on_wheels(self.actuation.axes, self.actuation.available)
+        if self.actuation is not None and self.actuation.follow_faults(snapshot):
+            self.actuation.inform(self.law)
         return due
 
     def _commands(self, values, speed_mode: bool = False, t: float = 0.0, period: float = 0.0) -> dict:
         commands = {a.name: a.zero_command() for a in self.plant.actuators}
         if self.thrusters is not None:  # the dynamics node's valve command (none fired: off)
-            on_time = values[0] if values is not None and self.actuation.kind == 'thrusters' else 0.0
+            on_time = self.actuation.thruster_on_time(values) if values is not None else 0.0
             commands['thrusters'] = self.thrusters.command(
                 t, np.broadcast_to(on_time, (self.n_runs, self.thrusters.count)), period)
         if values is None:
             return commands
-        if self.actuation.kind == 'thrusters':
-            commands['wheels'] = WheelCommand(values[1], np.zeros(values[1].shape, dtype=bool))
-        elif self.actuation.kind == 'wheels':
-            commands['wheels'] = WheelCommand(values, np.full(values.shape, speed_mode))
-        else:
-            commands['torquers'] = values
+        for name, parts in self.actuation.plant_commands(values, speed_mode).items():
+            commands[name] = self.plant.actuator(name).command_from(*parts)
         return commands
 
     def _history(self, x: np.ndarray, K: int, fill: bool = True) -> dict[str, np.ndarray]:
@@ -345,11 +340,8 @@ class BatchSimulation:
             observe(k, t, status)
         if momentum:
             return self.actuation.command_momentum(np.broadcast_to(out, (N, 3))), True
-        if self.actuation.kind == 'thrusters':
-            speed = x[:, wheel_sl][:, :self.wheels.count]
-            on_time, tau_w, _ = self.actuation.command(np.broadcast_to(out, (N, 3)), w_m, speed)
-            return (on_time, tau_w), False
-        values, _ = self.actuation.command(np.broadcast_to(out, (N, 3)))
+        speed = x[:, wheel_sl][:, :self.wheels.count] if self.actuation.needs_wheel_speed else None
+        values = self.actuation.command_values(np.broadcast_to(out, (N, 3)), w_m, speed)
         return values, False
 
     def _record(self, hist: dict, k: int, x: np.ndarray, u: np.ndarray, active: np.ndarray) -> None:

@@ -34,6 +34,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from adcs_controllers.laws.allocation import WheelActuation
 from adcs_controllers.laws.pd import PdLaw
 from adcs_controllers.laws.pd_kernel import CLIP, SCALE, normalize_row, pd_torque_row, wheel_command_row
 from adcs_sim.truth import kernel
@@ -157,7 +158,8 @@ def plan(sim, x0: np.ndarray, progress=None, observe=None) -> FusedLoop | None:
     plant, act = sim.plant, sim.actuation
     if not ENABLED or progress is not None or observe is not None or type(sim.law) is not PdLaw:
         return None
-    if act.kind != 'wheels' or sim.wheels is None or sim.thrusters is not None or plant.kernel is None:
+    if not isinstance(act, WheelActuation) or sim.wheels is None or sim.thrusters is not None \
+            or plant.kernel is None:
         return None
     if sim.estimator is not None or sim.feedback != 'state' or sim.measurement.active or sim.sensors is not None:
         return None

@@ -33,10 +33,6 @@ class NodeInfo:
     def law(self) -> Any:
         return getattr(self.family, 'law', None)
 
-    @property
-    def actuation(self) -> Any:
-        return getattr(self.family, 'actuation', None)
-
 
 NODES: dict[str, NodeInfo] = {
     'dynamics': NodeInfo('adcs_sim.nodes.dynamics', DYNAMICS_SCHEMA, 'dynamics'),

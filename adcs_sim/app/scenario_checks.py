@@ -52,11 +52,9 @@ def physical_memory_bytes() -> int:
     return os.sysconf('SC_PAGE_SIZE') * os.sysconf('SC_PHYS_PAGES')
 
 
-def controller_commands(params: dict) -> set[str]:
-    """The command topics a validated controller section publishes (adcs_controllers/nodes)."""
-    if params.get('thrusters.names'):   # the backstepping controller: thrusters and its wheel
-        return {topics.THRUSTERS_CMD, topics.WHEELS_CMD}
-    return {topics.WHEELS_CMD if params.get('actuator', 'wheels') == 'wheels' else topics.TORQUE_CMD}
+def controller_commands(section: str, params: dict) -> set[str]:
+    """The command topics a validated controller section publishes (its actuation's)."""
+    return set(NODES[section].family.actuation_class(params).command_topics)
 
 
 LOCKSTEP_WAIT = 'else every step waits out the lockstep timeout'
@@ -75,7 +73,7 @@ def check_agreement(validated: dict) -> None:
     for name, params in validated.items():
         if NODES[name].role != 'controller':
             continue
-        sends, waits = controller_commands(params), set(command_topics(dyn))
+        sends, waits = controller_commands(name, params), set(command_topics(dyn))
         if sends != waits:
             raise ParameterError('actuator' if 'actuator' in params else 'thrusters.names',
                                  f'the controller sends {sorted(sends)} but the dynamics node waits for '

@@ -164,8 +164,7 @@ class DynamicsNode(AdcsNode):
         self._clock_cdr = cdr.ClockCodec()
         self._wheels_cdr = cdr.JointStateCodec(topics.WHEELS_STATE)
         self._thrusters_cdr = cdr.JointStateCodec(topics.THRUSTERS_STATE)
-        self._cmd_cdr = {t: cdr.JointStateCodec(t) for t in (topics.WHEELS_CMD, topics.THRUSTERS_CMD)}
-        self._cmd_cdr[topics.TORQUE_CMD] = cdr.VectorCodec(topics.TORQUE_CMD)
+        self._cmd_cdr = {t: cdr.command_codec(t) for t in (topics.WHEELS_CMD, topics.THRUSTERS_CMD, topics.TORQUE_CMD)}
         self._applied_cdr = cdr.VectorCodec(topics.APPLIED_TORQUE)
 
     def _visual_setup(self, p) -> tuple[VisualMessages | None, dict]:

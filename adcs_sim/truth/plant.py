@@ -88,6 +88,11 @@ class Actuator:
     def zero_command(self) -> Any:
         raise NotImplementedError
 
+    def command_from(self, *parts) -> Any:
+        """This actuator's command from a controller's parts
+        (:meth:`adcs_controllers.laws.allocation.Actuation.plant_commands`)."""
+        raise NotImplementedError
+
 
 class WheelCommand(NamedTuple):
     """Zero-order-hold wheel command: per wheel a value and whether it is a speed (else torque)."""
@@ -179,6 +184,9 @@ class ReactionWheels(Actuator):
     def zero_command(self) -> WheelCommand:
         return WheelCommand(np.zeros(self.count), np.zeros(self.count, dtype=bool))
 
+    def command_from(self, value: np.ndarray, speed_mode: np.ndarray) -> WheelCommand:
+        return WheelCommand(value, speed_mode)
+
     FAULT_MODES = FAULT_OK_MODES + FAULT_ERROR_MODES
 
     def apply_fault(self, index: int, mode: str, value: float = 0.0) -> None:
@@ -263,6 +271,9 @@ class Torquers(Actuator):
 
     def zero_command(self) -> np.ndarray:
         return np.zeros(3)
+
+    def command_from(self, torque: np.ndarray) -> np.ndarray:
+        return torque
 
     def torque(self, t, xa, w, cmd):
         return np.clip(cmd, -self.max_torque, self.max_torque), None
