@@ -1,6 +1,6 @@
 """Quaternion kinematics and attitude errors (numpy, batchable, no ROS).
 
-Convention (DESIGN.md): Hamilton quaternion, scalar last, ``q = (x, y, z, w)`` of the body frame in
+Convention: Hamilton quaternion, scalar last, ``q = (x, y, z, w)`` of the body frame in
 the inertial frame, i.e. ``R(q)`` maps body vectors to inertial ones. This is numerically the
 papers' ``[q1 q2 q3 q4]`` (seeds 000, 001, 004) and ``scipy.spatial.transform.Rotation.from_quat``.
 Every function takes a leading batch axis (``q`` of shape ``(..., 4)``).

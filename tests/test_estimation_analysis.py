@@ -133,3 +133,14 @@ def test_the_run_analysis_of_a_bag_with_an_estimate_reads_the_state_not_the_esti
     run = RunData.from_bag(tmp_path / 'bag')
     assert_array_equal(run.q, np.tile([0.0, 0.0, 0.0, 1.0], (5, 1)))
     assert_array_equal(run.w, np.zeros((5, 3)))
+
+
+@pytest.mark.parametrize('dof', [1, 2, 3, 6, 9, 300, 600])
+@pytest.mark.parametrize('runs', [1, 7, 100])
+def test_chi2_bounds_are_scipy_stats_chi2_ppf(dof, runs):
+    """chi2_bounds (scipy.special.gammaincinv, which imports in a fraction of scipy.stats' time)
+    against the reference scipy.stats.chi2.ppf of the mean of ``runs`` values: the same bits."""
+    from scipy.stats import chi2
+    a = (1.0 - estimation.CONFIDENCE) / 2.0
+    expected = chi2.ppf([a, 1.0 - a], dof * runs) / runs
+    assert estimation.chi2_bounds(dof, runs) == (float(expected[0]), float(expected[1]))

@@ -1,6 +1,6 @@
 """Scenario parameter validation without ROS: adcs_msgs_py.params + the node schemas.
 
-Every refusal must be a ParameterError whose message names the offending key (DESIGN.md:
+Every refusal must be a ParameterError whose message names the offending key (the design rule:
 "stop the node at start with a message that names the key").
 """
 from __future__ import annotations
