@@ -186,7 +186,7 @@ def two_contexts(ros_domain):
         yield pair
     finally:
         for ctx in pair:
-            rclpy.try_shutdown(context=ctx)
+            close_graph(rclpy, ctx)
 
 
 def _prune_empty(tree: dict) -> None:
@@ -301,9 +301,25 @@ class InProcessGraph:
         return self
 
     def __exit__(self, *exc) -> None:
-        for node in reversed(self.nodes):
-            node.destroy_node()
-        self.rclpy.try_shutdown(context=self.context)
+        close_graph(self.rclpy, self.context, self.executor, self.nodes)
+
+
+def close_graph(rclpy, context, executor=None, nodes=()) -> None:
+    """Take a graph of this process down for good: its nodes out of the executor and destroyed, the
+    executor shut down, the context shut down AND destroyed. A node still held by an executor is
+    destroyed only when that lets go of it, and a context's DDS participant lives until the context
+    is destroyed (rclpy: shutdown alone keeps it): a later graph of the same test on the same domain
+    then met the earlier recorder's readers, which nobody takes from any more. Once full they
+    acknowledged nothing, and every step of the later run waited out its 5 s acknowledgement wait
+    (seen: test_measurement_noise_is_seeded_and_truth_is_recorded's second run at step ~300)."""
+    for node in reversed(list(nodes)):
+        if executor is not None:
+            executor.remove_node(node)
+        node.destroy_node()
+    if executor is not None:
+        executor.shutdown()
+    rclpy.try_shutdown(context=context)
+    context.destroy()
 
 
 def record_pd_loop(tmp_path: Path, n: int, dynamics: dict | None = None, extra_counts: dict | None = None):
