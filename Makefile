@@ -9,10 +9,8 @@ $(VENV)/.installed: requirements.txt requirements-dev.txt setup.py setup.cfg pyp
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-dev.txt
 	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps -e . && test -x $(VENV)/bin/dynamics
-	$(PY) -c 'import numpy; from adcs_sim.truth.plant import Plant; Plant(numpy.eye(3))'  # compile the plant kernel into its cache
-	# compile the campaigns' fused PD loop and batch-metrics kernels (~60 s once; cached beside their modules)
-	$(PY) -c 'from adcs_sim.app.campaign import Campaign, run_chunk; c = Campaign.load("config/campaigns/pd_slew_30deg.yaml", runs=2); [r for ch in c.chunks() for r in run_chunk(c, ch)]'
-	$(PY) -c 'from adcs_sim.app.metrics_kernel import compile_rare_kernels; compile_rare_kernels()'
+	# compile every numba kernel into its cache beside its module (adcs_sim/app/kernels.py; minutes once, then ~1 s)
+	$(PY) -m adcs_sim.app.kernels
 	touch $@
 
 .PHONY: install run test bench
