@@ -1,6 +1,7 @@
 """Shared fixtures: every ROS test runs on its own domain id, loopback discovery only."""
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import signal
@@ -158,13 +159,20 @@ def pytest_sessionstart(session):
     Plant(np.eye(3))
 
 
+_LEASES = itertools.count()   # leases taken by this process (ros_domain)
+
+
 @pytest.fixture
 def ros_domain(monkeypatch):
     """A leased ROS_DOMAIN_ID (in 100..232, away from the runner's default range), set in os.environ.
 
     Yields the lease; ``lease.env()`` is the environment for subprocesses of the test.
     """
-    lease = DomainLease(100, 232)
+    # Each lease of this process starts from another id (a step coprime with the 133 ids): a test
+    # never meets in its domain a participant an earlier test of this process left alive (one still
+    # waiting to be collected). With the default start every lease of a process began at the same
+    # id, and a later test's writers once waited on an earlier test's recorder readers, 5 s a step.
+    lease = DomainLease(100, 232, prefer=100 + (os.getpid() + 37 * next(_LEASES)) % 133)
     monkeypatch.setenv('ROS_DOMAIN_ID', str(lease.domain_id))
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     try:

@@ -46,11 +46,14 @@ def coordinator_socket(domain: int) -> socket.socket | None:
 class DomainLease:
     """An exclusively held domain id; release() or process exit frees it."""
 
-    def __init__(self, first: int = 1, last: int = MAX_DOMAIN_ID) -> None:
+    def __init__(self, first: int = 1, last: int = MAX_DOMAIN_ID, prefer: int | None = None) -> None:
+        """The first free id of ``first..last`` from ``prefer`` on (default: one spread by the
+        process id, so that concurrent callers do not all try the same one first)."""
         if not 0 <= first <= last <= MAX_DOMAIN_ID:
             raise ValueError(f'domain range must lie in 0..{MAX_DOMAIN_ID}, got {first}..{last}')
         LOCK_DIR.mkdir(parents=True, exist_ok=True)
-        start = first + os.getpid() % (last - first + 1)  # spread concurrent callers
+        offset = os.getpid() if prefer is None else prefer - first
+        start = first + offset % (last - first + 1)
         ids = list(range(start, last + 1)) + list(range(first, start))
         self._fd: int | None = None
         self._socket: socket.socket | None = None
