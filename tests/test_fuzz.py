@@ -32,7 +32,7 @@ from hypothesis import strategies as st
 from adcs_controllers.families import M2R_SCHEMA, M2S_SCHEMA
 from adcs_controllers.laws import backstepping as bs
 from adcs_controllers.laws import single_axis as sa
-from adcs_controllers.laws.allocation import ACTUATION_KINDS, WheelActuation, build_actuation
+from adcs_controllers.laws.allocation import ACTUATION_KINDS, WheelActuation
 from adcs_controllers.laws.base import LawOutputRejected, checked_control, checked_output
 from adcs_controllers.laws.motion_to_rest import M2rLaw
 from adcs_controllers.laws.motion_to_spin import M2sLaw
@@ -221,7 +221,7 @@ WHEEL_MOMENTUM = st.lists(st.floats(-10, 10), min_size=3, max_size=3).map(np.arr
 
 def _build(name: str, **over):
     p = NODES[name].schema.validate({**SECTIONS[name], **over})
-    act = build_actuation(p) if p.get('actuator') in ACTUATION_KINDS else None
+    act = NODES[name].family.actuation_class(p)(p) if p.get('actuator') in ACTUATION_KINDS else None
     return NODES[name].law(p), act, p
 
 

@@ -62,7 +62,8 @@ class Actuation:
     subclass per kind (the ``actuator`` parameter): :class:`WheelActuation`, :class:`TorquerActuation`
     and seed 002's :class:`~adcs_controllers.laws.backstepping.ThrusterActuation`; what differs
     between kinds is in their methods, so that the controller node and the batch engine never ask
-    which kind they hold. Built from a validated controller section (:func:`build_actuation`); limits
+    which kind they hold. Built from a validated controller section (the family's
+    ``actuation_class``: :data:`ACTUATION_KINDS` or its own); limits
     may carry a batch axis. :meth:`command` is what the controller node publishes and what the
     batch engine applies, so both saturate and allocate identically.
     """
@@ -250,11 +251,7 @@ class TorquerActuation(Actuation):
         return {'torquers': (values,)}
 
 
-#: The actuation of each value of a controller section's ``actuator`` that the common actuation
-#: builder makes (seed 002's thrusters are built by their own family).
+#: The actuation class of each value of a controller section's ``actuator`` (seed 002's
+#: thrusters are their family's own: ``ControllerFamily.actuation``).
 ACTUATION_KINDS: dict[str, type[Actuation]] = {c.kind: c for c in (WheelActuation, TorquerActuation)}
 
-
-def build_actuation(p: dict) -> Actuation:
-    """The actuation of a validated controller section (its ``actuator``)."""
-    return ACTUATION_KINDS[p['actuator']](p)
