@@ -17,8 +17,8 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT
 from matplotlib.figure import Figure
+from support.paths import ROOT
 
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app import api

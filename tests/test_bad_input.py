@@ -13,9 +13,11 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, InProcessGraph, make_scenario
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
+from support.paths import ROOT, SCRIPTS
+from support.ros_graph import InProcessGraph
+from support.scenarios import make_scenario
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
@@ -153,6 +155,7 @@ def test_runner_refuses_non_physical_inertia(tmp_path):
     assert not (tmp_path / 'out').exists()
 
 
+@pytest.mark.graph
 def test_runner_node_failing_at_start_stops_graph(tmp_path, monkeypatch, capsys):
     """A node that dies at start: the runner stops the other processes, exits non-zero naming
     the node and its error, and leaves no output folder claiming to be a run."""
@@ -161,7 +164,7 @@ def test_runner_node_failing_at_start_stops_graph(tmp_path, monkeypatch, capsys)
     info = registry.NODES['pd_controller']
     monkeypatch.setitem(registry.NODES, 'pd_controller',
                         registry.NodeInfo('crash_at_start', info.schema, info.role, info.family))
-    monkeypatch.setenv('PYTHONPATH', str(ROOT / 'tests' / 'helpers'))
+    monkeypatch.setenv('PYTHONPATH', str(SCRIPTS))   # crash_at_start.py
     scenario = make_scenario(tmp_path, {'dynamics': {'startup.timeout': 60.0}})
     out = tmp_path / 'out'
     started = []

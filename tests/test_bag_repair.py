@@ -14,16 +14,16 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT
 from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
+from support.paths import ROOT, SCRIPTS
 
 from adcs_sim.app.analyze import main as analyze_main
 from adcs_sim.app.repair import main as repair_main
 from adcs_sim.bag.reader import is_complete, read_metadata, read_raw
 from adcs_sim.bag.storage import typestore
 
-CHILD = ROOT / 'tests' / 'helpers' / 'bag_writer_child.py'
+CHILD = SCRIPTS / 'bag_writer_child.py'
 SCENARIO = ROOT / 'config' / 'microsat_pd_slew.yaml'
 SEEDS = range(6)
 

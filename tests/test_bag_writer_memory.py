@@ -13,7 +13,7 @@ import gc
 import tracemalloc
 
 from mcap.reader import make_reader
-from test_any_bag import ODOM, QOS, odom, ser
+from support.bags import ODOM, QOS, odom, ser
 
 from adcs_sim.bag import writer as bag_writer
 from adcs_sim.bag.reader import read_raw

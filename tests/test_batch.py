@@ -12,8 +12,9 @@ import math
 
 import numpy as np
 import pytest
-from conftest import make_scenario, record_pd_loop
 from numpy.testing import assert_allclose, assert_array_equal
+from support.ros_graph import record_pd_loop
+from support.scenarios import make_scenario
 
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app.analysis import RunData, run_metrics

@@ -11,12 +11,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from conftest import make_scenario
-from test_batch import batch_of
+from support.scenarios import batch_of, make_scenario
 
 from adcs_sim.app.analysis import first_entry_time, settling_time
-from adcs_sim.app.batch_metrics import (batch_metric_columns, batch_run_metrics, first_entry_times, metric_columns,
-                                        settling_times)
+from adcs_sim.app.batch_metrics import (
+    batch_metric_columns,
+    batch_run_metrics,
+    first_entry_times,
+    metric_columns,
+    settling_times,
+)
 
 T = np.arange(6, dtype=float) * 0.5
 ERRORS = np.array([

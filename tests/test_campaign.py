@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import CONFIG, make_scenario
+from support.paths import CONFIG
+from support.scenarios import make_scenario
 
 from adcs_sim.app.batch import BatchSimulation
 from adcs_sim.app.campaign import Campaign, CampaignError, run_chunk
@@ -82,6 +83,7 @@ def test_dask_gives_the_same_rows_locally_and_by_scheduler_address(tmp_path):
         assert execute(campaign, scheduler=cluster.scheduler_address, progress=False) == here
 
 
+@pytest.mark.graph
 def test_an_exported_run_replays_through_the_ros_graph(tmp_path):
     """adcs-run of a run's exported scenario: the graph's recording is that run (batch engine, to
     round-off)."""

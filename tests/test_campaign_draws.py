@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.transform import Rotation
-from test_campaign import write_campaign
+from support.scenarios import write_campaign
 
 from adcs_sim.app.campaign import Campaign, run_chunk
 

@@ -16,7 +16,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 import yaml
-from conftest import make_scenario
+from support.scenarios import make_scenario
 
 from adcs_sim.app.api import campaign_results
 from adcs_sim.app.montecarlo import main, read_results, results_table

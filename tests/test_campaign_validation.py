@@ -16,8 +16,8 @@ import math
 
 import numpy as np
 import pytest
-from conftest import CONFIG
-from test_campaign import write_campaign
+from support.paths import CONFIG
+from support.scenarios import write_campaign
 
 from adcs_msgs_py.params import ParameterError, Schema
 from adcs_sim.app.campaign import Campaign, CampaignError

@@ -55,6 +55,7 @@ def node():
             lease.release()
 
 
+@pytest.mark.graph
 @pytest.mark.parametrize('topic, msg, ours', CASES, ids=[c[0] for c in CASES])
 def test_the_wire_bytes_of_the_object_path_are_the_codecs(node, topic, msg, ours):
     n, executor = node

@@ -5,8 +5,7 @@ from __future__ import annotations
 import ast
 
 import pytest
-
-from conftest import ROOT
+from support.paths import ROOT
 
 SOURCES = sorted(p for folder in ('adcs_core', 'adcs_msgs_py', 'adcs_controllers', 'adcs_sim', 'benchmarks', 'docs',
                                   'bags')

@@ -15,8 +15,11 @@ import sys
 import time
 
 import numpy as np
+import pytest
 import yaml
-from conftest import CONFIG, ROOT, children, make_scenario
+from support.paths import CONFIG, ROOT
+from support.processes import children
+from support.scenarios import make_scenario
 
 from adcs_sim.app.analysis import RunData, run_metrics
 from adcs_sim.bag.reader import read_raw
@@ -57,6 +60,7 @@ def _assert_whole_run_with_gap(bag, killed_after: int):
     return metrics
 
 
+@pytest.mark.slow
 def test_runner_restarts_a_killed_controller_which_rejoins(tmp_path, spawn):
     scenario = make_scenario(tmp_path, {'dynamics': {'duration': DURATION, 'lockstep.timeout': TIMEOUT}})
     out = tmp_path / 'run'
@@ -80,6 +84,7 @@ def test_runner_restarts_a_killed_controller_which_rejoins(tmp_path, spawn):
     assert (out / 'logs' / 'pd_controller.1.log').is_file() and (out / 'logs' / 'pd_controller.log').is_file()
 
 
+@pytest.mark.slow
 def test_another_law_takes_over_after_a_kill(ros_domain, tmp_path, spawn):
     """Node processes on the test's domain: recorder, dynamics, PD; the PD is SIGKILLed and the
     min-norm law of the same spacecraft (seed 004 eq. 14) is started in its place."""

@@ -17,31 +17,15 @@ from pathlib import Path
 
 import pytest
 import setuptools
+from support.packaging import normal_name, requirements
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ('adcs_core', 'adcs_msgs_py', 'adcs_controllers', 'adcs_sim')
-PIN = re.compile(r'^(?P<name>[A-Za-z0-9][A-Za-z0-9._-]*)(\[[a-z0-9_,-]+\])?==(?P<version>[0-9][0-9A-Za-z.+-]*)$')
 ROSDEP_ALIASES = {'pyyaml': 'yaml'}   # rosdep's key for PyYAML is python3-yaml
 # Optional imports, each inside the one function that needs it with a clear ImportError otherwise:
 # (pandas was one, for adcs_sim.app.api's RunResult.dataframe(); it is a pinned runtime requirement
 # since ppigrf, adcs_core/environment's IGRF coefficient reader, imports it. None now.)
 OPTIONAL: set[str] = set()
-
-
-def _normal(name: str) -> str:
-    return re.sub(r'[-_.]+', '-', name).lower()
-
-
-def requirements() -> dict[str, str]:
-    """requirements.txt -> {normalised distribution name: the full line}; every line pinned."""
-    out = {}
-    for line in (ROOT / 'requirements.txt').read_text().splitlines():
-        line = line.split('#', 1)[0].strip()
-        if line:
-            match = PIN.match(line)
-            assert match, f'requirements.txt: {line!r} is not pinned (name==version)'
-            out[_normal(match['name'])] = line
-    return out
 
 
 def _rosdep_key(dist: str) -> set[str]:
@@ -95,7 +79,7 @@ def _requires(dist: str) -> set[str]:
         lines = importlib.metadata.requires(dist) or ()
     except importlib.metadata.PackageNotFoundError:
         pytest.fail(f'{dist} is pinned but not installed in the test venv')
-    return {_normal(re.split(r'[\s;\[<>=!~]', line, maxsplit=1)[0]) for line in lines}
+    return {normal_name(re.split(r'[\s;\[<>=!~]', line, maxsplit=1)[0]) for line in lines}
 
 
 def test_every_imported_third_party_module_is_a_requirement():
@@ -106,7 +90,7 @@ def test_every_imported_third_party_module_is_a_requirement():
     ros_closure = {d for req in reqs if req.startswith('ros-') for d in _requires(req.split('[')[0])}
     undeclared = {}
     for module in sorted(_imported_top_modules() - OPTIONAL):
-        dists = {_normal(d) for d in provided.get(module, ())}
+        dists = {normal_name(d) for d in provided.get(module, ())}
         ros_only = dists and all(d.startswith('ros-') for d in dists)
         if not (dists & reqs or (ros_only and dists & ros_closure)):
             undeclared[module] = sorted(dists)

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import assert_recorded_run_equal
+from support.comparison import assert_recorded_run_equal
 
 from adcs_sim.app import estimation
 from adcs_sim.app.analysis import RunData, run_metrics
@@ -42,11 +42,12 @@ def _degrees(errors: dict, key: str) -> np.ndarray:
     return np.degrees(np.linalg.norm(errors[key], axis=-1))
 
 
-@pytest.mark.parametrize('name', ['microsat_gsmn_slew_mekf', 'microsat_pd_slew_star_tracker_outage'])
+@pytest.mark.parametrize('name', [pytest.param('microsat_gsmn_slew_mekf', marks=pytest.mark.slow),
+                                  'microsat_pd_slew_star_tracker_outage'])
 def test_graph_recording_of_the_estimator_chain_equals_its_batch_run(name):
     """dynamics (sensors) -> mekf_estimator -> controller on estimate/state -> dynamics, in lockstep:
     the bag's truth, torques and every estimate (attitude, rate, attitude covariance) are the batch
-    engine's, bit for bit on the CPU that recorded them (tests/conftest.py CROSS_CPU_RTOL elsewhere)."""
+    engine's, bit for bit on the CPU that recorded them (tests/support/comparison.py CROSS_CPU_RTOL elsewhere)."""
     result = batch(BAGS / name / 'scenario.yaml')
     graph = recorded(name)
     assert graph.missed_steps == 0
@@ -89,6 +90,7 @@ def test_gsmn_on_the_estimate_spends_more_torque_than_on_the_truth_pinned():
     assert on_estimate > 1.3 * on_truth
 
 
+@pytest.mark.slow
 def test_mekf_of_the_gsmn_slew_converges_and_is_conservative_not_consistent_pinned():
     """From 10 deg off and without the 0.1 deg/s-class bias: after 60 s the attitude error stays below
     0.02 deg and inside the filter's 3 sigma (per axis) on >= 99 % of the steps, the bias error below
@@ -133,6 +135,7 @@ def test_star_tracker_outage_grows_the_error_as_the_gyro_model_predicts_then_rec
     assert run_metrics(result.run_data(0))['settling_eigenaxis_0.5deg_s'] < 400.0   # the slew completes
 
 
+@pytest.mark.slow
 def test_sun_and_magnetometer_mekf_on_a_tle_orbit_through_an_eclipse():
     """LEO (SGP4 of the scenario's TLE), umbra from ~380 s to ~2400 s: the sun sensor is used only in
     sunlight, the magnetometer throughout. Consistency over the 3000 s: the 6-dof NEES mean within 15 %

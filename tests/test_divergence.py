@@ -12,9 +12,11 @@ import subprocess
 import sys
 
 import numpy as np
-from conftest import ROOT, make_scenario
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from support.paths import ROOT
+from support.scenarios import make_scenario
 
 from adcs_sim.app.batch import BatchSimulation
 from adcs_sim.app.scenario_files import validate_scenario
@@ -46,6 +48,7 @@ def test_batch_names_the_time_and_the_cause(tmp_path):
     assert re.search(r'non-finite (attitude quaternion|body rate|applied torque)', failure), failure
 
 
+@pytest.mark.graph
 def test_dynamics_node_stops_the_run_naming_the_time_and_the_cause(tmp_path):
     scenario = _diverging(tmp_path)
     _, k_fail = _batch_failure(scenario)

@@ -4,7 +4,8 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from conftest import InProcessGraph, make_scenario
+from support.ros_graph import InProcessGraph
+from support.scenarios import make_scenario
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion
 from adcs_sim.app.analysis import RunData

@@ -19,9 +19,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import CONFIG, make_scenario
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from support.paths import CONFIG
+from support.scenarios import make_scenario
 
 import adcs_sim.app.campaign as campaign_module
 import adcs_sim.app.montecarlo as montecarlo
@@ -252,6 +253,7 @@ def _campaign_file(tmp_path: Path, scenario: Path, **body) -> Path:
     return path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('section, key', [pytest.param(s, k, id=f'{s}.{k}') for s, k in DISPERSIBLE])
 def test_every_dispersible_parameter_reaches_the_runs(tmp_path, monkeypatch, section, key):
     """Dispersing ``section.key`` in 3 runs of a few steps: one batch, each run its own draw, each
@@ -352,6 +354,7 @@ def test_a_law_that_raises_in_one_run_fails_that_run_only(tmp_path, monkeypatch)
 def test_failed_rows_are_written_with_the_others(tmp_path, monkeypatch):
     """A campaign with a run that raised writes its tables, summary and replay like a diverged run's."""
     import json
+
     from adcs_controllers.laws.inverse_optimal import MinNormLaw
     control = MinNormLaw.control
     monkeypatch.setattr(MinNormLaw, 'control', lambda self, t, q, w, *a: (_ for _ in ()).throw(

@@ -14,10 +14,11 @@ from functools import cache
 import numpy as np
 import pytest
 import yaml
-from conftest import InProcessGraph, make_scenario
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_recorded_topics import ALL, _run, _visual
+from support.recorded_topics import ALL, dynamics_messages, visual_messages
+from support.ros_graph import InProcessGraph
+from support.scenarios import make_scenario
 
 from adcs_msgs_py import cdr, names, topics
 from adcs_msgs_py.recorded_topics import MAX_LAG, MAX_PENDING, RecordedTopics, config_text, parse_config
@@ -30,7 +31,7 @@ SOURCES = (names.STATE, *MARKER_INPUTS)
 def _dynamics(steps: int):
     """What the dynamics node of a spacecraft with wheels, thrusters and an orbit sends for ``steps``
     steps, by topic in its order, and the viewer messages it publishes, by topic."""
-    sources, expected = _run(_visual(True, True, True), names.STATE, steps, np.random.default_rng(31))
+    sources, expected = dynamics_messages(visual_messages(True, True, True), names.STATE, steps, np.random.default_rng(31))
     by_topic, viewer = {t: [] for t in SOURCES}, {t: [] for t in ALL}
     for topic, data in sources:
         by_topic[topic].append(data)
@@ -41,7 +42,7 @@ def _dynamics(steps: int):
 
 def _recorded(arrivals, derived=ALL) -> tuple[dict, RecordedTopics]:
     """The viewer messages ``derived`` the recorder writes from ``arrivals`` (topic, data), by topic."""
-    recording = RecordedTopics(parse_config(config_text(None, _visual(True, True, True), names.STATE, list(derived))))
+    recording = RecordedTopics(parse_config(config_text(None, visual_messages(True, True, True), names.STATE, list(derived))))
     out = {t: [] for t in derived}
     for topic, data in arrivals:
         for name, message in recording.derive(topic, data):
@@ -100,7 +101,7 @@ class TestDerivedTopicsLostUnderLoad:
         longest is given up, counted in ``lost`` and reported to ``on_lost`` with its stamp; memory
         stays bounded."""
         given_up = []
-        config = parse_config(config_text(None, _visual(True, False, False), names.STATE, [names.MARKERS]))
+        config = parse_config(config_text(None, visual_messages(True, False, False), names.STATE, [names.MARKERS]))
         recording = RecordedTopics(config, on_lost=given_up.append)
         codec = cdr.JointStateCodec('x')
         extra = 3
@@ -125,7 +126,7 @@ class TestDerivedTopicsLostUnderLoad:
             logger = rec.get_logger()
             monkeypatch.setattr(logger, 'error', lambda text, **kw: errors.append(text), raising=False)
             monkeypatch.setattr(rec, 'get_logger', lambda: logger)
-            config = config_text(None, _visual(True, False, False), names.STATE, [names.MARKERS])
+            config = config_text(None, visual_messages(True, False, False), names.STATE, [names.MARKERS])
             rec._on_recording_config('/dynamics/recording', serialize_message(String(data=config)))
             assert rec.recorded is not None and rec.recorded.lost == 0
             codec = cdr.JointStateCodec('x')

@@ -20,8 +20,10 @@ import sys
 import time
 from pathlib import Path
 
-import pytest
-from conftest import ROOT, alive, children, make_scenario, states_on_disk
+from support.bags import states_on_disk
+from support.paths import ROOT, SCRIPTS
+from support.processes import alive, children
+from support.scenarios import make_scenario
 
 from adcs_sim.app.analyze import main as analyze_main
 from adcs_sim.app.repair import main as repair_main
@@ -30,7 +32,7 @@ from adcs_sim.bag.reader import is_complete, read_metadata, read_raw
 from adcs_sim.bag.writer import BagWriter
 
 COMMITTED = ROOT / 'bags' / 'microsat_pd_slew' / 'bag'
-CHILD = ROOT / 'tests' / 'helpers' / 'bag_writer_child.py'
+CHILD = SCRIPTS / 'bag_writer_child.py'
 SCENARIO = ROOT / 'config' / 'microsat_pd_slew.yaml'
 
 

@@ -9,11 +9,11 @@ import json
 import shutil
 
 import pytest
-from conftest import ROOT
-from helpers.edge_paths import one_line
+from support.edge_paths import one_line
+from support.paths import ROOT
 
-from adcs_sim.app.analyze import main as analyze
 from adcs_sim.app import layouts
+from adcs_sim.app.analyze import main as analyze
 
 BAG = ROOT / 'bags' / 'microsat_pd_slew' / 'bag'
 OPTIONS = {'foxglove': '--foxglove-layout', 'plotjuggler': '--plotjuggler-layout'}

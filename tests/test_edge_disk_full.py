@@ -27,10 +27,13 @@ from pathlib import Path
 
 import pytest
 import rclpy
-from conftest import ROOT, alive, children, make_scenario, states_on_disk
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from rclpy.duration import Duration
+from support.bags import states_on_disk
+from support.paths import ROOT
+from support.processes import alive, children
+from support.scenarios import make_scenario
 
 import adcs_sim.bag.writer as bag_writer
 from adcs_msgs_py import topics

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers.rogue import FakeGraph, FakeSub, first_unclean_step, has_messages, run_with_rogue
 from std_msgs.msg import String
+from support.rogue import FakeGraph, FakeSub, first_unclean_step, has_messages, run_with_rogue
 
 from adcs_msgs_py import names, topics
 from adcs_msgs_py.guard import PublisherVetting
@@ -156,6 +156,7 @@ def test_the_analysis_tells_intruders_from_unmatchable_publishers():
 
 # --- through the graph ------------------------------------------------------------------------------
 
+@pytest.mark.graph
 def test_a_node_that_takes_a_run_nodes_name_is_refused_as_an_intrusion(tmp_path, monkeypatch):
     """A node named ``pd_controller`` (not the run's) sends maximum-torque commands from t = 2 s:
     the dynamics node stops before applying one, ``adcs-run`` exits 1 naming the second node of
@@ -172,6 +173,7 @@ def test_a_node_that_takes_a_run_nodes_name_is_refused_as_an_intrusion(tmp_path,
     assert 'recorder.intrusions' in (bag / 'metadata.yaml').read_text()
 
 
+@pytest.mark.graph
 def test_a_publisher_of_another_type_is_reported_and_the_run_goes_on(tmp_path, monkeypatch):
     """A ``std_msgs/String`` publisher on ``wheels/cmd``, there before the run's nodes, answering
     every state: the run completes (exit 0), ``adcs-run`` warns naming the node, topic and type,

@@ -22,7 +22,8 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, make_scenario
+from support.paths import ROOT
+from support.scenarios import make_scenario
 
 from adcs_controllers.laws.failure import FlightSoftwareError
 from adcs_msgs_py.params import ParameterError
@@ -108,6 +109,7 @@ def test_the_batch_engine_raises_the_flight_software_error_at_that_step(tmp_path
                                       f't = {FAIL_T} s: ValueError: body vectors: attitude unobservable')
 
 
+@pytest.mark.graph
 def test_an_estimator_that_cannot_answer_stops_the_run_with_its_reason(tmp_path):
     """The graph: exit 1, one line naming the node, the time and the error, no traceback; the bag holds
     every state up to the failing step and the dynamics node never missed a step (its lockstep timeout
@@ -135,7 +137,7 @@ def test_a_law_that_raises_stops_its_node_but_a_refused_state_is_counted(ros_dom
     and the node goes on (tests/test_fuzz.py); anything else the law or the allocation raises is the
     node unable to answer: nothing is published, no later state is answered, and its loop ends with
     FlightSoftwareFailed (exit status 6) naming the node, the time and the error."""
-    from conftest import InProcessGraph
+    from support.ros_graph import InProcessGraph
 
     from adcs_controllers.nodes.pd_controller import PdController
     from adcs_msgs_py import conversions as cv
@@ -166,7 +168,7 @@ def test_a_law_that_raises_stops_its_node_but_a_refused_state_is_counted(ros_dom
 def test_a_law_that_refuses_every_state_stops_its_node(ros_domain, tmp_path, monkeypatch):
     """A law that refuses the state three times in a row (a plant resting on its singular set: each
     refusal a lockstep timeout waited, for ever) cannot answer: the third refusal stops the node."""
-    from conftest import InProcessGraph
+    from support.ros_graph import InProcessGraph
 
     from adcs_controllers.nodes.pd_controller import PdController
     from adcs_msgs_py import conversions as cv

@@ -12,11 +12,11 @@ import threading
 from pathlib import Path
 
 import pytest
-import yaml
-from conftest import CONFIG, ROOT, make_scenario
-from helpers.edge_paths import fifo, one_line, read_only, tiny_campaign
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from support.edge_paths import fifo, one_line, read_only, tiny_campaign
+from support.paths import ROOT
+from support.scenarios import make_scenario
 
 from adcs_sim.app import analyze, montecarlo, repair, runner, tuning
 

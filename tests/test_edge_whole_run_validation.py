@@ -15,9 +15,10 @@ from collections import namedtuple
 
 import numpy as np
 import pytest
-from conftest import CONFIG, make_scenario
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from support.paths import CONFIG
+from support.scenarios import make_scenario
 
 from adcs_msgs_py.params import ParameterError
 from adcs_msgs_py.params_file import load_params_file

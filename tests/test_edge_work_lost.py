@@ -8,7 +8,7 @@ from __future__ import annotations
 import copy
 
 import pytest
-from helpers.edge_paths import fifo, one_line, read_only, tiny_campaign
+from support.edge_paths import fifo, one_line, read_only, tiny_campaign
 
 from adcs_sim.app import montecarlo
 from adcs_sim.app.api import Scenario

@@ -1,14 +1,14 @@
 """The batch engine with an estimator section (adcs_sim/app/batch.py): the sensors' readings of each
 step go through the estimator family's step (the node's object) and a controller with ``feedback:
 estimate`` flies on the estimate. The sensors here are a test source on the plant's true state
-(tests/estimation_truth.py StateSensors) until the truth model's SensorSuite is plugged in."""
+(tests/support/estimation_truth.py StateSensors) until the truth model's SensorSuite is plugged in."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import make_scenario
-from estimation_truth import StateSensors
 from numpy.testing import assert_array_equal
+from support.estimator_runs import MEKF_SECTION, batch
+from support.scenarios import make_scenario
 
 from adcs_controllers.estimators import mekf
 from adcs_msgs_py import conversions_determination as cd
@@ -17,27 +17,6 @@ from adcs_msgs_py.params import ParameterError
 from adcs_sim.app.batch import BatchSimulation, as_received
 from adcs_sim.app.registry import NODES
 from adcs_sim.app.scenario_files import validate_scenario
-
-Q0 = [0.3062, 0.1768, 0.1768, 0.9186]
-SIGMA_V, SIGMA_U, SIGMA_ST = 1e-5, 1e-7, 1e-4
-BIAS0 = np.radians([0.1, -0.05, 0.08])     # a 0.1 deg/s-class gyro bias
-MEKF_SECTION = {'sensors': ['gyro', 'star_tracker'], 'gyro.propagation': 'average', 'gyro.sigma_v': SIGMA_V, 'gyro.sigma_u': SIGMA_U,
-                'star_tracker.sigma': [SIGMA_ST] * 3, 'initial.attitude': Q0,
-                'initial.attitude_sigma': [0.05] * 3, 'initial.bias_sigma': [0.003] * 3}
-
-
-def batch(tmp_path, n_runs=1, duration=300.0, feedback='estimate', seeds=None, **over):
-    # the dynamics section fits the sensors the estimator uses (the scenario check); the test source
-    # StateSensors stands in for their readings
-    scenario = make_scenario(tmp_path, {'dynamics': {'duration': duration, 'sensors.gyro.enabled': True,
-                                                     'sensors.star_tracker.enabled': True},
-                                        'mekf_estimator': {**MEKF_SECTION, **over},
-                                        'pd_controller': {'feedback': feedback}})
-    v = validate_scenario(scenario)
-    runs = [{name: NODES[name].schema.validate(p) for name, p in v.items()} for _ in range(n_runs)]
-    seeds = list(range(n_runs)) if seeds is None else seeds
-    return BatchSimulation.from_runs(runs, StateSensors(seeds, 1.0, SIGMA_V, SIGMA_U, SIGMA_ST, BIAS0))
-
 
 def test_the_pd_slew_flown_on_the_mekf_estimate_settles_as_on_the_truth(tmp_path):
     """Figure: the microsat PD slew (seed 004 benchmark law) on the truth and on the MEKF estimate

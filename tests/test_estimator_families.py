@@ -1,5 +1,5 @@
 """The estimator families (adcs_controllers.estimators.families) on their own truth model
-(tests/estimation_truth.py: constant-rate body, Farrenkopf gyro with exact discrete variances, star
+(tests/support/estimation_truth.py: constant-rate body, Farrenkopf gyro with exact discrete variances, star
 tracker of white small-rotation noise), 100 runs in one vectorised batch.
 
 Consistency bounds (Bar-Shalom, Li & Kirubarajan, *Estimation with Applications to Tracking and
@@ -17,7 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from estimation_truth import (
+from scipy.linalg import expm
+from scipy.stats import chi2
+from support.estimation_truth import (
     DT,
     OMEGA,
     RUNS,
@@ -31,8 +33,6 @@ from estimation_truth import (
     Truth,
     perturbed,
 )
-from scipy.linalg import expm
-from scipy.stats import chi2
 
 from adcs_controllers.estimators import mekf
 from adcs_controllers.estimators.families import MEKF, QUEST

@@ -9,11 +9,12 @@ import math
 
 import numpy as np
 import pytest
-from conftest import InProcessGraph, make_scenario, refused
 from geometry_msgs.msg import PoseWithCovarianceStamped, Vector3Stamped
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from sensor_msgs.msg import Imu, MagneticField
+from support.ros_graph import InProcessGraph, refused
+from support.scenarios import make_scenario
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import conversions_determination as cd
@@ -88,6 +89,7 @@ def estimator(tmp_path_factory):
     lease.release()
 
 
+@pytest.mark.graph
 def test_estimator_survives_any_sensor_message(estimator):
     """The fuzz below (every example), which also reaches the estimator's step, not only the
     conversions: checked on this very run, so it holds whatever ran before or after."""

@@ -1,5 +1,5 @@
 """Estimator nodes on the graph (in this process, their own ROS domain): the test publishes each step's
-sensor messages (tests/estimation_truth.py through the contract conversions), the estimator answers
+sensor messages (tests/support/estimation_truth.py through the contract conversions), the estimator answers
 with estimate/state and estimator/status stamped with the step, and a PD controller flying on the
 estimate (``feedback: estimate``, its only change) answers with its command. The estimates equal the
 family's own step on the same readings bit for bit; the commands equal the law's on the estimates.
@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import InProcessGraph, make_scenario
-from estimation_truth import Truth
+from support.estimation_truth import Truth
+from support.ros_graph import InProcessGraph
+from support.scenarios import make_scenario
 
 from adcs_controllers.estimators.families import MEKF, QUEST
 from adcs_controllers.families import PD

@@ -4,7 +4,7 @@ work together are refused before anything starts, naming the key."""
 from __future__ import annotations
 
 import pytest
-from conftest import make_scenario
+from support.scenarios import make_scenario
 
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app.runner import allowed_publishers, startup_counts

@@ -24,9 +24,20 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from estimation_truth import DT, OMEGA, RUNS, SIGMA_ATT0, SIGMA_BIAS0, SIGMA_ST, SIGMA_U, SIGMA_V, STAR_EVERY, STEPS
 from scipy.linalg import expm
 from scipy.stats import chi2
+from support.estimation_truth import (
+    DT,
+    OMEGA,
+    RUNS,
+    SIGMA_ATT0,
+    SIGMA_BIAS0,
+    SIGMA_ST,
+    SIGMA_U,
+    SIGMA_V,
+    STAR_EVERY,
+    STEPS,
+)
 
 from adcs_controllers.estimators import mekf
 from adcs_core.attitude import hat, quat_conjugate, quat_multiply, rotate_to_body

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import make_scenario, run_fault_graph
 from numpy.testing import assert_allclose, assert_array_equal
+from support.ros_graph import run_fault_graph
+from support.scenarios import make_scenario
 
 from adcs_core.faults import FaultTracker
 from adcs_msgs_py.params import ParameterError
@@ -294,9 +295,9 @@ def test_the_fault_injector_publishes_its_schedule_only_once_the_recorder_is_mat
     before the recorder holds it), and once the recorder joins both receive all of it. The
     CI failure this pins: on a loaded machine a 40-step run ended before the recorder's
     participant had discovered the injector, and the bag had the fault's torques, not the fault."""
-    from conftest import InProcessGraph
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.qos import QoSProfile
+    from support.ros_graph import InProcessGraph
 
     from adcs_msgs_py import topics
     from adcs_sim.nodes.fault_injector import FaultInjectorNode

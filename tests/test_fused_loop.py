@@ -12,17 +12,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import make_scenario
 from numpy.testing import assert_array_equal
+from support.scenarios import make_scenario
 
 from adcs_controllers.laws import pd_kernel
 from adcs_controllers.laws.allocation import saturate, wheel_allocation_matrix
 from adcs_controllers.laws.pd import pd_torque
 from adcs_core.attitude import matvec, quat_normalize
 from adcs_sim.app import fused
+from adcs_sim.app.batch import BatchSimulation
 from adcs_sim.app.registry import NODES
 from adcs_sim.app.scenario_files import validate_scenario
-from adcs_sim.app.batch import BatchSimulation
 
 SERIES = ('q', 'w', 'u', 'wheel_speed', 'n_steps')
 

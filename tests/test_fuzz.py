@@ -372,7 +372,8 @@ def test_checked_output_refuses_non_finite_law_output_with_a_reason(v):
 def test_controller_node_refuses_a_non_finite_law_output(ros_domain, tmp_path):
     """The node path: Krstic-Tsiotras at a 180 deg error (Gibbs p = q/q4 infinite) is refused
     with a counted reason and nothing is published; the next, ordinary state is answered."""
-    from conftest import InProcessGraph, make_scenario
+    from support.ros_graph import InProcessGraph
+    from support.scenarios import make_scenario
 
     from adcs_controllers.nodes.kt_controller import KtController
     from adcs_core.attitude import quat_multiply

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from test_packaging import NODES, TOOLS
+from support.packaging import NODES, TOOLS
 
 from adcs_msgs_py.node import wants_help
 from adcs_sim.app.registry import NODES as REGISTRY
@@ -23,6 +23,7 @@ def _help(name: str, flag: str, cwd: Path) -> subprocess.CompletedProcess:
                           stdin=subprocess.DEVNULL)
 
 
+@pytest.mark.graph
 @pytest.mark.parametrize('name', sorted(NODES))
 def test_node_help_prints_its_parameters_and_starts_nothing(name, tmp_path):
     proc = _help(name, '--help', tmp_path)
@@ -33,7 +34,8 @@ def test_node_help_prints_its_parameters_and_starts_nothing(name, tmp_path):
     assert list(tmp_path.iterdir()) == [], 'the --help run wrote files (a recording?)'
 
 
-@pytest.mark.parametrize('name', sorted(TOOLS))
+@pytest.mark.parametrize('name', [pytest.param(t, marks=pytest.mark.graph) if t == 'adcs-run' else t   # imports rclpy
+                                  for t in sorted(TOOLS)])
 def test_tool_help_prints_usage(name, tmp_path):
     proc = _help(name, '-h', tmp_path)
     assert proc.returncode == 0, proc.stderr

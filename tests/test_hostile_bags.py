@@ -22,7 +22,6 @@ from pathlib import Path
 
 import pytest
 import zstandard
-from conftest import ROOT
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mcap.exceptions import McapError
@@ -30,6 +29,7 @@ from mcap.reader import make_reader
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader
 from mcap.writer import CompressionType, Writer
+from support.paths import ROOT
 
 from adcs_sim.app.analyze import main as analyze_main
 from adcs_sim.app.repair import main as repair_main

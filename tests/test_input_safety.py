@@ -13,7 +13,7 @@ import os
 from pathlib import Path
 
 import pytest
-from conftest import ROOT
+from support.paths import ROOT
 
 from adcs_msgs_py.params import ParameterError
 from adcs_msgs_py.params_file import load_params_file

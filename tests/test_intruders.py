@@ -18,7 +18,7 @@ import sys
 
 import numpy as np
 import pytest
-from helpers.rogue import FakeGraph, FakeSub, first_unclean_step, has_messages, run_with_rogue
+from support.rogue import FakeGraph, FakeSub, first_unclean_step, has_messages, run_with_rogue
 
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import UNKNOWN_NODE, PublisherVetting
@@ -71,8 +71,9 @@ def test_the_runner_allows_each_topic_to_its_nodes_only():
     assert allowed['faults'] == ''   # no fault injector: nobody
 
 
-# --- the rogue publisher (tests/helpers/rogue.py) -------------------------------------------------
+# --- the rogue publisher (tests/support/rogue.py) -------------------------------------------------
 
+@pytest.mark.graph
 @pytest.mark.parametrize('topic', [topics.WHEELS_CMD, topics.STATE, topics.FAULTS])
 def test_rogue_publisher_is_detected_not_applied_and_named(tmp_path, monkeypatch, topic):
     code, err, out = run_with_rogue(tmp_path, monkeypatch, topic)
@@ -105,6 +106,8 @@ def test_rogue_publisher_is_detected_not_applied_and_named(tmp_path, monkeypatch
     assert analyzed.returncode != 0 and 'run compromised' in analyzed.stderr and '/rogue' in analyzed.stderr
 
 
+@pytest.mark.slow
+@pytest.mark.graph
 def test_a_spoofed_record_is_quarantined_not_analysed(tmp_path, monkeypatch):
     """actuators/torque is only recorded (nobody applies it): the run goes on, but the injected
     torques (issue 17: peak torque [123, 456, 789], exit 0) never reach the analysed topic; the

@@ -15,8 +15,11 @@ import sys
 from collections import defaultdict
 
 import numpy as np
-from conftest import ROOT, make_scenario, plain_message
+import pytest
 from scipy.spatial.transform import Rotation
+from support.comparison import plain_message
+from support.paths import ROOT
+from support.scenarios import make_scenario
 
 from adcs_sim.app.analysis import RunData
 from adcs_sim.bag.reader import read_messages
@@ -60,6 +63,7 @@ def _content(bag):
     return dict(out)
 
 
+@pytest.mark.slow
 def test_eight_concurrent_runs_do_not_cross_talk_and_equal_solo_runs(tmp_path, spawn):
     scenarios, attitudes = _scenarios(tmp_path)
     outs = [tmp_path / f'concurrent{i}' for i in range(N_RUNS)]

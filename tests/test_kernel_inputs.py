@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.testing import assert_array_equal
-from test_plant_kernel import inertia, state, wheel_command, wheels
+from support.plant_cases import inertia, state, wheel_command, wheels
 
 from adcs_sim.truth.plant import Plant, WheelCommand
 

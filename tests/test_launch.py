@@ -13,7 +13,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
-from test_recorder import shm_segments
+from support.processes import shm_segments
 
 ROOT = Path(__file__).resolve().parents[1]
 

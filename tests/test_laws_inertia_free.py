@@ -497,6 +497,8 @@ def test_m2s_estimator_step_refinement_converges():
     assert d[2] < 1e-9
 
 
+@pytest.mark.paper
+@pytest.mark.slow
 def test_LONG_m2s_vag_low_torque_reaches_the_spin():
     """LONG (9000 steps x 5 runs, ~20 s). Section 7.2-7.3 (figures 11, 13): VAG-C and VAG-S
     (q_max = 10 000, K_Q = 0.001) reach the intermediate-axis spin at 0.01 N m where plain cutoff

@@ -81,6 +81,7 @@ def test_final_attitudes_point_sigma_at_tau_at_rest_with_all_momentum_in_the_whe
     assert np.all(np.abs(np.sum(q_f[:, 0] * q_f[:, 1], axis=-1)) < 1 - 1e-9)
 
 
+@pytest.mark.paper
 def test_paper_case_eq13_eq15():
     """λ = 5°, α = 45°, η = 0: sin Ψ* = sin 5°/cos 45° (Ψ* = 7.0801°), Φ* = atan2(sin α,
     cos α cos Ψ*) = 45.2193°; second solution (180° - Ψ*, 180° - Φ*)."""
@@ -352,6 +353,7 @@ def monte_carlo():
     return out
 
 
+@pytest.mark.paper
 def test_monte_carlo_all_converge_and_papers_comparison(monte_carlo):
     """Section 5 / Table 1 (40 random initial attitudes, 1500 s): every run of both controllers
     ends below 0.01° and stays; B is faster to 1° (mean first entry and staying), A faster to 0.01°;
@@ -371,6 +373,7 @@ def test_monte_carlo_all_converge_and_papers_comparison(monte_carlo):
     assert abs(spreads[1] - spreads[0]) < 3.0 / np.sqrt(n - 1) * spreads[0], spreads
 
 
+@pytest.mark.paper
 def test_disagreement_controller_b_reaches_table1_bands_faster_than_the_paper(monte_carlo):
     """Against Table 1 (controller B, 1000 runs: 603 ± 98, 831 ± 100, 1060 ± 101 s) ours converges
     about twice as fast (docs/seed003_readings.md R7: the linearised tail decays at 0.0133 /s, the

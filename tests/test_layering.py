@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from conftest import ROOT
+from support.paths import ROOT
 
 PACKAGES = ('adcs_core', 'adcs_msgs_py', 'adcs_controllers', 'adcs_sim')
 # (layer, rank, module prefixes): the most specific prefix wins.
@@ -241,6 +241,7 @@ def test_the_pure_modules_are_most_of_the_code():
         assert must in PURE, f'{must} reaches a ROS module: {sorted(_closure(must) & ROS_ALLOWED)}'
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('module', PURE)
 def test_pure_module_imports_no_ros_at_run_time(module):
     """The static rule, checked in a fresh interpreter (nothing else pre-imports rclpy)."""

@@ -10,7 +10,8 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, make_scenario
+from support.paths import ROOT
+from support.scenarios import make_scenario
 
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app.registry import NODES
@@ -39,6 +40,7 @@ def test_fractions_are_checked_at_start(tmp_path):
         schema.validate({**section, 'link_faults.drop': 0.6, 'link_faults.delay': 0.6})
 
 
+@pytest.mark.graph
 def test_pd_slew_with_10_percent_lost_commands_converges(tmp_path):
     """Through adcs-run: 600 steps, 10 % lost and 5 % late, hold policy. Every such step is a
     missed step (exactly the seeded draws), the late ones are counted stale, and the slew still

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import InProcessGraph, make_scenario
+from support.ros_graph import InProcessGraph
+from support.scenarios import make_scenario
 
 from adcs_core.faults import FaultState
 from adcs_msgs_py import conversions as cv

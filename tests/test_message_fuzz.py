@@ -17,7 +17,6 @@ import math
 
 import numpy as np
 import pytest
-from conftest import InProcessGraph, make_scenario, refused
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TransformStamped, Vector3Stamped
 from hypothesis import HealthCheck, given, settings
@@ -26,6 +25,8 @@ from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from support.ros_graph import InProcessGraph, refused
+from support.scenarios import make_scenario
 
 from adcs_msgs_py import conversions as cv
 from adcs_sim.app.domains import DomainLease
@@ -144,6 +145,7 @@ def graphs(tmp_path_factory):
         lease.release()
 
 
+@pytest.mark.graph
 @FUZZ
 @given(wheel_cmd=joint_states(), torque=vectors(), faults=fault_arrays())
 def test_dynamics_node_survives_any_command_or_fault(graphs, wheel_cmd, torque, faults):

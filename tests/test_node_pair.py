@@ -2,7 +2,7 @@
 
 Each test runs on its own ROS domain (leased), asserts convergence and the recorded bag's
 contents, and compares the trajectory with an independent computation of the same loop
-(tests/reference_pd.py: seed 004 eq. 3, 4, 13 with scipy's DOP853). No sleeps: the tests wait
+(tests/support/reference_pd.py: seed 004 eq. 3, 4, 13 with scipy's DOP853). No sleeps: the tests wait
 on the graph's own events (matched endpoints, message counts) with deadlines as safety nets.
 """
 from __future__ import annotations
@@ -11,10 +11,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import InProcessGraph, make_scenario, plain_message, record_pd_loop
-from reference_pd import pd_slew_reference
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
+from support.comparison import plain_message
+from support.reference_pd import pd_slew_reference
+from support.ros_graph import InProcessGraph, record_pd_loop
+from support.scenarios import make_scenario
 
 from adcs_sim.app.analysis import RunData, run_metrics
 from adcs_sim.app.runner import run_scenario
@@ -61,6 +63,7 @@ def _contents(bag_dir: Path):
     return [(topic, t, plain_message(msg)) for topic, t, msg in read_messages(bag_dir)]
 
 
+@pytest.mark.graph
 def test_separate_processes_deterministic_and_match_reference(tmp_path):
     """Two runner runs (dynamics, PD and recorder as separate processes, each run on its own
     leased domain) record identical bags, which match the independent computation."""

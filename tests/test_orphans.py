@@ -12,7 +12,10 @@ import subprocess
 import sys
 import time
 
-from conftest import ROOT, alive, children, make_scenario, states_on_disk
+from support.bags import states_on_disk
+from support.paths import ROOT
+from support.processes import alive, children
+from support.scenarios import make_scenario
 
 from adcs_msgs_py.node import RUNNER_PID_ENV
 from adcs_sim.app.domains import DomainLease

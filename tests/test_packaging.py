@@ -15,7 +15,6 @@ import the *checkout* instead of what was installed; a probe checks where the mo
 """
 from __future__ import annotations
 
-import ast
 import configparser
 import os
 import shutil
@@ -27,6 +26,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from support.packaging import NODES, TOOLS
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = 'adcs_sim'
@@ -38,20 +38,6 @@ BUILD_TIMEOUT = 180.0  # a hang guard only, not a timing assertion
 NODE_TIMEOUT = 60.0
 
 
-# --- setup.py, read without running it --------------------------------------------------------
-
-def _setup_py_dict(name: str) -> dict:
-    """The literal dict assigned to ``name`` at module level in setup.py."""
-    tree = ast.parse((ROOT / 'setup.py').read_text())
-    for node in tree.body:
-        if isinstance(node, ast.Assign) and any(
-                isinstance(t, ast.Name) and t.id == name for t in node.targets):
-            return ast.literal_eval(node.value)
-    raise AssertionError(f'setup.py defines no module-level {name} dict')
-
-
-NODES = _setup_py_dict('NODES')
-TOOLS = _setup_py_dict('TOOLS')
 CONSOLE_SCRIPTS = {**NODES, **TOOLS}
 
 
@@ -400,7 +386,7 @@ def test_runner_registry_matches_setup_py():
 
 def test_wheel_requires_the_pinned_runtime_dependencies(wheel):
     """``pip install .`` installs what requirements.txt pins, pins included (issue #17)."""
-    from test_dependencies import requirements
+    from support.packaging import requirements
     with zipfile.ZipFile(wheel.path) as zf:
         [metadata] = [n for n in zf.namelist() if n.endswith('.dist-info/METADATA')]
         lines = zf.read(metadata).decode().splitlines()

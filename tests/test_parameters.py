@@ -11,7 +11,8 @@ from __future__ import annotations
 import re
 
 import pytest
-from conftest import CONFIG, ROOT, make_scenario
+from support.paths import CONFIG, ROOT
+from support.scenarios import make_scenario
 
 from adcs_msgs_py.params import REQUIRED
 from adcs_sim.app import parameters, runner

@@ -17,11 +17,12 @@ import random
 
 import numpy as np
 import pytest
-from conftest import InProcessGraph, make_scenario
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from support.recorded_topics import ALL, dynamics_messages, padded, visual_messages
+from support.ros_graph import InProcessGraph
+from support.scenarios import make_scenario
 
-from adcs_core.orbit import CircularOrbit
 from adcs_msgs_py import cdr, names
 from adcs_msgs_py.conversions import InvalidMessage
 from adcs_msgs_py.recorded_topics import MAX_PENDING, RecordedTopics, config_text, parse_config
@@ -29,62 +30,16 @@ from adcs_msgs_py.visual import VisualMessages
 
 SETTINGS = settings(max_examples=300, derandomize=True, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow])
-PERIOD_NS = 500_000_000
-AXES = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.5773502691896258] * 3]
-THRUSTERS = ([[0.3, 0.1, -0.2], [-0.3, 0.1, 0.2]], [[0.0, 1.0, 0.0], [0.0, -1.0, 0.0]])
-ALL = list(names.RECORDED_VISUAL_TOPICS)
-
-
-def _visual(wheels: bool, thrusters: bool, orbit: bool) -> VisualMessages:
-    return VisualMessages([0.1, -0.2, 0.3, 0.9], 1.7, *((AXES, [0.01, 0.02, 0.01, 0.03],
-                                                        [523.6, math.inf, 300.0, 100.0]) if wheels else (None,) * 3),
-                          *(THRUSTERS if thrusters else (None, None)),
-                          orbit=CircularOrbit(7.0e5, 1.7, 0.3, 0.1) if orbit else None)
-
-
 def _topics(visual: VisualMessages) -> list[str]:
     return [t for t in ALL if t in visual.topics]
-
-
-def _padded(data: bytes) -> bytes:
-    return data + bytes(-len(data) % 4)
-
-
-def _run(visual: VisualMessages, attitude: str, steps: int, rng: np.random.Generator):
-    """What the dynamics node sends for ``steps`` steps (the sources, in its order) and the viewer
-    messages it publishes, as a subscriber receives them."""
-    state, joints, vector = cdr.StateCodec(), cdr.JointStateCodec('x'), cdr.VectorCodec()
-    n_w, n_t = len(visual.spin), len(visual._plume_ends) if visual.plumes is not None else 0
-    sources, viewer = [], []
-    for k in range(steps + 1):
-        t = k * PERIOD_NS
-        q = rng.normal(size=4)
-        q /= np.linalg.norm(q)
-        speed = rng.normal(scale=100.0, size=n_w)
-        sources.append((attitude, state.encode(t, q, rng.normal(size=3))))
-        if n_w:
-            sources.append((names.WHEELS_STATE, joints.encode(t, [f'w{i}' for i in range(n_w)], speed, speed, speed)))
-        viewer += [(names.FRAMES_BODY, visual.body_frame_cdr(t, q))]
-        if visual.orbit is not None:
-            viewer.append((names.FRAMES_ORBIT, visual.orbit_frame_cdr(t)))
-        viewer += list(zip((names.ERROR_EIGENAXIS, names.ERROR_EULER_213), visual.errors_cdr(t, q)))
-        if k == steps:   # the last state: no step is integrated from it
-            break
-        on = np.where(rng.random(n_t) < 0.5, rng.random(n_t), 0.0)
-        sources.append((names.APPLIED_TORQUE, vector.encode(t, rng.normal(size=3))))
-        if n_t:
-            sources.append((names.THRUSTERS_STATE, joints.encode(t, ['a', 'b'], on, on, on)))
-        if visual.markers.markers:
-            viewer.append((names.MARKERS, visual.marker_array_cdr(t, speed if n_w else None, on if n_t else ())))
-    return sources, [(topic, _padded(data)) for topic, data in viewer]
 
 
 @pytest.mark.parametrize('wheels, thrusters, orbit', [(True, False, False), (False, True, True),
                                                       (True, True, True), (False, False, True)])
 @pytest.mark.parametrize('attitude', [names.STATE, names.TRUTH_STATE])
 def test_the_recorded_viewer_messages_are_the_dynamics_nodes_in_any_arrival_order(wheels, thrusters, orbit, attitude):
-    visual = _visual(wheels, thrusters, orbit)
-    sources, expected = _run(visual, attitude, 40, np.random.default_rng(7))
+    visual = visual_messages(wheels, thrusters, orbit)
+    sources, expected = dynamics_messages(visual, attitude, 40, np.random.default_rng(7))
     config = parse_config(config_text(None, visual, attitude, _topics(visual)))
     recording = RecordedTopics(config)
     out = [m for topic, data in sources for m in recording.derive(topic, data)]
@@ -101,8 +56,8 @@ def test_the_recorded_viewer_messages_are_the_dynamics_nodes_in_any_arrival_orde
 
 
 def test_only_the_listed_topics_are_derived_and_only_their_sources_are_needed():
-    visual = _visual(True, False, False)
-    sources, expected = _run(visual, names.STATE, 5, np.random.default_rng(1))
+    visual = visual_messages(True, False, False)
+    sources, expected = dynamics_messages(visual, names.STATE, 5, np.random.default_rng(1))
     recording = RecordedTopics(parse_config(config_text(None, visual, names.STATE, [names.MARKERS])))
     assert recording.sources == {names.APPLIED_TORQUE, names.WHEELS_STATE} and recording.topics == (names.MARKERS,)
     out = [m for topic, data in sources for m in recording.derive(topic, data)]
@@ -112,7 +67,7 @@ def test_only_the_listed_topics_are_derived_and_only_their_sources_are_needed():
 
 
 def test_the_config_round_trips_every_number_exactly():
-    visual = _visual(True, True, True)
+    visual = visual_messages(True, True, True)
     config = parse_config(config_text('state', visual, names.TRUTH_STATE, ALL)).viewer
     again = VisualMessages(**config.arguments)
     assert again.config == visual.config
@@ -126,17 +81,17 @@ def test_the_clock_is_the_states_stamps_as_the_dynamics_node_publishes_it():
     state, clock = cdr.StateCodec(), cdr.ClockCodec()
     for t in (0, 1, 999_999_999, 123 * 10 ** 9 + 5):
         data = state.encode(t, [0.0, 0.0, 0.6, 0.8], [0.0, 0.0, 0.0])
-        assert recorded.derive(names.STATE, data) == [(names.CLOCK, _padded(clock.encode(t)))]
+        assert recorded.derive(names.STATE, data) == [(names.CLOCK, padded(clock.encode(t)))]
         assert recorded.derive(names.WHEELS_STATE, data) == []
     with pytest.raises(InvalidMessage):   # a stamp simulated time never has
         recorded.derive(names.STATE, bytes([0, 1, 0, 0]) + (-1).to_bytes(4, 'little', signed=True) + bytes(300))
-    both = RecordedTopics(parse_config(config_text(names.STATE, _visual(False, False, False), names.STATE,
+    both = RecordedTopics(parse_config(config_text(names.STATE, visual_messages(False, False, False), names.STATE,
                                                    [names.FRAMES_BODY])))
     out = both.derive(names.STATE, state.encode(7, [0.0, 0.0, 0.6, 0.8], [0.0, 0.0, 0.0]))
     assert [t for t, _ in out] == [names.CLOCK, names.FRAMES_BODY]
 
 
-VALID = json.loads(config_text(None, _visual(True, True, True), names.STATE, ALL))['viewer']
+VALID = json.loads(config_text(None, visual_messages(True, True, True), names.STATE, ALL))['viewer']
 BAD = [
     '', 'null', '[]', '{}', '{"clock": null}', '{"clock": "state", "viewer": null, "x": 1}',
     '{"clock": "/clock", "viewer": null}', '{"clock": 1, "viewer": null}', '{"clock": null, "viewer": []}',
@@ -178,13 +133,14 @@ def test_fuzzed_configs_either_build_the_viewer_or_are_invalid_messages(key, val
     RecordedTopics(config)   # whatever passes builds
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(topic=st.sampled_from([names.STATE, names.WHEELS_STATE, names.APPLIED_TORQUE, names.THRUSTERS_STATE]),
        data=st.binary(max_size=400), cut=st.integers(0, 400))
 def test_fuzzed_sources_derive_or_are_invalid_messages(topic, data, cut):
-    visual = _visual(True, True, True)
+    visual = visual_messages(True, True, True)
     recording = RecordedTopics(parse_config(config_text(None, visual, names.STATE, ALL)))
-    good = dict(_run(visual, names.STATE, 1, np.random.default_rng(0))[0])[topic]
+    good = dict(dynamics_messages(visual, names.STATE, 1, np.random.default_rng(0))[0])[topic]
     for candidate in (data, good[:cut] + data[:len(good) - cut], good[:cut]):
         try:
             recording.derive(topic, candidate)
@@ -193,7 +149,7 @@ def test_fuzzed_sources_derive_or_are_invalid_messages(topic, data, cut):
 
 
 def test_a_non_unit_or_non_finite_attitude_is_refused_not_renormalised():
-    visual = _visual(False, False, False)
+    visual = visual_messages(False, False, False)
     recording = RecordedTopics(parse_config(config_text(None, visual, names.STATE, _topics(visual))))
     for q in ([0.0, 0.0, 0.0, 1.0 + 1e-5], [0.0, 0.0, 0.0, math.nan], [0.0, 0.0, math.inf, 1.0]):
         with pytest.raises(InvalidMessage):
@@ -201,7 +157,7 @@ def test_a_non_unit_or_non_finite_attitude_is_refused_not_renormalised():
 
 
 def test_steps_that_never_complete_are_bounded():
-    visual = _visual(True, False, False)
+    visual = visual_messages(True, False, False)
     recording = RecordedTopics(parse_config(config_text(None, visual, names.STATE, _topics(visual))))
     codec = cdr.JointStateCodec('x')
     for k in range(10 * MAX_PENDING):   # wheel states whose steps are never integrated
@@ -247,7 +203,7 @@ def test_in_a_graph_the_bag_holds_what_a_live_viewer_received(tmp_path, ros_doma
     for topic, _, _, data in read_raw(bag_dir):
         recorded.setdefault(topic, []).append(bytes(data))
     for t, messages in live.items():
-        assert recorded[t if t.startswith('/') else '/' + t] == [_padded(bytes(m)) for m in messages], t
+        assert recorded[t if t.startswith('/') else '/' + t] == [padded(bytes(m)) for m in messages], t
     assert len(recorded['/tf']) == n + 1 and len(recorded['/dynamics/recording']) == 1
     assert rec.rejects.total == 0
 

@@ -8,7 +8,6 @@ readable on disk), each with a deadline; no sleeps.
 from __future__ import annotations
 
 import fcntl
-import math
 import os
 import queue
 import signal
@@ -16,21 +15,31 @@ import subprocess
 import sys
 import threading
 import time
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 import pytest
-import rclpy
 import yaml
 from mcap.exceptions import McapError
 from mcap.reader import NonSeekingReader
 from mcap_ros2.decoder import DecoderFactory
 from mcap_ros2.reader import read_ros2_messages
-from rclpy.duration import Duration
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 from std_msgs.msg import Float64
+from support.processes import shm_segments
+from support.recorder import (
+    ACK_TIMEOUT,
+    DEADLINE,
+    STATE_TOPIC,
+    STEP_NS,
+    check_state,
+    odom_fields,
+    raw_states,
+    ros_node,
+    state_values,
+    until,
+)
 
 from adcs_msgs_py import topics
 from adcs_msgs_py.conversions import NS_PER_S, clock_msg, state_to_msg
@@ -41,36 +50,9 @@ from adcs_sim.nodes.recorder import READY_LINE
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = 'config/microsat_pd_slew.yaml'
-STEP_NS = NS_PER_S // 10            # t_k = k * 0.1 s
-STATE_TOPIC = '/state'              # the recorder runs in the root namespace
-DEADLINE = 30.0                     # wall seconds for any single graph/DDS event
-ACK_TIMEOUT = Duration(seconds=10)
 
 
 # --- helpers --------------------------------------------------------------------------------
-
-def until(what: str, condition, timeout: float = DEADLINE):
-    """Poll an observable condition until it holds (returns its value) or fail after ``timeout``."""
-    deadline = time.monotonic() + timeout
-    while True:
-        value = condition()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            pytest.fail(f'timed out after {timeout:g} s waiting for {what}')
-
-
-def state_values(k: int) -> tuple[np.ndarray, np.ndarray]:
-    """Attitude (rotation 0.01 k rad about z) and body rate of message k: content to check."""
-    a = 0.01 * k
-    return np.array([0.0, 0.0, math.sin(a / 2), math.cos(a / 2)]), np.array([1e-3 * k, -2e-3 * k, 0.5])
-
-
-def check_state(k: int, stamp_ns: int, q_xyzw, w_xyz) -> None:
-    assert stamp_ns == k * STEP_NS
-    q, w = state_values(k)
-    assert list(q_xyzw) == list(q)      # float64 round trip: bit for bit
-    assert list(w_xyz) == list(w)
 
 
 class Recorder:
@@ -138,21 +120,6 @@ class Recorder:
         self._stderr.close()
 
 
-def shm_segments(pid: int | str) -> set[Path]:
-    """Fast DDS shared-memory segment files (not the shared port files) mapped by a process."""
-    try:
-        maps = Path(f'/proc/{pid}/maps').read_text()
-    except OSError:
-        return set()
-    out = set()
-    for line in maps.splitlines():
-        parts = line.split(None, 5)
-        if len(parts) == 6 and parts[5].startswith('/dev/shm/fastrtps_') \
-                and not parts[5].startswith('/dev/shm/fastrtps_port'):
-            out.add(Path(parts[5].removesuffix(' (deleted)')))
-    return out
-
-
 def remove_if_orphaned(segment: Path) -> None:
     """Remove a Fast DDS segment whose owner is dead.
 
@@ -213,21 +180,6 @@ def recorders(ros_domain, tmp_path):
         assert not orphans, f'processes left behind: {sorted(orphans)}'
 
 
-@contextmanager
-def ros_node(name: str):
-    """An rclpy node on a private context (the domain id comes from the ros_domain fixture)."""
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx)
-    node = None
-    try:
-        node = rclpy.create_node(name, context=ctx)
-        yield node
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
-
-
 def publishers(node):
     """(clock, state) publishers with the interface's QoS."""
     clock = node.create_publisher(topics.TOPICS[topics.CLOCK].msg_type, topics.CLOCK,
@@ -272,23 +224,6 @@ def state_prefix(stamps_and_content) -> int:
         assert log_time == stamp, f'message {k}: log time {log_time} != header stamp {stamp}'
         n += 1
     return n
-
-
-def odom_fields(msg):
-    o, a = msg.pose.pose.orientation, msg.twist.twist.angular
-    return (msg.header.stamp.sec * NS_PER_S + msg.header.stamp.nanosec,
-            (o.x, o.y, o.z, o.w), (a.x, a.y, a.z))
-
-
-def raw_states(bag) -> list[tuple]:
-    store = typestore()
-    out = []
-    for topic, type_name, t, data in read_raw(bag):
-        if topic == STATE_TOPIC:
-            assert type_name == 'nav_msgs/msg/Odometry'
-            stamp, q, w = odom_fields(store.deserialize_cdr(data, type_name))
-            out.append((stamp, t, q, w))
-    return out
 
 
 def count_raw(bag, topic: str) -> int:

@@ -21,7 +21,8 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from rclpy.duration import Duration
-from test_recorder import ACK_TIMEOUT, DEADLINE, check_state, raw_states, ros_node, state_values, until
+from support.paths import SCRIPTS
+from support.recorder import ACK_TIMEOUT, DEADLINE, check_state, raw_states, ros_node, state_values, until
 
 from adcs_msgs_py import topics
 from adcs_msgs_py.conversions import state_to_msg
@@ -30,7 +31,7 @@ from adcs_sim.nodes import recorder
 from adcs_sim.nodes.recorder import MAX_UNTAKEN, PROFILES_ENV, READY_LINE, RECORDER_PROFILE, use_recorder_profile
 
 ROOT = Path(__file__).resolve().parents[1]
-GATED = Path(__file__).resolve().parent / 'helpers' / 'gated_recorder.py'
+GATED = SCRIPTS / 'gated_recorder.py'
 NS = '{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}'
 STEP_NS = 100_000_000
 

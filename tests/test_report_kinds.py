@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import test_report
 import yaml
-from conftest import ROOT
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_report import write_bag
+from support.papers import SEED000_LAWS, SEED000_PAPER, SEED002_PAPER_SETTLING
+from support.paths import ROOT
+from support.report_runs import SCENARIO, write_bag
 
 from adcs_sim.app.analysis import RunData
 from adcs_sim.app.analyze import main as analyze_main
@@ -50,13 +50,11 @@ def test_unknown_kind_without_a_scenario_or_a_controller():
 def test_paper_values_have_one_home():
     """The published figures the reports show are those the reproduction tests state (the seed 000,
     001 and 002 tests read them from docs/seed00X/paper.yaml: one home; this checks they are there)."""
-    import test_seed000_reproduction as s000
-    import test_seed002_reproduction as s002
-    for law, name in s000.LAWS.items():
+    for law, name in SEED000_LAWS.items():
         _, published = paper_values(name)
         assert (published['settling_q4_0.02_after_fault_s'], published['settling_q4_0.01_after_fault_s'],
-                published['integrated_torque_after_fault_Nms']) == s000.PAPER[law]
-    assert paper_values('eseo_backstepping_slew')[1] == {'settling_eigenaxis_1deg_s': s002.PAPER_SETTLING}
+                published['integrated_torque_after_fault_Nms']) == SEED000_PAPER[law]
+    assert paper_values('eseo_backstepping_slew')[1] == {'settling_eigenaxis_1deg_s': SEED002_PAPER_SETTLING}
     source, published = paper_values('table1_gsmn')
     assert 'docs/seed004/paper.yaml' in source and published['peak_torque_z_Nm'] == 69.98
     assert paper_values('no_such_run') == ('', {})
@@ -90,12 +88,11 @@ def test_seed002_tracking_error_is_against_the_orbit_defined_target():
     assert m['max_error_after_settling_deg'] <= 1.0
 
 
-def _scenario_bag(monkeypatch, path, scenario: str, **kw):
-    monkeypatch.setattr(test_report, 'SCENARIO', scenario)
-    return write_bag(path, **kw)
+def _scenario_bag(path, scenario: str, **kw):
+    return write_bag(path, scenario=scenario, **kw)
 
 
-DYNAMICS = test_report.SCENARIO  # a dynamics section with three wheels
+DYNAMICS = SCENARIO  # a dynamics section with three wheels
 POINTING = DYNAMICS + """pointing_b_controller:
   ros__parameters:
     sigma: [1.0, 0.0, 0.0]
@@ -127,8 +124,8 @@ def test_unknown_kind_report_says_so(tmp_path, capsys):
     (SPIN, 'spin', 'Skipped: the controller status has no `theta` and `w_err_x/y/z`'),
     (TRACKING_NO_ORBIT, 'tracking', 'none: the orbit reference of the controller section cannot be read'),
 ], ids=['pointing', 'spin', 'tracking'])
-def test_kind_report_of_a_bag_missing_topics(tmp_path, capsys, monkeypatch, scenario, kind, says):
-    bag = _scenario_bag(monkeypatch, tmp_path / 'run' / 'bag', scenario,
+def test_kind_report_of_a_bag_missing_topics(tmp_path, capsys, scenario, kind, says):
+    bag = _scenario_bag(tmp_path / 'run' / 'bag', scenario,
                         skip=('/controller/status', '/wheels/state', '/faults'))
     assert analyze_main([str(bag), '--out', str(tmp_path / 'out')]) == 0
     text = (tmp_path / 'out' / 'report.md').read_text()
@@ -138,8 +135,8 @@ def test_kind_report_of_a_bag_missing_topics(tmp_path, capsys, monkeypatch, scen
     assert 'Traceback' not in capsys.readouterr().err
 
 
-def test_kind_report_of_a_truncated_bag(tmp_path, monkeypatch):
-    bag = _scenario_bag(monkeypatch, tmp_path / 'run' / 'bag', POINTING)
+def test_kind_report_of_a_truncated_bag(tmp_path):
+    bag = _scenario_bag(tmp_path / 'run' / 'bag', POINTING)
     (bag / 'metadata.yaml').unlink()
     mcap = next(bag.glob('*.mcap'))
     mcap.write_bytes(mcap.read_bytes()[:int(0.6 * mcap.stat().st_size)])
@@ -151,12 +148,13 @@ def test_kind_report_of_a_truncated_bag(tmp_path, monkeypatch):
     assert (tmp_path / 'out' / 'pointing_error.png').is_file()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('scenario', ['[1, 2, 3]', 'dynamics: [: bad', 'pd_controller: 5',
                                       'pd_controller: {ros__parameters: {target: {attitude: abc}}}',
                                       'm2s_controller: {ros__parameters: {target: {rate: [a, b]}}}',
                                       'pointing_a_controller: {ros__parameters: {sigma: 1, tau: [0, 0]}}'])
-def test_malformed_scenario_gives_a_report(tmp_path, capsys, monkeypatch, scenario):
-    bag = _scenario_bag(monkeypatch, tmp_path / 'run' / 'bag', scenario)
+def test_malformed_scenario_gives_a_report(tmp_path, capsys, scenario):
+    bag = _scenario_bag(tmp_path / 'run' / 'bag', scenario)
     assert analyze_main([str(bag), '--out', str(tmp_path / 'out')]) == 0
     assert (tmp_path / 'out' / 'report.md').read_text().startswith('# Run report: run')
     assert 'Traceback' not in capsys.readouterr().err

@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_report import RUNS
-from test_report import write_bag as write_synthetic
+from support.report_runs import RUNS
+from support.report_runs import write_bag as write_synthetic
 
 from adcs_sim.app.analysis import attitude_errors
 from adcs_sim.app.report import envelope, long_run, single_run
@@ -131,6 +131,7 @@ def streamed_and_whole(bag: Path, out: Path):
     return streamed, whole, same_reports(out / 'whole', out / 'streamed')
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('name', sorted(RUNS))
 def test_streamed_report_of_a_synthetic_run_is_the_whole_runs(name, tmp_path, small_limits):
     """Faults (stars on the phase portrait), a mode switch (a text timeline), missed steps."""

@@ -8,13 +8,17 @@ import sys
 import time
 
 import pytest
-from conftest import ROOT, alive, children, make_scenario, states_on_disk
+from support.bags import states_on_disk
+from support.paths import ROOT
+from support.processes import alive, children
+from support.scenarios import make_scenario
 
 from adcs_sim.app.analysis import RunData, run_metrics
 from adcs_sim.app.analyze import main as analyze_main
 from adcs_sim.bag.reader import read_metadata
 
 
+@pytest.mark.graph
 def test_runner_end_to_end_and_analyze_agree(tmp_path, capsys):
     """adcs-run prints the metrics and writes them; adcs-analyze on the bag gives the same."""
     scenario = make_scenario(tmp_path, {'dynamics': {'duration': 400.0}})

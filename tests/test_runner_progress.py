@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import time
 
+import pytest
 import rclpy
 from rclpy.context import Context
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -13,6 +14,8 @@ from rosgraph_msgs.msg import Clock
 
 from adcs_sim.app.domains import DomainLease
 from adcs_sim.app.graph import Progress, graph_env
+
+pytestmark = pytest.mark.graph   # rclpy contexts of its own (no ros_domain)
 
 DEADLINE = 60.0   # a hang guard only
 

@@ -16,7 +16,9 @@ import sys
 import time
 
 import pytest
-from conftest import ROOT, alive, children, make_scenario
+from support.paths import ROOT
+from support.processes import alive, children
+from support.scenarios import make_scenario
 
 from adcs_sim.app.analysis import RunData
 from adcs_sim.bag.reader import is_complete, read_raw

@@ -4,7 +4,8 @@ the dynamics node allocates terabytes, or a step never ends."""
 from __future__ import annotations
 
 import pytest
-from conftest import CONFIG, make_scenario
+from support.paths import CONFIG
+from support.scenarios import make_scenario
 
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app import scenario_checks

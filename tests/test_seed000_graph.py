@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import make_scenario, run_fault_graph
 from numpy.testing import assert_array_equal
+from support.ros_graph import run_fault_graph
+from support.scenarios import make_scenario
 
 from adcs_msgs_py.params import ParameterError
 

@@ -12,7 +12,7 @@ import importlib.util
 
 import numpy as np
 import pytest
-from conftest import ROOT
+from support.paths import ROOT
 
 from adcs_sim.app.analysis import RunData, attitude_errors, attitude_errors_deg
 from adcs_sim.app.batch import BatchSimulation

@@ -15,6 +15,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_array_equal
 
+pytestmark = pytest.mark.paper
+
 ROOT = Path(__file__).resolve().parents[1]
 _spec = importlib.util.spec_from_file_location('delta_readings', ROOT / 'docs' / 'seed001' / 'delta_readings.py')
 study = importlib.util.module_from_spec(_spec)

@@ -13,8 +13,9 @@ import math
 
 import numpy as np
 import pytest
-from conftest import make_scenario, run_lockstep_graph
 from numpy.testing import assert_array_equal
+from support.ros_graph import run_lockstep_graph
+from support.scenarios import make_scenario
 
 from adcs_msgs_py.params import ParameterError
 
@@ -95,7 +96,7 @@ def test_seed001_parameters_are_checked(tmp_path, base, section, overrides, key,
 def test_m2s_section_with_empty_defaults_builds_the_paper_law():
     """The params file's empty lists mean the paper's defaults: K1 = D = I, Q = I6, B = I, no
     disturbance estimate; the torquers' scalar limit is the law's per-axis u_max."""
-    from conftest import CONFIG
+    from support.paths import CONFIG
 
     from adcs_controllers.families import M2S_SCHEMA
     from adcs_controllers.laws.motion_to_spin import M2sLaw

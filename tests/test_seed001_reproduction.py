@@ -14,11 +14,14 @@ import math
 
 import numpy as np
 import pytest
-from conftest import ROOT, reference_comparison
 from numpy.testing import assert_allclose, assert_array_equal
+from support.comparison import reference_comparison
+from support.paths import ROOT
 
 from adcs_sim.app.analysis import RunData, settling_time
 from adcs_sim.app.report.lead import paper_values
+
+pytestmark = pytest.mark.paper
 
 BAGS = ROOT / 'bags'
 J52 = np.diag([1.4947, 3.7997, 5.2056])

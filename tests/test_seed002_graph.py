@@ -13,8 +13,10 @@ import math
 import numpy as np
 import pytest
 import yaml
-from conftest import CONFIG, InProcessGraph, make_scenario, run_lockstep_graph
 from numpy.testing import assert_allclose, assert_array_equal
+from support.paths import CONFIG
+from support.ros_graph import InProcessGraph, run_lockstep_graph
+from support.scenarios import make_scenario
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics

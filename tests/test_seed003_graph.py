@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import make_scenario, run_fault_graph
 from numpy.testing import assert_array_equal
+from support.ros_graph import run_fault_graph
+from support.scenarios import make_scenario
 
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app.analysis import RunData
@@ -84,7 +85,7 @@ def test_pointing_needs_the_wheels_spin_inertia(tmp_path):
 
 def test_wheel_state_without_the_controllers_wheels_is_rejected(ros_domain, tmp_path):
     """Bad wheel states are counted and dropped; the pending buffers stay small."""
-    from conftest import InProcessGraph
+    from support.ros_graph import InProcessGraph
 
     from adcs_controllers.nodes.pointing_b_controller import PointingBController
     from adcs_msgs_py import conversions as cv

@@ -18,11 +18,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import assert_recorded_run_equal
+from support.comparison import assert_recorded_run_equal
 
 from adcs_sim.app.analysis import RunData, pointing_error_deg, run_metrics
 from adcs_sim.app.batch import BatchSimulation
 from adcs_sim.app.scenario_files import validate_scenario
+
+pytestmark = pytest.mark.paper
 
 ROOT = Path(__file__).resolve().parents[1]
 BAGS = ROOT / 'bags'
@@ -37,7 +39,7 @@ def run(which: str) -> RunData:
 def test_recording_is_what_the_code_computes(which):
     """The bag equals the batch engine's run of its scenario (the graph runs the pure law; the
     recording is current). Tolerances: the stamps to 1e-12 s (sec + nanosec); q and u as every committed bag
-    against a fresh run (conftest.assert_recorded_run_equal: CROSS_CPU_RTOL). Not bit for bit even here: the
+    against a fresh run (support.comparison.assert_recorded_run_equal: CROSS_CPU_RTOL). Not bit for bit even here: the
     node runs the law step by step, the batch engine vectorised (round-off, observed 3.8e-15 on q, 9.5e-16 on
     u; was atol 1e-12 / 1e-15, the latter just above the observed, with no reason)."""
     graph = run(which)

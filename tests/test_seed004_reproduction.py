@@ -18,11 +18,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import assert_recorded_run_equal, batch_run_data, reference_comparison
+from support.comparison import assert_recorded_run_equal, reference_comparison
+from support.scenarios import batch_run_data
 
 from adcs_sim.app.analysis import RunData, run_metrics, settling_times
 from adcs_sim.app.batch import BatchSimulation
 from adcs_sim.app.scenario_files import validate_scenario
+
+pytestmark = pytest.mark.paper
 
 ROOT = Path(__file__).resolve().parents[1]
 BAGS = ROOT / 'bags'
@@ -54,12 +57,13 @@ def rel(ours: float, paper: float) -> float:
     return abs(ours - paper) / abs(paper)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('name', ['microsat_pd_slew', 'microsat_gsmn_slew', 'microsat_minnorm_slew', 'table1_gsmn',
                                   'table1_krstic_tsiotras'])
 def test_recording_is_what_the_code_computes(name):
     """The graph's recording equals the batch engine's run of the same scenario: the bag is current, and the
     graph ran the law as the pure code defines it. q and u as every committed bag against a fresh run
-    (conftest.assert_recorded_run_equal: bit for bit on the recording CPU, as observed here; CROSS_CPU_RTOL
+    (support.comparison.assert_recorded_run_equal: bit for bit on the recording CPU, as observed here; CROSS_CPU_RTOL
     elsewhere; was atol 1e-9, called round-off); the stamps to 1e-12 s (sec + nanosec; observed 3.6e-15)."""
     batch = batch_run_data(validate_scenario(BAGS / name / 'scenario.yaml'))
     graph = run(name)
@@ -232,6 +236,7 @@ def test_gsmn_peak_torque_below_kt_table1():
     assert np.all(peak_signed('table1_gsmn') < 0) and np.all(peak_signed('table1_krstic_tsiotras') < 0)
 
 
+@pytest.mark.slow
 def test_table1_control_period_is_converged():
     """The 1 ms control period of the Table I scenarios is converged to Table I's printed precision: halving it
     moves the integrated torque by less than half a unit of the paper's last digit (26.95: 0.005 N m s; observed

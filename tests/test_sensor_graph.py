@@ -6,8 +6,9 @@ no sleeps (the tests wait on the recorder's message counts)."""
 from __future__ import annotations
 
 import numpy as np
-from conftest import InProcessGraph, make_scenario, run_lockstep_graph
 from numpy.testing import assert_array_equal
+from support.ros_graph import InProcessGraph, run_lockstep_graph
+from support.scenarios import make_scenario
 
 from adcs_controllers.nodes.pd_controller import PdController
 from adcs_msgs_py import conversions_determination as cd

@@ -9,11 +9,11 @@ import math
 
 import numpy as np
 import pytest
-from conftest import make_scenario
 from diagnostic_msgs.msg import KeyValue
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
+from support.scenarios import make_scenario
 
 from adcs_core.faults import FaultState
 from adcs_msgs_py import conversions as cv

@@ -14,11 +14,10 @@ import tracemalloc
 import numpy as np
 import pytest
 import yaml
-from conftest import ROOT
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from rosbags.rosbag2 import StoragePlugin
-from test_any_bag import (
+from support.bags import (
     DIAG,
     ODOM,
     QOS,
@@ -33,6 +32,7 @@ from test_any_bag import (
     write_ours,
     write_rosbags,
 )
+from support.paths import ROOT
 
 from adcs_sim.app.analysis import (
     RunData,
@@ -67,6 +67,7 @@ def same_as_in_memory(bag, tol_deg=0.5, eigen_tol_deg=None, namespace=None, **op
 
 # --- every committed bag -------------------------------------------------------------------------
 
+@pytest.mark.slow
 @pytest.mark.parametrize('name', COMMITTED)
 def test_committed_bags_streamed_bit_for_bit(name):
     bag = ROOT / 'bags' / name / 'bag'

@@ -17,12 +17,12 @@ from collections import defaultdict
 
 import numpy as np
 import pytest
-from conftest import ROOT
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from numpy.testing import assert_allclose
 from rosbags.highlevel import AnyReader
 from rosbags.interfaces import Nodetype
+from support.paths import ROOT
 
 from adcs_core.orbit import CircularOrbit, orbit_frame_attitude
 from adcs_msgs_py.topics import QOS_CLOCK

@@ -1,6 +1,6 @@
 """The figures of docs/determination.md, regenerated: ``.venv/bin/python docs/determination/figures.py``.
 
-They use the estimators' own test truth models (tests/estimation_truth.py: the Farrenkopf gyro with
+They use the estimators' own test truth models (tests/support/estimation_truth.py: the Farrenkopf gyro with
 exact discrete variances, white star tracker noise; StateSensors on the plant's true state) until the
 truth model's sensor suite is merged; the figures are drawn by adcs_sim/app/report/estimation.py.
 """
@@ -13,8 +13,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[1] / 'tests'))   # the test truth models (see the docstring)
 
-from test_estimation_analysis import write_run_bag  # noqa: E402
-from test_estimator_batch import batch  # noqa: E402
+from support.estimator_runs import batch, write_run_bag  # noqa: E402
 
 from adcs_sim.app import estimation  # noqa: E402
 from adcs_sim.app.report import estimation as figures  # noqa: E402

@@ -16,7 +16,6 @@ import time
 from types import SimpleNamespace
 
 import numpy as np
-from conftest import ROOT
 
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
@@ -24,6 +23,7 @@ from adcs_msgs_py.guard import subscribed_by
 from adcs_sim.app.batch import BatchSimulation
 from adcs_sim.app.scenario_files import validate_scenario
 from adcs_sim.bag.reader import read_messages
+from support.paths import ROOT
 
 PD_SLEW = ROOT / 'config/microsat_pd_slew.yaml'
 
