@@ -10,7 +10,7 @@ Markers (registered in pyproject.toml, ``--strict-markers``):
 * ``graph``: the test uses a ROS context or graph, or starts ROS processes. Given here to every test
   that uses :data:`ROS_FIXTURES` (directly or through another fixture), and by ``pytestmark`` in the
   modules that build ROS objects or start the graph without them;
-* ``slow``: more than ~10 s alone on the 2-core machine;
+* ``slow``: one of the longest tests (~3 s or more alone on the 2-core machine), left out of the inner loop;
 * ``paper``: reproduces a number or figure of a seed paper.
 
 ``pytest -m "not graph and not slow"`` is the inner loop. Without the ROS wheels, a test module that

@@ -127,6 +127,7 @@ def test_figures_are_the_reports(batch_run, tmp_path):
         batch_run.write_report(tmp_path / 'report')
 
 
+@pytest.mark.slow
 def test_a_committed_bag_as_a_run(tmp_path):
     bag = ROOT / 'bags' / 'microsat_pd_slew' / 'bag'
     run = api.load_run(bag)

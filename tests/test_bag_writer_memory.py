@@ -13,6 +13,7 @@ import gc
 import tracemalloc
 
 from mcap.reader import make_reader
+import pytest
 from support.bags import ODOM, QOS, odom, ser
 
 from adcs_sim.bag import writer as bag_writer
@@ -71,6 +72,7 @@ def _chunk_count(writer: BagWriter) -> int:
     return writer._writer._Writer__statistics.chunk_count
 
 
+@pytest.mark.slow
 def test_the_writer_does_not_grow_with_the_chunks_it_writes(tmp_path, monkeypatch):
     """1 000 more chunks (20 channels, one step each): the writer keeps a few bytes a chunk at most
     with its chunk indexes spilled to disk, against the ~2 KiB a chunk of the mcap writer's own list."""

@@ -67,6 +67,7 @@ def test_same_seed_same_rows_however_split(tmp_path):
         assert abs(r['inputs']['pd_controller.kd'] - 0.05) <= 0.01
 
 
+@pytest.mark.slow
 def test_dask_gives_the_same_rows_locally_and_by_scheduler_address(tmp_path):
     """Chunks of 2 runs on the default LocalCluster (2 workers, 127.0.0.1), and chunks of 3 on a
     separately started cluster reached by its scheduler address (what --scheduler tcp://... does):

@@ -20,6 +20,7 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
 from support.bags import states_on_disk
 from support.paths import ROOT, SCRIPTS
 from support.processes import alive, children
@@ -155,6 +156,7 @@ class TestDestroyedOrHiddenData:
         assert code == 0 and err == [] and json.loads('\n'.join(analysed))[str(bag)] == metrics
 
 
+@pytest.mark.slow
 def test_reanalysis_replaces_its_own_report_and_keeps_a_file_it_did_not_write(tmp_path):
     """A report folder given again to ``adcs-analyze --out``: the old report's files (its Markdown
     and what it links) are replaced; a file the report does not name, though of a report's kind

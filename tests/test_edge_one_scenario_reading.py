@@ -77,6 +77,7 @@ class TestMetricsAgainstATargetNobodyFlew:
         for q_ref in (batch.q_ref, api_batch.q_ref, analysed.q_ref):
             assert np.array_equal(q_ref, FLOWN)
 
+    @pytest.mark.slow
     def test_a_recorded_run_is_measured_against_the_flown_target(self, tmp_path, capsys):
         bag = _bag_with_scenario(tmp_path, _repeated_text())
         with warnings.catch_warnings():

@@ -88,6 +88,7 @@ def lr_statistic(err, P):
 
 
 @pytest.mark.parametrize('sensors', [('gyro', 'star_tracker'), ('gyro', 'sun', 'magnetometer')])
+@pytest.mark.slow
 def test_mekf_converges_from_10_degrees_and_a_tenth_degree_per_second_bias(sensors):
     """Figure: one run, 10 deg initial error about [1, 2, -2]/3, bias 0.1 deg/s per axis. Ours (seed
     7): attitude error < 0.02 deg (star tracker) / 0.05 deg (sun + field vectors, 2 x 2 dof of
@@ -121,6 +122,7 @@ def outage_mc():
     return monte_carlo(outage=OUTAGE, record=(2000, 2300, 2600, 3000))
 
 
+@pytest.mark.slow
 def test_mekf_nees_of_a_100_run_monte_carlo_stays_inside_the_95_percent_bounds(outage_mc):
     """Figure: run-averaged NEES (6 dof) of 100 runs at each of 3001 steps (10 deg initial errors,
     a 60 s star tracker outage) vs its 95 % chi-square bounds. Ours (seed 1): inside on >= 95 % of
@@ -150,6 +152,7 @@ def van_loan(omega, T):
     return Phi, Phi @ B[:6, 6:]
 
 
+@pytest.mark.slow
 def test_mekf_steady_state_and_outage_covariance_follow_the_gyro_model(outage_mc):
     """Figure: the 100 runs' errors and the filter's P at 200 s (steady state), 30 s and 60 s into a
     star tracker outage, and 40 s after it. Ours: the errors' sample covariance is P (LR test below
@@ -175,6 +178,7 @@ def test_mekf_steady_state_and_outage_covariance_follow_the_gyro_model(outage_mc
     assert att_var[3000] < 2 * att_var[2000]
 
 
+@pytest.mark.slow
 def test_mekf_steady_state_attitude_error_matches_the_reported_covariance_per_axis(outage_mc):
     """Figure: per body axis, the sample variance of the 100 runs' attitude error at 200 s vs the
     filter's P there. Ours: each ratio inside the two-sided 0.999 chi-square(100) interval

@@ -150,6 +150,7 @@ def test_error_matches_the_reported_covariance_in_steady_state_and_through_an_ou
     assert att_var[3000] < 2 * att_var[2000]                      # recovered after the outage
 
 
+@pytest.mark.slow
 def test_nees_catches_an_overconfident_filter():
     """The same Monte Carlo with the filter's ARW a third of the truth's: the NEES test fails."""
     inside, grand = nees_summary(monte_carlo(RUNS, seed=1, filter_sigma_v=SIGMA_V / 3)[0])

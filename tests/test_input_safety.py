@@ -73,6 +73,7 @@ def test_the_checker_sees_what_it_forbids(tmp_path):
     assert _violations(ok, tmp_path) == []
 
 
+@pytest.mark.slow
 def test_sources_use_safe_yaml_and_never_evaluate_code():
     assert len(SOURCES) > 50
     problems = [v for p in SOURCES for v in _violations(p)]

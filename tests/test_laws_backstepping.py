@@ -381,6 +381,7 @@ def settling_time(deg, tol=1.0):
 
 
 @pytest.mark.paper
+@pytest.mark.slow
 def test_eseo_slew_settles_and_holds():
     """Paper: settles in ~38 s (Fig. 1), then holds the inertial attitude (Fig. 2). Ours
     (documented choices): the 135.68° slew (q̃(0) has η̃ = -0.3772: the short way is to

@@ -406,6 +406,7 @@ def m2r_runs():
                        np.repeat(u_max[:, None], 3, 1), dist=dist)
 
 
+@pytest.mark.slow
 def test_m2r_converges_at_1_and_0p1_Nm(m2r_runs):
     """Figures 1-2: from θ = π and ω(0) = [1, -1, 0.5] to rest at R_d; at 0.1 N m slower, θ
     oscillating (spinning past 2π); V never increases; no component above u_max."""
@@ -430,6 +431,7 @@ def _max_min_S(a):
     return -min(minimize(negmin, rng.normal(size=3), method='Nelder-Mead').fun for _ in range(20))
 
 
+@pytest.mark.slow
 def test_m2r_constant_disturbance_torque_balance(m2r_runs):
     """Section 4.1, figures 4 and 6, explained by the torque balance at rest: Kp S(R̃) = z_d.
     0.1 N m: the rest attitude solving α/tr(A) S = z_d (θ = 0.586 rad) is reached: a steady error.
@@ -462,6 +464,7 @@ def m2s_10_1():
                        every=10)
 
 
+@pytest.mark.slow
 def test_m2s_cutoff_scaling_converge_at_10_and_diverge_at_1_Nm(m2s_10_1):
     r = m2s_10_1
     th, we = r['theta'], np.linalg.norm(r['w_err'], axis=-1)
@@ -538,6 +541,7 @@ def m2s_disturbance():
                        dist=zd, every=10)
 
 
+@pytest.mark.slow
 def test_m2s_disturbance_estimate_diverges_at_1_Nm(m2s_disturbance):
     """Unsaturated: the spin is reached with a bounded disturbance estimate (figure 16). VAG-C at
     10 N m: converging at 60 s after a large transient of d̂ (ours: θ = 0.012 rad at 60 s, 1e-3

@@ -297,6 +297,7 @@ def convergence_times(err, threshold):
     return first, stay
 
 
+@pytest.mark.slow
 def test_batch_equals_loop_bit_for_bit_with_stage_state():
     """A batch of closed-loop states fed to one law object gives, run by run, the same bits as a
     fresh law per run (stage switch per run, per-run LQR gains and geometry)."""

@@ -195,6 +195,7 @@ def _interpreter(script: Path) -> str:
 
 # --- colcon: layout, ament index, executables -----------------------------------------------------
 
+@pytest.mark.slow
 def test_colcon_build_installs_a_ros_package(colcon_build, monkeypatch):
     colcon_build.require_success()
     layout_file = colcon_build.install_base / '.colcon_install_layout'
@@ -223,6 +224,7 @@ def test_colcon_build_installs_a_ros_package(colcon_build, monkeypatch):
     assert config.read_bytes() == (ROOT / 'config' / SCENARIO).read_bytes()
 
 
+@pytest.mark.slow
 def test_colcon_installed_modules_are_the_installed_copies(colcon_build, monkeypatch):
     """Every executable's module imports from the install prefix, not from the checkout.
 
@@ -278,6 +280,7 @@ def _bad_params_file(config: Path, dest: Path) -> tuple[Path, dict]:
 
 
 @pytest.mark.parametrize('exe', sorted(NODES))
+@pytest.mark.slow
 def test_colcon_installed_executable_starts(colcon_build, exe, ros_domain, monkeypatch, tmp_path):
     """Run ``<prefix>/lib/adcs_sim/<exe>`` with a bad parameter: exit 2, message names the key."""
     colcon_build.require_success()
@@ -333,6 +336,7 @@ def wheel(tmp_path_factory) -> Wheel:
     return Wheel(wheels[0], names, entry_points, data_prefix)
 
 
+@pytest.mark.slow
 def test_wheel_declares_console_scripts_and_ros_data_files(wheel):
     assert wheel.entry_points.has_section('console_scripts'), 'wheel declares no console_scripts'
     scripts = dict(wheel.entry_points['console_scripts'])
@@ -353,6 +357,7 @@ def test_wheel_declares_console_scripts_and_ros_data_files(wheel):
 
 
 @pytest.mark.parametrize('script', sorted(CONSOLE_SCRIPTS))
+@pytest.mark.slow
 def test_wheel_contains_each_console_script_target(wheel, script):
     """A console script whose module is not in the wheel crashes on start after ``pip install``."""
     module, _, attr = CONSOLE_SCRIPTS[script].partition(':')
@@ -366,6 +371,7 @@ def test_wheel_contains_each_console_script_target(wheel, script):
         assert init in wheel.names, f'{script}: {init} is not in {wheel.path.name}'
 
 
+@pytest.mark.slow
 def test_setup_nodes_match_colcon_and_wheel_executables(colcon_build, wheel, monkeypatch):
     colcon_build.require_success()
     found = _installed_executables(_package_prefix(colcon_build, monkeypatch))
@@ -384,6 +390,7 @@ def test_runner_registry_matches_setup_py():
         assert info.schema.node == name, f'{name}: schema is for node {info.schema.node!r}'
 
 
+@pytest.mark.slow
 def test_wheel_requires_the_pinned_runtime_dependencies(wheel):
     """``pip install .`` installs what requirements.txt pins, pins included (issue #17)."""
     from support.packaging import requirements

@@ -56,6 +56,7 @@ def _svg_text(path) -> str:
     return path.read_text()
 
 
+@pytest.mark.slow
 def test_report_of_one_run_beside_the_bag(bags, capsys):
     bag = bags['run_a']
     assert analyze_main([str(bag), '--json']) == 0
@@ -111,6 +112,7 @@ def test_missing_topics_give_the_figures_they_can(tmp_path, capsys):
     assert not (tmp_path / 'partial' / 'report').exists()  # --out was honoured
 
 
+@pytest.mark.slow
 def test_truncated_bag_is_recovered_and_says_so(bags, tmp_path):
     bag = tmp_path / 'killed' / 'bag'
     shutil.copytree(bags['run_b'], bag)
@@ -194,6 +196,7 @@ def test_comparison_default_folder_and_bad_member(bags, tmp_path, capsys, monkey
     assert math.isclose(float(next(r for r in csv.reader(open(out / 'comparison.csv')) if r[0] == 'missed_steps')[2]), 3)
 
 
+@pytest.mark.slow
 def test_report_of_a_bag_in_a_read_only_folder_goes_to_the_current_directory(bags, tmp_path, capsys,
                                                                             monkeypatch):
     monkeypatch.chdir(tmp_path)

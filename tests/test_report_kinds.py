@@ -108,6 +108,7 @@ TRACKING_NO_ORBIT = DYNAMICS + """backstepping_controller:
 """
 
 
+@pytest.mark.slow
 def test_unknown_kind_report_says_so(tmp_path, capsys):
     bag = write_bag(tmp_path / 'run' / 'bag')  # a scenario with a dynamics section only
     assert analyze_main([str(bag), '--out', str(tmp_path / 'out')]) == 0
@@ -177,6 +178,7 @@ def test_run_kind_and_reference_never_raise(scenario):
     lead_metrics(run, rk, q_ref)
 
 
+@pytest.mark.slow
 def test_a_registered_section_goes_after_the_lead(tmp_path, monkeypatch):
     """The hook for further sections (estimation errors): shown after the kind's section."""
     from adcs_sim.app.report import single_run

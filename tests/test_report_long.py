@@ -54,6 +54,7 @@ values = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_fr
 
 @settings(max_examples=400, derandomize=True, deadline=None)
 @given(st.data())
+@pytest.mark.slow
 def test_streamed_envelope_is_the_whole_arrays_envelope(data):
     n = data.draw(st.integers(1, 120), label='n')
     columns = data.draw(st.integers(1, 24), label='columns')
@@ -144,6 +145,7 @@ def test_streamed_report_of_a_synthetic_run_is_the_whole_runs(name, tmp_path, sm
     assert streamed.metrics(1.0, 0.25) == whole.metrics(1.0, 0.25)   # streamed again at other tolerances
 
 
+@pytest.mark.slow
 def test_streamed_report_of_a_committed_regulation_run(tmp_path, monkeypatch):
     """The GSMN slew (regulation: its lead figures, settling times and table from the stream)."""
     monkeypatch.setattr(envelope, 'MAX_POINTS', 1500)
@@ -179,6 +181,7 @@ def _outcome(bag: Path, stream: bool):
     return 'read', run.samples, run.message_count, run.data.problem, run.complete, run.metrics()
 
 
+@pytest.mark.slow
 def test_damaged_long_bags_fail_or_recover_as_in_memory(tmp_path, small_limits):
     """Truncations and flipped bytes of a long bag: the same one-line error, or the same salvage
     (messages, problem, metrics), streamed or read whole."""

@@ -95,6 +95,7 @@ batch = st.lists(st.tuples(st.sampled_from([0.0, 1.0, 2.0, 2.5, -1.0, 1e9]), st.
 
 @settings(max_examples=150, derandomize=True, deadline=None)
 @given(st.lists(batch, max_size=4))
+@pytest.mark.slow
 def test_columns_give_the_series_of_the_records(raw):
     batches = [(np.array([s for s, _ in b], dtype=float), [m for _, m in b]) for b in raw]
     records = StatusRecords()

@@ -195,6 +195,7 @@ def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path):
         assert row in doc, row
 
 
+@pytest.mark.slow
 def test_showcase_bag_is_what_the_code_computes():
     """bags/uosat12_gsmn is the batch engine's run of its scenario, bit for bit (same plant, law,
     allocation and fault schedule): the recording is current."""

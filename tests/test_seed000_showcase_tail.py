@@ -49,6 +49,7 @@ def test_showcase_tail_is_the_saturated_singular_demand_and_still_converging():
     assert K1 * G1 * A == pytest.approx(U_MAX, rel=1e-12)
 
 
+@pytest.mark.slow
 def test_the_slow_tail_is_eq8s_saturation_and_the_low_gain_mode_not_a_bug():
     """The same two-wheel start (the showcase at t0), 5 000 s on the batch engine, one thing changed per run:
     as recorded 8.37° at the end; eq. 7 (a1 = a2 = inf) 1.6e-6°; the high gains allowed (epsilon = 1 N m) 1.96°

@@ -110,6 +110,7 @@ def test_thruster_impulse_and_firings(run):
     assert count[len(run.t_thrusters) - 1] == m['thruster_firings']
 
 
+@pytest.mark.slow
 def test_bag_is_the_batch_run(run):
     from adcs_sim.app.batch import BatchSimulation
     from adcs_sim.app.scenario_files import validate_scenario
@@ -133,6 +134,7 @@ def _batch(duration: float, initial_attitude=None, initial_rate=None):
     return BatchSimulation.from_runs([sections]).run()
 
 
+@pytest.mark.slow
 def test_attitude_held_after_settling_batch():
     """The hold of Fig. 2 by the batch engine (the graph's code; the whole two orbits through
     the graph: docs/seed002.md): settled within 60 s, then below 1° to 1000 s (a fifth of an

@@ -149,6 +149,7 @@ def test_sensitivity_at_a_1s_period_the_saturated_min_norm_is_slower_than_pd_iii
 PAPER_SMALLER_GAP = (0.245 - 0.214) / 0.245
 
 
+@pytest.mark.slow
 def test_disagreement_iii_f_min_norm_integrated_torque_is_not_pds():
     """DISAGREEMENT with III.F.2, pinned: min-norm's gains kp = 0.02, kd = 0.15 "were tuned to consume the same
     overall integrated torque as the PD benchmark". Ours with those printed gains: ∫‖u‖dt 0.197 N m s against
@@ -288,6 +289,7 @@ def _doc_row(doc: str, label: str) -> str:
     return rows[0]
 
 
+@pytest.mark.slow
 def test_doc_tables_are_the_tools_rows(tmp_path):
     """docs/seed004.md's III.F and Table I tables, paper and ours, are ``adcs-analyze --compare --reference
     docs/seed004/paper.yaml`` on the committed bags, rounded as the doc prints them (III.F to 0.1 s and

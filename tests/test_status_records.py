@@ -7,6 +7,7 @@ from __future__ import annotations
 import tracemalloc
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -39,6 +40,7 @@ batch = st.lists(st.tuples(st.sampled_from([0.0, 1.0, 2.0, 2.5, -1.0, 1e9]), mes
 
 @settings(max_examples=150, derandomize=True, deadline=None)
 @given(st.lists(batch, max_size=4))
+@pytest.mark.slow
 def test_reads_back_as_the_sorted_list_of_tuples(raw):
     batches = [(np.array([s for s, _ in b], dtype=float), [m for _, m in b]) for b in raw]
     ref, got = reference(batches), records(batches)

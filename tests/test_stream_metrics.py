@@ -264,6 +264,7 @@ def traced_peak(fn) -> float:
         tracemalloc.stop()
 
 
+@pytest.mark.slow
 def test_streamed_memory_does_not_grow_with_the_run(tmp_path):
     """Ten times the steps: the in-memory path's peak grows by hundreds of bytes a step, the
     streamed one's by the few tens it keeps (the torque terms and stamps). Its batches are made

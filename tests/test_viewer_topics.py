@@ -78,6 +78,7 @@ def test_rosbags_reads_the_viewer_topics_with_their_standard_types():
     assert first.transforms[0].header.frame_id == 'inertial' and first.transforms[0].child_frame_id == 'body'
 
 
+@pytest.mark.slow
 def test_tf_is_the_frames_and_the_body_frame_is_the_state(decoded, run):
     body = {_ns(m.header.stamp): m for _, m in decoded['/frames/body']}
     orbit = {_ns(m.header.stamp): m for _, m in decoded['/frames/orbit']}
@@ -103,6 +104,7 @@ def test_tf_is_the_frames_and_the_body_frame_is_the_state(decoded, run):
         assert_allclose([r.x, r.y, r.z, r.w], orbit_frame_attitude(circ, t * 1e-9), atol=1e-12)
 
 
+@pytest.mark.slow
 def test_error_topics_are_the_analysis_errors(decoded, run):
     _, eigen, euler = attitude_errors(run)   # deg; Euler in sequence order y, x, z
     e = np.array([m.vector.x for _, m in decoded['/error/eigenaxis']])
@@ -116,6 +118,7 @@ def _by_ns(markers) -> dict:
     return {(m.ns, m.id): m for m in markers}
 
 
+@pytest.mark.slow
 def test_markers_show_target_wheel_momentum_and_the_firing_thrusters(decoded, run):
     (stamp, static), = decoded['/markers/static']   # once, latched, at t = 0
     m = _by_ns(static.markers)
@@ -204,6 +207,7 @@ def _resolve_plotjuggler(name: str, types: dict, run: RunData) -> None:
     assert node[0] == Nodetype.BASE, name
 
 
+@pytest.mark.slow
 def test_committed_layouts_are_current_and_name_only_what_the_bag_has(run, tmp_path):
     with AnyReader([BAG / 'bag']) as reader:
         types = {c.topic: c.msgtype for c in reader.connections if c.msgcount}
