@@ -207,6 +207,45 @@ def test_no_module_imports_itself_back():
     assert module_cycles(IMPORTS) == []
 
 
+def lazy_imports_without_reason(source: str) -> list[int]:
+    """Lines of the imports made inside a function that give no ``# lazy: <reason>`` (on their
+    line, or on the comment lines right above their block of imports)."""
+    lines = source.split('\n')
+    found = set()
+    for fn in ast.walk(ast.parse(source)):
+        if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            found |= {n.lineno for n in ast.walk(fn) if isinstance(n, (ast.Import, ast.ImportFrom))}
+    wrong = []
+    for line in sorted(found):
+        i = line - 1
+        while i > 0 and (lines[i - 1].strip().startswith(('import ', 'from ')) or not lines[i - 1].strip()):
+            i -= 1   # the block: its imports and the blank lines that group them
+        above = []
+        while i > 0 and lines[i - 1].strip().startswith('#'):
+            i -= 1
+            above.append(lines[i])
+        if not any('# lazy:' in text for text in (lines[line - 1], *above)):
+            wrong.append(line)
+    return wrong
+
+
+def test_lazy_imports_are_recognised():
+    ok = 'def f():\n    # lazy: 1 s\n    import a\n\n    from b import c\n'
+    bare = 'def f():\n    x = 1\n    import a\n'
+    assert lazy_imports_without_reason(ok) == []
+    assert lazy_imports_without_reason(bare) == [3]
+    assert lazy_imports_without_reason('import a\n') == []
+
+
+def test_the_application_imports_inside_a_function_only_with_its_reason():
+    """adcs_sim.app imports at module level; an import inside a function is there for a measured
+    start-up time (or an optional dependency) and says so: ``# lazy: <reason>``."""
+    app = ROOT / 'adcs_sim' / 'app'
+    wrong = [f'{path.relative_to(ROOT)}:{line}' for path in sorted(app.rglob('*.py'))
+             for line in lazy_imports_without_reason(path.read_text())]
+    assert not wrong, 'an import inside a function without "# lazy: <reason>":\n' + '\n'.join(wrong)
+
+
 def test_ros_stays_in_the_nodes_and_the_interface():
     wrong = []
     for module, deps in IMPORTS.items():

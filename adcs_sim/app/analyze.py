@@ -74,6 +74,7 @@ def _report_dir(out: Path | None, path: str, name: str, several: bool) -> Path:
 def _report_dirs(args) -> dict[str, Path]:
     """Each bag's report folder (``--compare``: the one comparison folder, under every bag),
     checked before any bag is read; OutputError names the first unusable one."""
+    # lazy: the report modules bring matplotlib (1.3 s): only when a report is written
     from adcs_sim.app.report.comparison import unique_names   # (matplotlib: only when a report is written)
     named = [SimpleNamespace(name=run_name(p), path=p) for p in args.bags]
     if args.compare:
@@ -215,6 +216,7 @@ def main(argv=None) -> int:
     # Where the reports are goes to stdout with the table, to stderr with --json (stdout stays JSON).
     info = sys.stderr if args.json else sys.stdout
     # matplotlib (behind the figures) only when a report is written: --help and --no-report stay quick
+    # lazy: matplotlib (1.3 s) behind the figures: only when a report is written
     from adcs_sim.app.report import comparison, single_run
     if args.compare:
         if len(runs) < (1 if args.reference else 2):

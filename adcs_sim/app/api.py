@@ -309,8 +309,8 @@ class RunResult:
         pandas.DataFrame
 
         """
-        # pandas (a dependency: ppigrf reads the IGRF coefficients with it) costs 0.5-1.3 s to import:
-        # only when a DataFrame is asked for.
+        # lazy: pandas (a dependency: ppigrf reads the IGRF coefficients with it) costs 0.5-1.3 s to
+        # import: only when a DataFrame is asked for
         import pandas as pd
         run = self.data
         _, eigen, euler = attitude_errors(run)

@@ -231,6 +231,7 @@ class Progress:
     run's: the run's domain and discovery range (``env``), not the shell's."""
 
     def __init__(self, duration: float, enabled: bool, env: dict) -> None:
+        # lazy: rclpy and tqdm (0.3 s): only when a progress bar is shown
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
@@ -271,6 +272,7 @@ class Progress:
             wait(remaining)
 
     def close(self) -> None:
+        # lazy: rclpy: only with the progress bar that imported it
         import rclpy
         self.bar.close()
         self.node.destroy_node()
@@ -287,6 +289,7 @@ def graph_env(lease: DomainLease, allow_network: bool = False) -> dict:
 def recorded_state(bag_dir: Path) -> bool:
     """Whether the bag (complete, or as flushed so far) holds at least one state message (a
     quarantined one is not the run's)."""
+    # lazy: the bag reader (0.4 s): only while a run is being watched
     from adcs_msgs_py.names import quarantined
     from adcs_sim.bag.reader import read_raw
     try:

@@ -74,6 +74,7 @@ def execute(campaign: Campaign, scheduler: str = 'local', workers: int | None = 
     ``scheduler``: ``local`` (a Dask LocalCluster on 127.0.0.1 with ``workers`` processes,
     default one per core), ``none`` (in this process, no Dask) or a scheduler address.
     """
+    # lazy: tqdm, and Dask (1.2 s) only for a scheduler other than none
     from tqdm import tqdm
     chunks = campaign.chunks()
     bar = tqdm(total=campaign.runs, unit='run', disable=not progress, dynamic_ncols=True)
@@ -84,6 +85,7 @@ def execute(campaign: Campaign, scheduler: str = 'local', workers: int | None = 
                 rows += run_chunk(campaign, chunk)
                 bar.update(len(chunk))
         else:
+            # lazy: tqdm, and Dask (1.2 s) only for a scheduler other than none
             from dask.distributed import Client, LocalCluster, as_completed
             if scheduler == 'local':
                 n = workers or os.cpu_count() or 1
@@ -285,6 +287,7 @@ def summary_markdown(summary: dict) -> str:
 
 
 def write_histograms(campaign: Campaign, rows: list[dict], out: Path) -> list[Path]:
+    # lazy: matplotlib (1.3 s): only when figures are written
     from matplotlib.figure import Figure
 
     from adcs_sim.app.report.figures import save_figure
@@ -345,6 +348,7 @@ def write_series(rows: list[dict], out: Path, figure: bool = True) -> list[Path]
     np.savez_compressed(out / 'series.npz', t=t, error_deg=err, runs=np.array([r['run'] for r in rows]))
     if not figure or not t.size:   # no run has a series (every one failed before its first step)
         return []
+    # lazy: matplotlib (1.3 s): only when figures are written
     from matplotlib.figure import Figure
 
     from adcs_sim.app.report.figures import DPI

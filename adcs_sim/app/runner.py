@@ -97,6 +97,7 @@ def _compromised(found: list[str], bag_dir: Path) -> RunError | None:
 
 def _bag_intrusions(bag_dir: Path) -> list[str]:
     """:func:`adcs_sim.app.analysis.bag_intrusions` (imported on the way out of a failed run)."""
+    # lazy: the analysis (0.4 s): only on the way out of a failed run
     from adcs_sim.app.analysis import bag_intrusions
     return bag_intrusions(bag_dir)
 
@@ -122,6 +123,7 @@ def run_target(validated: dict) -> list[float]:
     """The target of the dynamics node's error topics and target markers: the offline analysis'
     (:func:`~adcs_sim.app.analysis.target_attitude`: a controller section's ``target.attitude``),
     so that ``error/*`` in the bag are the errors ``adcs-analyze`` computes."""
+    # lazy: the run data module (0.4 s): off adcs-run's path to starting the nodes
     from adcs_sim.app.run_data import target_attitude
     sections = {name: {'ros__parameters': {'target': {'attitude': list(values['target.attitude'])}}}
                 for name, values in validated.items() if name != 'dynamics' and 'target.attitude' in values}
@@ -175,7 +177,8 @@ def _start_graph(run: _Run, show_progress: bool):
     common = ['--params-file', str(run.scenario), *publishers_arg(validated, run.restarts)]
     graph.start('recorder', NODES['recorder'].module,
                 [*common, '-p', f'output:={run.bag_dir}', '-p', f'scenario_file:={run.scenario}'])
-    from adcs_sim.nodes.recorder import READY_LINE   # (its imports overlap the nodes' start)
+    # lazy: the recorder's module (0.75 s): its imports overlap the nodes' start
+    from adcs_sim.nodes.recorder import READY_LINE
     run.others = [s for s in validated if s not in ('recorder', 'dynamics')]
     handshake = startup_counts(validated)
     # With a fault injector, the nodes that act on faults first collect its whole schedule.
@@ -210,6 +213,7 @@ def warm_analysis() -> threading.Thread:
     import is raised again where the module is used."""
     def imports() -> None:
         try:
+            # lazy: the analysis, warmed in a thread while the graph shuts down (see warm_analysis)
             import numpy as np
 
             import adcs_sim.app.stream_metrics  # noqa: F401
@@ -298,6 +302,7 @@ def _finish(run: _Run, tol_deg: float):
     warming = warm_analysis()
     _stop_graph(run)
     warming.join()
+    # lazy: imported by warm_analysis while the graph shut down: here it is already loaded
     from adcs_sim.app.stream_metrics import analyse_bag
     analysed = analyse_bag(run.bag_dir, tol_deg)
     compromised = _compromised(analysed.intrusions, run.bag_dir)
@@ -371,6 +376,7 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
         lease.release()
         for s, h in old_handlers.items():
             signal.signal(s, h)
+    # lazy: the analysis: loaded by warm_analysis at the end of the run, not at start
     from adcs_sim.app.analysis import jsonable_metrics
     metrics = analysed.metrics
     (out / 'metrics.json').write_text(json.dumps(jsonable_metrics(metrics), indent=2))
@@ -406,6 +412,7 @@ def main(argv=None) -> int:
     try:
         scenario = resolve_scenario(args.scenario)
         if args.explain:
+            # lazy: the parameter tables (0.6 s): only for --explain
             from adcs_sim.app.parameters import explain
             print(explain(scenario, args.duration))
             return 0
@@ -416,12 +423,14 @@ def main(argv=None) -> int:
     except (ParameterError, RunError) as exc:
         print(f'adcs-run: error: {exc}', file=sys.stderr)
         return 1 if isinstance(exc, RunError) else 2
+    # lazy: the analysis: loaded by warm_analysis at the end of the run, not at start
     from adcs_sim.app.analysis import format_metrics
     print(f'bag: {out / "bag"}')
     print('metrics:')
     print(format_metrics(metrics))
     if args.report:
-        from adcs_sim.app.report import loading, single_run  # matplotlib only when a report is asked for
+        # lazy: the report (matplotlib, 1.3 s): only when a report is asked for
+        from adcs_sim.app.report import loading, single_run
         run = loading.load_run(out / 'bag', scenario.stem)  # named after its scenario: the paper's values
         print(f'report: {single_run.write_report(run, out / "report", args.tolerance_deg)}')
     return 0

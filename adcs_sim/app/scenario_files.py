@@ -24,6 +24,7 @@ def config_dirs() -> list[Path]:
     """Where scenario files are looked up by bare name: installed share folder, then the source tree."""
     dirs = [Path(sys.prefix) / 'share' / 'adcs_sim' / 'config']
     try:
+        # lazy: ament_index_python: only present in a ROS install (optional)
         from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
         try:
             dirs.insert(0, Path(get_package_share_directory('adcs_sim')) / 'config')

@@ -82,6 +82,7 @@ class Run:
         if self.long is None:
             return run_metrics(self.data, tol_deg, eigen_tol_deg)
         if self.long.tol != (tol_deg, eigen_tol_deg):   # streamed again at these tolerances
+            # lazy: long_run: only a long run needs it (see _load_long)
             from adcs_sim.app.report.long_run import load_long, release_memory   # see _load_long
             self.data, self.long = load_long(self.path, tol_deg, eigen_tol_deg)
             release_memory()
@@ -127,8 +128,8 @@ def load_run(path, name: str | None = None, tol_deg: float = 0.5, eigen_tol_deg:
 def _load_long(path, tol_deg: float, eigen_tol_deg: float | None):
     """(data, summary) of a long run streamed, or (the whole run, None) where streaming does not
     cover it (long_run.Unstreamable)."""
-    # imported at first use: long_run and the streamed metrics it brings are ~0.08 s of every
-    # adcs-analyze start (python -X importtime), and only a long run needs them
+    # lazy: long_run and the streamed metrics it brings are ~0.08 s of every adcs-analyze start
+    # (python -X importtime), and only a long run needs them
     from adcs_sim.app.report.long_run import Unstreamable, load_long, release_memory
     try:
         return load_long(path, tol_deg, eigen_tol_deg)
