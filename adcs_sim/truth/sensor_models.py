@@ -64,12 +64,27 @@ def sensor_frame(boresight) -> np.ndarray:
 
 
 class _Model:
-    """Shared plumbing: per-run generators, output shaping."""
+    """Shared plumbing: per-run generators, output shaping, and what the suite
+    (:class:`adcs_sim.truth.sensor_suite.SensorSuite`) calls: :meth:`read` a step's reading from the
+    true state and the environment, :meth:`follow_fault` one of its fault targets. ``ENVIRONMENT``: the
+    :class:`~adcs_sim.truth.sensor_suite.SensorEnvironment` fields its reading cannot do without (a
+    model with any needs ``environment.enabled``)."""
+
+    ENVIRONMENT: tuple[str, ...] = ()
 
     def __init__(self, seed, stream: int) -> None:
         self.rngs, self.batched = run_generators(seed, stream)
         self.n_runs = len(self.rngs)
         self.failed = False
+
+    def read(self, k: int, q, w, env) -> Reading:
+        """The reading at step ``k`` of true attitude ``q`` and rate ``w`` in the environment ``env``."""
+        raise NotImplementedError
+
+    def follow_fault(self, target: str, fault) -> None:
+        """A fault snapshot's entry for one of its targets (``adcs_msgs_py.sensor_interfaces``):
+        ``failed`` until another mode."""
+        self.failed = fault.mode == 'failed'
 
     def _batch(self, a, width: int) -> np.ndarray:
         a = np.asarray(a, dtype=float)
@@ -133,6 +148,12 @@ class Gyro(_Model):
         if mode == 'stuck' and not self.stuck[axis]:
             self._freeze[axis] = True
         self.stuck[axis] = mode == 'stuck'
+
+    def read(self, k: int, q, w, env) -> Reading:
+        return self.measure(w)
+
+    def follow_fault(self, target: str, fault) -> None:
+        self.apply_fault(GYRO_AXES.index(target.split('.', 1)[1]), fault.mode, fault.value)
 
     def measure(self, w) -> Reading:
         """The reading of true body rate ``w`` (3,) or (runs, 3) at this step."""
@@ -200,6 +221,9 @@ class StarTracker(_Model):
             out |= dot(b, self._batch(nadir, 3)) > np.cos(cone)
         return out
 
+    def read(self, k: int, q, w, env) -> Reading:
+        return self.measure(k, q, env.sun, env.nadir, env.earth_angular_radius)
+
     def measure(self, k: int, q, sun=None, nadir=None, earth_radius=None) -> Reading:
         """The reading at step ``k`` (called once per step, in order) of true attitude ``q``."""
         if self._last_k is not None and k != self._last_k + 1:
@@ -227,6 +251,7 @@ class SunSensor(_Model):
     """
 
     STREAM = 3
+    ENVIRONMENT = ('sun', 'illumination')
 
     def __init__(self, seed, std: float = 0.0, boresight=(0.0, 0.0, 1.0), fov: float = math.pi,
                  min_illumination: float = 0.0) -> None:
@@ -236,6 +261,9 @@ class SunSensor(_Model):
         self.cos_fov = math.cos(fov)
         self.min_illumination = float(min_illumination)
         self.cov = np.zeros((self.n_runs, 3, 3))
+
+    def read(self, k: int, q, w, env) -> Reading:
+        return self.measure(q, env.sun, env.illumination)
 
     def measure(self, q, sun, illumination) -> Reading:
         q = self._batch(q, 4)
@@ -255,12 +283,16 @@ class Magnetometer(_Model):
     ``N`` (3)."""
 
     STREAM = 4
+    ENVIRONMENT = ('field',)
 
     def __init__(self, seed, std: float = 0.0, bias=(0.0, 0.0, 0.0)) -> None:
         super().__init__(seed, self.STREAM)
         self.std = float(std)
         self.bias = _runs(bias, self.n_runs, (3,))
         self.cov = np.broadcast_to(self.std ** 2 * np.eye(3), (self.n_runs, 3, 3))
+
+    def read(self, k: int, q, w, env) -> Reading:
+        return self.measure(q, env.field)
 
     def measure(self, q, field) -> Reading:
         q = self._batch(q, 4)
@@ -293,6 +325,7 @@ class CoarseSunSensors(_Model):
     run: one normal per detector."""
 
     STREAM = 3   # the sun sensor's stream: one sun sensor is fitted, of either kind
+    ENVIRONMENT = ('sun', 'illumination')
 
     def __init__(self, seed, normals, std: float = 0.0, fov: float = 0.5 * math.pi,
                  min_illumination: float = 0.0) -> None:
@@ -303,6 +336,9 @@ class CoarseSunSensors(_Model):
         self.cos_fov = math.cos(fov)
         self.min_illumination = float(min_illumination)
         self.cov = np.zeros((self.n_runs, 3, 3))
+
+    def read(self, k: int, q, w, env) -> Reading:
+        return self.measure(q, env.sun, env.illumination)
 
     def measure(self, q, sun, illumination) -> Reading:
         q = self._batch(q, 4)
