@@ -88,6 +88,11 @@ SENSOR_INTERFACES: tuple[SensorInterface, ...] = (
         'three-axis magnetometer: field in body axes (T) with its covariance (T^2); covariance[0] = -1: '
         'no measurement', _LOCKSTEP_LIKE_STAR_TRACKER,
         nis_dof=2, reference='magnetometer'),
+    SensorInterface(
+        'fine_sun_sensor', 'fine sun sensor', 'sensors/fine_sun', 'unit_vector', 'direction',
+        'fine (two-axis) sun sensor: unit Sun direction in body axes from its two measured angles; the '
+        'zero vector: no Sun (eclipse, out of the field of view, failed)', _LOCKSTEP_LIKE_STAR_TRACKER,
+        nis_dof=2, received='unit_vector', reference='sun'),
 )
 
 SENSORS = tuple(s.name for s in SENSOR_INTERFACES)   # the fields of Measurements, in this order

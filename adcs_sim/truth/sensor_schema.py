@@ -18,7 +18,7 @@ import numpy as np
 
 from adcs_msgs_py.params import Param, ParameterError, non_negative, positive
 from adcs_msgs_py.sensor_interfaces import BY_NAME, SENSORS
-from adcs_sim.truth.sensor_models import CoarseSunSensors, Gyro, Magnetometer, StarTracker, SunSensor
+from adcs_sim.truth.sensor_models import CoarseSunSensors, FineSunSensor, Gyro, Magnetometer, StarTracker, SunSensor
 from adcs_sim.truth.sensor_suite import SensorSuite
 
 MAX_LATENCY_STEPS = 100_000   # the star tracker keeps one attitude per step of latency
@@ -159,6 +159,35 @@ def _magnetometer_params() -> list[Param]:
     ]
 
 
+def _fine_sun_params() -> list[Param]:
+    return [
+        _enabled('fine_sun_sensor', 'fine (two-axis) sun sensor'),
+        Param('sensors.fine_sun_sensor.std', 'double', default=0.0, check=_angle_std,
+              doc='noise of each of the two measured angles (rad, 1 sigma)'),
+        Param('sensors.fine_sun_sensor.boresight', 'double_array', default=[0.0, 0.0, 1.0], length=3,
+              check=_nonzero_vector, doc='boresight (mounting) in body axes; alpha is measured towards x_s, body x '
+                                         'made perpendicular to it (body y for a boresight along x), beta towards '
+                                         'boresight x x_s'),
+        Param('sensors.fine_sun_sensor.fov_deg', 'double', default=60.0, check=_half_cone_below_90,
+              doc='field-of-view half-cone angle (deg): no reading with the Sun further from the boresight'),
+        Param('sensors.fine_sun_sensor.min_illumination', 'double', default=0.0, check=_fraction_below_1,
+              doc='no reading unless the illuminated fraction of the Sun exceeds this (fraction; 0: none in umbra)'),
+    ]
+
+
+def _half_cone_below_90(v) -> str | None:
+    return None if 0.0 < v < 90.0 else f'must be in (0, 90) deg, got {v}'
+
+
+_half_cone_below_90.description = 'in (0, 90) deg'   # for docs/parameters.md
+
+
+def _fine_sun(v: dict, seed, period_ns: int) -> FineSunSensor:
+    f = 'sensors.fine_sun_sensor.'
+    return FineSunSensor(seed, v[f + 'std'], v[f + 'boresight'], math.radians(v[f + 'fov_deg']),
+                         v[f + 'min_illumination'])
+
+
 def _steps(v: dict, key: str) -> int:
     """A duration parameter as a whole number of control periods (ParameterError naming it if not)."""
     period_ns = int(round(float(v['control_period']) * 1e9))
@@ -248,6 +277,7 @@ SENSOR_MODELS: tuple[SensorModel, ...] = (
     SensorModel('star_tracker', _star_tracker_params, _star_tracker, (StarTracker,), _star_tracker_check),
     SensorModel('sun', _sun_params, _sun, (SunSensor, CoarseSunSensors), _check_coarse),
     SensorModel('magnetometer', _magnetometer_params, _magnetometer, (Magnetometer,)),
+    SensorModel('fine_sun_sensor', _fine_sun_params, _fine_sun, (FineSunSensor,)),
 )
 # One truth declaration per interface declaration, in the same order (the Measurements fields).
 assert tuple(s.name for s in SENSOR_MODELS) == SENSORS, 'adcs_msgs_py.sensor_interfaces and SENSOR_MODELS differ'
