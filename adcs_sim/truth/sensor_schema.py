@@ -280,7 +280,8 @@ SENSOR_MODELS: tuple[SensorModel, ...] = (
     SensorModel('fine_sun_sensor', _fine_sun_params, _fine_sun, (FineSunSensor,)),
 )
 # One truth declaration per interface declaration, in the same order (the Measurements fields).
-assert tuple(s.name for s in SENSOR_MODELS) == SENSORS, 'adcs_msgs_py.sensor_interfaces and SENSOR_MODELS differ'
+if tuple(s.name for s in SENSOR_MODELS) != SENSORS:
+    raise ImportError(f'SENSOR_MODELS {[s.name for s in SENSOR_MODELS]} are not the interface declarations {SENSORS}')
 # The sensors that cannot measure without the environment models (adcs_core.environment: the Sun
 # direction, the eclipse, the geomagnetic field): fitted, they need `environment.enabled: true`.
 NEEDS_ENVIRONMENT = tuple(s.name for s in SENSOR_MODELS if s.needs_environment)
