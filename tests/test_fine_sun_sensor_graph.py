@@ -72,3 +72,49 @@ def test_fine_sun_sensor_messages_on_the_graph_equal_the_batch(ros_domain, tmp_p
     q_graph = np.array([[m.pose.pose.orientation.x, m.pose.pose.orientation.y, m.pose.pose.orientation.z,
                          m.pose.pose.orientation.w] for m in truth])
     assert_array_equal(q_graph, result.q[0])          # the same truth, bit for bit
+
+
+def test_estimator_chain_on_the_fine_sun_sensor_in_lockstep_equals_the_batch(ros_domain, tmp_path):
+    """dynamics (gyro, fine sun sensor, magnetometer on the LEO scenario's TLE orbit) -> mekf_estimator
+    on the three -> PD controller on estimate/state -> dynamics, in lockstep with a recorder: the bag's
+    truth and every estimate (attitude, rate) are the batch engine's, bit for bit."""
+    from adcs_controllers.nodes.mekf_estimator import MekfEstimator
+    from adcs_controllers.nodes.pd_controller import PdController
+    from adcs_sim.app import estimation
+    n = 30
+    bag_dir = tmp_path / 'bag'
+    recorder = {'startup.expect_recorder': True}
+    scenario = make_scenario(tmp_path, {
+        'dynamics': {'duration': float(n), 'startup.sensor_subscribers': 2, 'startup.state_subscribers': 1, **recorder,
+                     'sensors.sun.enabled': False, 'sensors.fine_sun_sensor.enabled': True,
+                     'sensors.fine_sun_sensor.std': 2e-4, 'sensors.fine_sun_sensor.boresight': [1.0, 0.2, 0.0]},
+        'mekf_estimator': {'sensors': ['gyro', 'fine_sun_sensor', 'magnetometer'], 'fine_sun_sensor.sigma': 2e-4,
+                           'startup.estimate_subscribers': 1, **recorder},
+        'pd_controller': recorder, 'recorder': {'output': str(bag_dir)}}, base='leo_tle_sun_magnetometer_mekf.yaml')
+    expected = {'/state': n + 1, '/estimate/state': n + 1, '/wheels/cmd': n + 1, '/sensors/fine_sun': n + 1,
+                '/sensors/magnetometer': n + 1, '/dynamics/status': 2}
+    with InProcessGraph(scenario) as graph:
+        rec = graph.add(RecorderNode)
+        dyn = graph.add(DynamicsNode)
+        est = graph.add(MekfEstimator)
+        pd = graph.add(PdController)
+        pd.connect()      # its wheels/cmd is matched: it subscribes to estimate/state
+        est.connect()     # estimate/state is matched by the controller: it subscribes to the sensors
+        dyn.run(graph.executor)
+        counts = rec.bag.topics
+        graph.spin_until(lambda: all(t in counts and counts[t].count == c for t, c in expected.items()),
+                         timeout=120.0)
+        rec.close()
+    assert dyn.missed_steps == 0 and dyn.rejects.total == 0 and est.rejects.total == 0
+
+    result = BatchSimulation.from_runs([validate_scenario(scenario)]).run()
+    bag, ours = estimation.series_from_bag(bag_dir), estimation.series_from_batch(result, 0)
+    k = ours.t.size   # the batch's estimates of t_0 .. t_K-1; the graph's estimator also answers the last state
+    assert bag.t.size in (k, k + 1) and np.array_equal(bag.t[:k], ours.t)
+    assert_array_equal(ours.q, bag.q[:k])
+    assert_array_equal(ours.w, bag.w[:k])
+    assert ours.status['used_fine_sun_sensor'].astype(bool).all()
+    truth = [m for _, _, m in read_messages(bag_dir, {'/truth/state'})]
+    q_graph = np.array([[m.pose.pose.orientation.x, m.pose.pose.orientation.y, m.pose.pose.orientation.z,
+                         m.pose.pose.orientation.w] for m in truth])
+    assert_array_equal(q_graph, result.q[0])
