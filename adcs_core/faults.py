@@ -81,22 +81,5 @@ FAULT_OK_MODES = ('nominal', 'recovered')
 # Faults under which a wheel produces no commanded torque: controllers allocate around it.
 FAULT_UNUSABLE_MODES = ('failed', 'stuck')
 
-
-# Sensor faults (issue 20): the fault schedule may name these targets beside the wheels, each with the
-# modes it allows (besides FAULT_OK_MODES). ``failed``: the sensor gives no measurement (a star
-# tracker outage until ``recovered``, a failed magnetometer or sun sensor); ``bias``: the gyro axis
-# reads ``value`` rad/s more (a bias jump, held until recovered); ``stuck``: the gyro axis repeats, from
-# the fault's step on, the reading of that step. The truth model applies them
-# (:meth:`adcs_sim.truth.sensor_suite.SensorSuite.apply_faults`); a snapshot carries them only when the
-# schedule names them, so an actuator-only schedule's messages are unchanged.
-SENSOR_FAULT_MODES: dict[str, tuple[str, ...]] = {
-    'star_tracker': ('failed',), 'sun': ('failed',), 'magnetometer': ('failed',),
-    'gyro.x': ('bias', 'stuck'), 'gyro.y': ('bias', 'stuck'), 'gyro.z': ('bias', 'stuck'),
-}
-
-
-def split_snapshot(snapshot: dict) -> tuple[dict, dict]:
-    """(actuator part, sensor part) of a fault snapshot: the sensor part holds the targets of
-    :data:`SENSOR_FAULT_MODES`."""
-    sensors = {n: s for n, s in snapshot.items() if n in SENSOR_FAULT_MODES}
-    return {n: s for n, s in snapshot.items() if n not in SENSOR_FAULT_MODES}, sensors
+# Sensor faults (issue 20): their targets and modes are declared with each sensor's interface
+# (adcs_msgs_py.sensor_interfaces: SENSOR_FAULT_MODES, split_snapshot).

@@ -21,7 +21,8 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from adcs_core.attitude import quat_norm
-from adcs_core.faults import FAULT_ERROR_MODES, FAULT_OK_MODES, SENSOR_FAULT_MODES, FaultState
+from adcs_core.faults import FAULT_ERROR_MODES, FAULT_OK_MODES, FaultState
+from adcs_msgs_py.sensor_interfaces import SENSOR_FAULT_MODES
 
 NS_PER_S = 1_000_000_000
 # A quaternion whose norm is further than this from 1 is rejected (not silently renormalised).

@@ -13,6 +13,9 @@ topic                         type                                        conten
 ``estimate/state``            nav_msgs/Odometry                           estimated attitude and rate
 ============================  ==========================================  ==========================
 
+A sensor declared later reuses one of these codecs (:data:`CODECS`, named by its declaration in
+:mod:`adcs_msgs_py.sensor_interfaces`), on its own topic.
+
 **No measurement** (outage, eclipse, failed sensor, not due at the sensor's rate): the message is still
 published every step, marked as REP 145 marks a missing quantity of ``sensor_msgs/Imu``: element 0 of
 its covariance is ``-1`` (the sun vector, whose type has no covariance: the zero vector, which is also
@@ -33,6 +36,9 @@ is not symmetric positive semi-definite, a wrong frame.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Callable
+
 import numpy as np
 from geometry_msgs.msg import PoseWithCovarianceStamped, Vector3Stamped
 from nav_msgs.msg import Odometry
@@ -49,6 +55,7 @@ from adcs_msgs_py.conversions import (
     stamp_from_ns,
 )
 from adcs_msgs_py.measurements import Estimate, Reading, received_unit_vector
+from adcs_msgs_py.sensor_interfaces import SENSOR_INTERFACES
 
 NO_MEASUREMENT = -1.0        # element 0 of a covariance: no measurement this step (REP 145)
 UNIT_VECTOR_TOLERANCE = 1e-6  # a sun vector whose norm is further than this from 1 (and not 0) is refused
@@ -218,6 +225,21 @@ def magnetometer_to_msg(t_ns: int, reading: Reading) -> MagneticField:
 def magnetometer_from_msg(msg: MagneticField, name: str = 'sensors/magnetometer') -> tuple[int, Reading]:
     """sensor_msgs/MagneticField -> (t_ns, magnetometer Reading); raises InvalidMessage."""
     return _body_vector_reading(name, msg, 'magnetic_field')
+
+
+# --- each sensor's codec (adcs_msgs_py.sensor_interfaces: SensorInterface.codec) -------------
+
+@dataclass(frozen=True)
+class Codec:
+    """A sensor message's conversions: ``to_msg(t_ns, reading)``, ``from_msg(msg, name) -> (t_ns, reading)``."""
+
+    to_msg: Callable
+    from_msg: Callable
+
+
+CODECS = {'imu': Codec(imu_to_msg, imu_from_msg), 'quaternion': Codec(star_tracker_to_msg, star_tracker_from_msg),
+          'unit_vector': Codec(sun_to_msg, sun_from_msg), 'field': Codec(magnetometer_to_msg, magnetometer_from_msg)}
+SENSOR_CODECS = {s.name: CODECS[s.codec] for s in SENSOR_INTERFACES}   # by sensor name
 
 
 # --- estimate: nav_msgs/Odometry ----------------------------------------------------------------

@@ -18,11 +18,13 @@ Conventions (the same as :mod:`adcs_core.attitude` and :mod:`adcs_controllers.es
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, make_dataclass
 
 import numpy as np
 
-SENSORS = ('gyro', 'star_tracker', 'sun', 'magnetometer')  # the fields of Measurements, in this order
+from adcs_msgs_py.sensor_interfaces import SENSOR_INTERFACES, SENSORS
+
+__all__ = ['SENSORS', 'UNIT_AS_IS', 'Estimate', 'Measurements', 'Reading', 'received_unit_vector']
 # A received sun vector within this of unit norm is taken as it is (not renormalised): the sensor model's
 # unit vectors then read back bit for bit, so an estimator on the graph sees the batch engine's numbers
 # (the message side, adcs_msgs_py.conversions_determination, and the batch engine's as_received both apply it).
@@ -49,19 +51,20 @@ class Reading:
     valid: np.ndarray   # (...,) bool
 
 
-@dataclass(frozen=True)
-class Measurements:
-    """All sensor readings stamped ``t_ns`` (the step's simulated time); None: sensor not fitted."""
+def _fitted(self) -> tuple[str, ...]:
+    """Names (of :data:`SENSORS`) of the sensors this step carries."""
+    return tuple(name for name in SENSORS if getattr(self, name) is not None)
 
-    t_ns: int
-    gyro: Reading | None = None           # rad/s: true rate + bias + noise (sensor_msgs/Imu)
-    star_tracker: Reading | None = None   # attitude quaternion (geometry_msgs/PoseWithCovarianceStamped)
-    sun: Reading | None = None            # unit Sun direction (geometry_msgs/Vector3Stamped)
-    magnetometer: Reading | None = None   # field, T (sensor_msgs/MagneticField)
 
-    def fitted(self) -> tuple[str, ...]:
-        """Names (of :data:`SENSORS`) of the sensors this step carries."""
-        return tuple(name for name in SENSORS if getattr(self, name) is not None)
+# All sensor readings stamped ``t_ns`` (the step's simulated time), one field per declared sensor
+# (adcs_msgs_py.sensor_interfaces, in its order; None: not fitted), e.g. ``gyro`` (rad/s: true rate +
+# bias + noise), ``star_tracker`` (attitude quaternion), ``sun`` (unit Sun direction), ``magnetometer``
+# (field, T).
+Measurements = make_dataclass(
+    'Measurements', [('t_ns', int)] + [(s.name, 'Reading | None', field(default=None)) for s in SENSOR_INTERFACES],
+    frozen=True, namespace={'fitted': _fitted, '__module__': __name__,
+                            '__doc__': 'All sensor readings stamped t_ns; one field per declared sensor '
+                                       '(None: not fitted).'})
 
 
 @dataclass(frozen=True)

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 
+from adcs_msgs_py.sensor_interfaces import SENSOR_TOPICS
+
 CLOCK = '/clock'
 STATE = 'state'
 TRUTH_STATE = 'truth/state'
@@ -20,14 +22,13 @@ FAULTS = 'faults'
 CONTROLLER_STATUS = 'controller/status'
 DYNAMICS_STATUS = 'dynamics/status'
 # attitude determination (adcs_msgs_py.conversions_determination): the dynamics node's sensor models
-# publish every step; an estimator answers with its estimate, on which a controller may fly (a remap
-# of its ``state`` to ESTIMATE_STATE).
-SENSOR_IMU = 'sensors/imu'
-SENSOR_STAR_TRACKER = 'sensors/star_tracker'
-SENSOR_SUN = 'sensors/sun'
-SENSOR_MAGNETOMETER = 'sensors/magnetometer'
-SENSOR_TOPICS = {'gyro': SENSOR_IMU, 'star_tracker': SENSOR_STAR_TRACKER, 'sun': SENSOR_SUN,
-                 'magnetometer': SENSOR_MAGNETOMETER}   # by adcs_msgs_py.measurements.SENSORS name
+# publish every step on the topic each sensor declares (adcs_msgs_py.sensor_interfaces: SENSOR_TOPICS,
+# by sensor name); an estimator answers with its estimate, on which a controller may fly (a remap of
+# its ``state`` to ESTIMATE_STATE). The four below are named for the code that predates the declarations.
+SENSOR_IMU = SENSOR_TOPICS['gyro']
+SENSOR_STAR_TRACKER = SENSOR_TOPICS['star_tracker']
+SENSOR_SUN = SENSOR_TOPICS['sun']
+SENSOR_MAGNETOMETER = SENSOR_TOPICS['magnetometer']
 ESTIMATE_STATE = 'estimate/state'
 ESTIMATOR_STATUS = 'estimator/status'
 # For viewers (Foxglove, RViz, PlotJuggler): published by the dynamics node with
@@ -82,8 +83,8 @@ PUBLISHER_ROLES: dict[str, tuple[str, ...]] = {
     THRUSTERS_STATE: ('dynamics',), APPLIED_TORQUE: ('dynamics',), DYNAMICS_STATUS: ('dynamics',),
     WHEELS_CMD: ('controller',), TORQUE_CMD: ('controller',), THRUSTERS_CMD: ('controller',),
     CONTROLLER_STATUS: ('controller',), FAULTS: ('faults',), REFERENCE: (),
-    SENSOR_IMU: ('dynamics',), SENSOR_STAR_TRACKER: ('dynamics',), SENSOR_SUN: ('dynamics',),
-    SENSOR_MAGNETOMETER: ('dynamics',), ESTIMATE_STATE: ('estimator',), ESTIMATOR_STATUS: ('estimator',),
+    **{topic: ('dynamics',) for topic in SENSOR_TOPICS.values()},
+    ESTIMATE_STATE: ('estimator',), ESTIMATOR_STATUS: ('estimator',),
     **{topic: ('dynamics',) for topic in (*VISUAL_TOPICS, RECORDING_CONFIG)},
 }
 

@@ -85,6 +85,7 @@ from adcs_msgs_py.names import (  # noqa: F401
     WHEELS_CMD,
     WHEELS_STATE,
 )
+from adcs_msgs_py.sensor_interfaces import SENSOR_INTERFACES
 
 DEPTH = 500        # writers' history of the per-step topics (messages)
 SUB_DEPTH = 10     # the nodes' own readers of those topics
@@ -145,6 +146,10 @@ def type_name(msg_type: type) -> str:
 
 
 
+# The message class of each sensor codec's type (adcs_msgs_py.sensor_interfaces.CODEC_MESSAGES).
+SENSOR_MESSAGES = {'sensor_msgs/msg/Imu': Imu, 'geometry_msgs/msg/PoseWithCovarianceStamped': PoseWithCovarianceStamped,
+                   'geometry_msgs/msg/Vector3Stamped': Vector3Stamped, 'sensor_msgs/msg/MagneticField': MagneticField}
+
 TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in (
     TopicSpec(CLOCK, Clock, QOS_CLOCK, 'simulated time, published by the dynamics node'),
     TopicSpec(STATE, Odometry, QOS_LOCKSTEP,
@@ -174,19 +179,7 @@ TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in (
               'control-law mode, Lyapunov value, estimates, rejected-message counts'),
     TopicSpec(DYNAMICS_STATUS, DiagnosticArray, QOS_STATUS,
               'missed steps, stale and rejected commands, integration statistics'),
-    TopicSpec(SENSOR_IMU, Imu, QOS_LOCKSTEP,
-              'gyro: measured body rate (rad/s, body axes) with its covariance; orientation and '
-              'acceleration not measured (covariance[0] = -1); covariance[0] = -1 on the rate: no '
-              'measurement this step'),
-    TopicSpec(SENSOR_STAR_TRACKER, PoseWithCovarianceStamped, QOS_LOCKSTEP,
-              'star tracker: measured attitude (body in inertial, x y z w), rotation covariance about '
-              'the inertial axes (rad^2); covariance[21] = -1: no measurement (outage, not due)'),
-    TopicSpec(SENSOR_SUN, Vector3Stamped, QOS_LOCKSTEP,
-              'sun sensor: unit Sun direction in body axes; the zero vector: no Sun (eclipse, out of '
-              'the field of view, failed)'),
-    TopicSpec(SENSOR_MAGNETOMETER, MagneticField, QOS_LOCKSTEP,
-              'three-axis magnetometer: field in body axes (T) with its covariance (T^2); '
-              'covariance[0] = -1: no measurement'),
+    *(TopicSpec(s.topic, SENSOR_MESSAGES[s.message], QOS_LOCKSTEP, s.description) for s in SENSOR_INTERFACES),
     TopicSpec(ESTIMATE_STATE, Odometry, QOS_LOCKSTEP,
               'estimated attitude and rate, the layout of state (a controller flies on it by a remap '
               'of state), with the attitude covariance (pose, inertial axes) and rate covariance '
@@ -265,14 +258,7 @@ QOS_RATIONALE: dict[str, str] = {
                      'VOLATILE: a command answers one step only. KEEP_LAST lockstep depth.',
     'thrusters/state': 'RELIABLE: what the thrusters applied each step, recorded for the metrics. '
                        'VOLATILE, KEEP_LAST lockstep depth, as wheels/state.',
-    SENSOR_IMU: 'RELIABLE: the estimator propagates with every gyro sample; a lost one is a step it '
-                'cannot answer (a missed step downstream) and a hole in the recording. VOLATILE: a '
-                'late joiner must not integrate old rates. KEEP_LAST lockstep depth, as state.',
-    SENSOR_STAR_TRACKER: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as sensors/imu: published every '
-                         'step (marked when there is no measurement) so the estimator knows it has the '
-                         'whole step.',
-    SENSOR_SUN: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as sensors/star_tracker.',
-    SENSOR_MAGNETOMETER: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as sensors/star_tracker.',
+    **{s.topic: s.qos_reason for s in SENSOR_INTERFACES},   # adcs_msgs_py.sensor_interfaces
     ESTIMATE_STATE: 'RELIABLE, VOLATILE, KEEP_LAST lockstep depth, as state: a controller flying on the '
                     'estimate answers each one; an old estimate must never reach a late joiner.',
     ESTIMATOR_STATUS: 'RELIABLE, VOLATILE, KEEP_LAST status depth, as controller/status: the NIS and '

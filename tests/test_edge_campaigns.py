@@ -44,6 +44,10 @@ ALL_SENSORS = {'dynamics': {'sensors.star_tracker.enabled': True, 'sensors.star_
                'mekf_estimator': {'sensors': ['gyro', 'star_tracker', 'sun', 'magnetometer'],
                                   'references.model': 'constant', 'environment': None,
                                   'references.sun': [0.6, 0.8, 0.0], 'references.magnetometer': [0.0, 2e-5, 2e-5]}}
+# The fine sun sensor on the Sun (near inertial +x at the LEO scenario's epoch, the body at the identity).
+FINE_SUN = {'dynamics': {'sensors.fine_sun_sensor.enabled': True, 'sensors.fine_sun_sensor.std': 2e-4,
+                         'sensors.fine_sun_sensor.boresight': [1.0, 0.0, 0.0]},
+            'mekf_estimator': {'sensors': ['gyro', 'fine_sun_sensor', 'magnetometer']}}
 QUEST = {'quest_estimator': {'sensors': ['gyro', 'sun', 'magnetometer'], 'references.sun': [0.6, 0.8, 0.0],
                              'references.magnetometer': [0.0, 2e-5, 2e-5], 'initial.attitude_sigma': [0.1, 0.1, 0.1]}}
 # Seed 000's two-wheel laws from the first step (no three-wheel phase, no fault), away from the target.
@@ -112,6 +116,7 @@ SETUPS: dict[tuple[str, str], dict] = {
     # run lengths of 2 to 8 steps
     ('dynamics', 'duration'): {'spec': {'distribution': 'uniform', 'low': 2.0, 'high': 8.0}},
     ('dynamics', 'noise.seed'): {'overrides': {'dynamics': {'noise.attitude_std': 1e-3}}},
+    ('mekf_estimator', 'fine_sun_sensor.sigma'): {'base': (LEO, FINE_SUN, ())},
     # the sensors' noise and errors reach the trajectory through the estimator the controller flies on
     **{('dynamics', key): {'base': (LEO, ALL_SENSORS, ())}
        for key in ('sensors.seed', 'sensors.gyro.bias', 'sensors.gyro.scale_factor', 'sensors.magnetometer.bias')},

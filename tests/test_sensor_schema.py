@@ -65,6 +65,10 @@ BAD = [
     ('sensors.sun.fov_deg', 0.0, r'\(0, 180\]'), ('sensors.sun.min_illumination', 1.0, r'\[0, 1\)'),
     ('sensors.magnetometer.std', math.inf, 'finite'), ('sensors.magnetometer.bias', [1.0, math.nan, 0.0], 'finite'),
     ('sensors.sun.enabled', True, 'needs environment'), ('sensors.magnetometer.enabled', True, 'needs environment'),
+    ('sensors.fine_sun_sensor.enabled', True, 'needs environment'), ('sensors.fine_sun_sensor.std', -1.0, 'rad'),
+    ('sensors.fine_sun_sensor.boresight', [1.0, 2.0], '3 values'),
+    ('sensors.fine_sun_sensor.fov_deg', 90.0, r'\(0, 90\)'),
+    ('sensors.fine_sun_sensor.min_illumination', 1.0, r'\[0, 1\)'),
 ]
 
 

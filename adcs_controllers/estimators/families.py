@@ -42,9 +42,14 @@ from adcs_core.environment.environment import build_environment
 from adcs_msgs_py.blocks import check_environment, check_unit_quaternion, environment_params, startup_params
 from adcs_msgs_py.measurements import SENSORS, Estimate, Measurements
 from adcs_msgs_py.params import Param, ParameterError, Schema, positive, vectorised
+from adcs_msgs_py.sensor_interfaces import BY_NAME, SENSOR_INTERFACES
 
 NS_PER_S = 1_000_000_000
-VECTOR_SENSORS = ('sun', 'magnetometer')
+# The vector sensors of the declarations (adcs_msgs_py.sensor_interfaces: a direction or a field of the
+# inertial reference ``references.<reference>``), updated in this order, each with its own ``<name>.sigma``.
+VECTOR_SENSORS = tuple(s.name for s in SENSOR_INTERFACES if s.measures in ('direction', 'field'))
+REFERENCES = tuple(dict.fromkeys(BY_NAME[name].reference for name in VECTOR_SENSORS))
+SINGLE_FRAME_VECTORS = ('sun', 'magnetometer')   # the two vectors of the single-frame solution
 MIN_DQ4 = 1e-6   # a star tracker quaternion this close to 180 degrees from the estimate is rejected
 MAX_RATE = 100.0  # rad/s per axis: a gyro sample beyond is not a rate (rejected, counted), whatever its type allows
 References = Callable[[int], dict]
@@ -92,7 +97,18 @@ def _sigma3(name: str, doc: str, default, limit: float, unit: str) -> Param:
     return Param(name, 'double_array', default=default, length=3, check=up_to(limit, unit), batch=True, doc=doc)
 
 
-def estimator_params(sensors_default: list[str], sensor_choice: str) -> list[Param]:
+def _vector_sigma(name: str) -> Param:
+    """The ``<name>.sigma`` the filter assumes for a vector sensor: a direction noise (rad) or a field
+    noise (T)."""
+    s = BY_NAME[name]
+    if s.measures == 'field':
+        return Param(f'{name}.sigma', 'double', default=1e-7, check=up_to(MAX_FIELD_SIGMA, 'T'), batch=True,
+                     doc=f'{s.label} noise per axis (T); direction noise sigma/|B_ref|')
+    return Param(f'{name}.sigma', 'double', default=1e-3, check=up_to(MAX_DIRECTION_SIGMA, 'rad'), batch=True,
+                 doc=f'{s.label} direction noise, 1 sigma perpendicular to the vector (rad)')
+
+
+def estimator_params(sensors_default: list[str], sensor_choice: str, vectors=VECTOR_SENSORS) -> list[Param]:
     """The parameters both families have: sensors, gyro model, vector sensors, references, start-up."""
     return [
         Param('sensors', 'string_array', default=sensors_default, check=_known_sensors,
@@ -103,10 +119,7 @@ def estimator_params(sensors_default: list[str], sensor_choice: str) -> list[Par
               doc="the rate over [t_k-1, t_k]: 'hold' the sample of t_k-1 (a sample that is the mean rate "
                   "over the step after it, the Farrenkopf model); 'average' the mean of the samples of t_k-1 "
                   "and t_k (instantaneous samples: the trapezoidal rule)"),
-        Param('sun.sigma', 'double', default=1e-3, check=up_to(MAX_DIRECTION_SIGMA, 'rad'), batch=True,
-              doc='sun sensor direction noise, 1 sigma perpendicular to the vector (rad)'),
-        Param('magnetometer.sigma', 'double', default=1e-7, check=up_to(MAX_FIELD_SIGMA, 'T'), batch=True,
-              doc='magnetometer noise per axis (T); direction noise sigma/|B_ref|'),
+        *(_vector_sigma(name) for name in vectors),
         Param('references.model', 'string', default='constant', choices=('constant', 'environment'),
               doc="the inertial reference vectors of the vector sensors: 'constant' references.sun and "
                   "references.magnetometer; 'environment' the onboard models of environment.* (Almanac Sun, "
@@ -131,9 +144,9 @@ def _mekf_check(v: dict) -> None:
     sensors = v['sensors']
     if 'gyro' not in sensors:
         raise ParameterError('sensors', 'the MEKF propagates with the gyro: list gyro')
-    if not any(s in sensors for s in ('star_tracker', *VECTOR_SENSORS)):
-        raise ParameterError('sensors', 'the MEKF needs an attitude sensor besides the gyro '
-                             '(star_tracker, sun, magnetometer)')
+    updates = [s.name for s in SENSOR_INTERFACES if s.measures != 'rate']
+    if not any(s in sensors for s in updates):
+        raise ParameterError('sensors', f'the MEKF needs an attitude sensor besides the gyro ({", ".join(updates)})')
     _references_check(v)
 
 
@@ -142,12 +155,14 @@ def _references_check(v: dict) -> None:
         check_environment(v)
         return
     for name in VECTOR_SENSORS:
-        if name in v['sensors'] and not np.all(np.linalg.norm(np.asarray(v[f'references.{name}']), axis=-1) > 0):
-            raise ParameterError(f'references.{name}', 'a zero reference vector: the direction is undefined')
+        key = f'references.{BY_NAME[name].reference}'
+        if name in v['sensors'] and not np.all(np.linalg.norm(np.asarray(v[key]), axis=-1) > 0):
+            raise ParameterError(key, 'a zero reference vector: the direction is undefined')
 
 
 MEKF_SCHEMA = Schema('mekf_estimator', [
-    *estimator_params(['gyro', 'star_tracker'], 'gyro and star_tracker, sun, magnetometer'),
+    *estimator_params(['gyro', 'star_tracker'], 'gyro and ' + ', '.join(s.name for s in SENSOR_INTERFACES
+                                                                         if s.measures != 'rate')),
     Param('gyro.sigma_u', 'double', default=1e-8, check=up_to(MAX_GYRO_NOISE, 'rad/s^1.5'), batch=True,
           doc='rate random walk of the bias the filter assumes (rad/s^1.5)'),
     _sigma3('star_tracker.sigma', 'star tracker noise per body axis, 1 sigma (rad)', [1e-4, 1e-4, 1e-4],
@@ -165,13 +180,13 @@ MEKF_SCHEMA = Schema('mekf_estimator', [
 
 def _single_frame_check(v: dict) -> None:
     sensors = v['sensors']
-    if sorted(s for s in sensors if s != 'gyro') != sorted(VECTOR_SENSORS) or 'gyro' not in sensors:
+    if sorted(s for s in sensors if s != 'gyro') != sorted(SINGLE_FRAME_VECTORS) or 'gyro' not in sensors:
         raise ParameterError('sensors', f'the single-frame estimator uses gyro, sun and magnetometer, got {sensors}')
     _references_check(v)
 
 
 QUEST_SCHEMA = Schema('quest_estimator', [
-    *estimator_params(['gyro', 'sun', 'magnetometer'], 'gyro, sun and magnetometer'),
+    *estimator_params(['gyro', 'sun', 'magnetometer'], 'gyro, sun and magnetometer', SINGLE_FRAME_VECTORS),
     Param('method', 'string', default='quest', choices=('quest', 'q_method', 'triad'),
           doc='single-frame solution of the two vectors (TRIAD trusts the sun vector)'),
     Param('gyro.bias', 'double_array', default=[0.0, 0.0, 0.0], length=3, batch=True,
@@ -185,14 +200,17 @@ def _measurement_variances(p: dict) -> list[tuple[str, float, str]]:
     out = []
     if 'star_tracker' in p['sensors'] and 'star_tracker.sigma' in p:
         out.append(('star_tracker.sigma', float(np.min(p['star_tracker.sigma'])) ** 2, 'the star tracker'))
-    if 'sun' in p['sensors']:
-        out.append(('sun.sigma', float(p['sun.sigma']) ** 2, 'the sun sensor'))
-    if 'magnetometer' in p['sensors']:   # a field noise in T, a direction noise of sigma / |B|
-        constant = p['references.model'] == 'constant'
-        field = float(np.linalg.norm(p['references.magnetometer'])) if constant else EARTH_FIELD_MAX
-        key = 'references.magnetometer' if constant and field > MAX_FIELD_SIGMA else 'magnetometer.sigma'
-        out.append((key, (float(p['magnetometer.sigma']) / field) ** 2,
-                    f'the magnetometer (direction noise magnetometer.sigma / {field:.3g} T)'))
+    for name in (n for n in VECTOR_SENSORS if n in p['sensors']):
+        s = BY_NAME[name]
+        if s.measures == 'direction':
+            out.append((f'{name}.sigma', float(p[f'{name}.sigma']) ** 2, f'the {s.label}'))
+            continue
+        constant = p['references.model'] == 'constant'   # a field noise in T, a direction noise of sigma / |B|
+        ref = f'references.{s.reference}'
+        field = float(np.linalg.norm(p[ref])) if constant else EARTH_FIELD_MAX
+        key = ref if constant and field > MAX_FIELD_SIGMA else f'{name}.sigma'
+        out.append((key, (float(p[f'{name}.sigma']) / field) ** 2,
+                    f'the {s.label} (direction noise {name}.sigma / {field:.3g} T)'))
     return out
 
 
@@ -247,7 +265,7 @@ def environment_references(p: dict) -> References:
 
     def references(t_ns: int) -> dict:
         sample = env.sample(t_ns / NS_PER_S)
-        return {'sun': sample.sun_eci, 'magnetometer': sample.b_eci}
+        return {'sun': sample.sun_eci, 'magnetometer': sample.b_eci}   # by reference key (REFERENCES)
     return references
 
 
@@ -258,7 +276,7 @@ def default_references(p: dict) -> References:
 
 def constant_references(p: dict) -> References:
     """The section's constant ``references.*`` vectors as a references callable."""
-    refs = {name: np.asarray(p[f'references.{name}'], dtype=float) for name in VECTOR_SENSORS}
+    refs = {key: np.asarray(p[f'references.{key}'], dtype=float) for key in REFERENCES}
     return lambda t_ns: refs  # noqa: ARG005
 
 
@@ -289,8 +307,8 @@ class _Base:
         self.references = references or default_references(p)
         self.sigma_v = np.asarray(p['gyro.sigma_v'], dtype=float)
         self.average = p['gyro.propagation'] == 'average'
-        self.sigma_dir = {'sun': np.asarray(p['sun.sigma'], dtype=float),
-                          'magnetometer': np.asarray(p['magnetometer.sigma'], dtype=float)}
+        self.sigma_dir = {name: np.asarray(p[f'{name}.sigma'], dtype=float) for name in VECTOR_SENSORS
+                          if f'{name}.sigma' in p}
         self.t_ns: int | None = None
         self.rate = None          # the last valid gyro sample (what propagates the next interval)
         self.dt = 0.0             # the interval just propagated (s)
@@ -329,7 +347,8 @@ class _Base:
         reading = getattr(m, name)
         if name not in self.sensors or reading is None:
             return None
-        ref = np.broadcast_to(np.asarray(self.references(t_ns)[name], dtype=float), shape + (3,))
+        ref = np.broadcast_to(np.asarray(self.references(t_ns)[BY_NAME[name].reference], dtype=float),
+                              shape + (3,))
         ref_norm = np.sqrt(dot(ref, ref))
         valid = _valid(reading, shape)
         ok = _finite_rows(reading.value, valid) & (ref_norm > 0)
@@ -337,7 +356,7 @@ class _Base:
         b = _placeholder(reading.value, ok, r)
         b = b / np.sqrt(dot(b, b))[..., None]
         sigma = np.broadcast_to(self.sigma_dir[name], shape)
-        if name == 'magnetometer':   # noise in T -> direction noise in rad
+        if BY_NAME[name].measures == 'field':   # noise in T -> direction noise in rad
             sigma = sigma / np.where(ok, ref_norm, 1.0)
         self._count(f'missing_{name}', ~valid)
         self._count(f'rejected_{name}', valid & ~ok)
@@ -499,7 +518,7 @@ class SingleFrameEstimator(_Base):
         q_fix = self._solve(b, r, sigma ** -2.0)
         P_fix = single_frame.quest_covariance(b, np.where(ok[..., None], sigma, 1.0))
         innovation = {name: np.where(ok, _angle(b[..., i, :], rotate_to_body(self.q, r[..., i, :])), np.nan)
-                      for i, name in enumerate(VECTOR_SENSORS)}
+                      for i, name in enumerate(SINGLE_FRAME_VECTORS)}
         self.q = np.where(ok[..., None], q_fix, self.q)
         self.P = np.where(ok[..., None, None], P_fix, self.P)
         cov = np.zeros(shape + (6, 6))
@@ -508,7 +527,7 @@ class SingleFrameEstimator(_Base):
         rate_cov = np.asarray(white)[..., None, None] * np.broadcast_to(np.eye(3), shape + (3, 3))
         bias = np.broadcast_to(self.bias, shape + (3,))
         est = Estimate(m.t_ns, self.q.copy(), rate - bias, np.zeros(shape + (3,)), cov, rate_cov)
-        used = {name: ok for name in VECTOR_SENSORS}
+        used = {name: ok for name in SINGLE_FRAME_VECTORS}
         return est, self._status(np.zeros(shape + (3,)), {}, innovation, used)
 
 

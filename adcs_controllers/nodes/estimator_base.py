@@ -39,8 +39,7 @@ from adcs_msgs_py.measurements import Measurements
 from adcs_msgs_py.names import SENSOR_TOPICS
 from adcs_msgs_py.node import AdcsNode
 
-FROM_MSG = {'gyro': cd.imu_from_msg, 'star_tracker': cd.star_tracker_from_msg, 'sun': cd.sun_from_msg,
-            'magnetometer': cd.magnetometer_from_msg}
+FROM_MSG = {name: codec.from_msg for name, codec in cd.SENSOR_CODECS.items()}
 
 
 class StampGroups:

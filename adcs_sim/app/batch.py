@@ -45,9 +45,10 @@ import numpy as np
 
 from adcs_controllers.laws.failure import answer, estimate_step
 from adcs_core.attitude import quat_norm, quat_normalize
-from adcs_core.faults import FAULT_ERROR_MODES, split_snapshot
+from adcs_core.faults import FAULT_ERROR_MODES
 from adcs_msgs_py.measurements import Estimate, Measurements, Reading, received_unit_vector
 from adcs_msgs_py.params import ParameterError
+from adcs_msgs_py.sensor_interfaces import BY_NAME as SENSOR_INTERFACES, split_snapshot
 from adcs_sim.app import fused
 from adcs_sim.app.analysis import RunData, run_metrics
 from adcs_sim.app.estimation import estimation_metrics, series_from_batch
@@ -464,16 +465,18 @@ an optional attribute ``true_bias`` (N, 3) is the gyro's true bias at that step 
 
 def as_received(m: Measurements) -> Measurements:
     """The readings as an estimator node receives them from the messages
-    (:mod:`adcs_msgs_py.conversions_determination`): the star tracker's quaternion divided by its
-    norm, the sun vector by :func:`adcs_msgs_py.measurements.received_unit_vector`; the rest as sent. So a batch run's estimator sees
+    (:mod:`adcs_msgs_py.conversions_determination`), by each sensor's declared ``received`` rule
+    (:mod:`adcs_msgs_py.sensor_interfaces`): a quaternion divided by its norm, a unit vector by
+    :func:`adcs_msgs_py.measurements.received_unit_vector`; the rest as sent. So a batch run's estimator sees
     the very bits of the graph's."""
     out = {}
     for name in m.fitted():
         r = getattr(m, name)
         value, valid = np.asarray(r.value, dtype=float), np.asarray(r.valid, dtype=bool)[..., None]
-        if name == 'star_tracker':   # no measurement: the message carries the identity
+        rule = SENSOR_INTERFACES[name].received
+        if rule == 'quaternion':     # no measurement: the message carries the identity
             value = np.where(valid, value / quat_norm(value)[..., None], [0.0, 0.0, 0.0, 1.0])
-        elif name == 'sun':          # no measurement: the zero vector; else sun_from_msg's own rule
+        elif rule == 'unit_vector':  # no measurement: the zero vector; else sun_from_msg's own rule
             rows, ok = value.reshape(-1, 3), np.broadcast_to(valid[..., 0], value.shape[:-1]).reshape(-1)
             value = np.array([received_unit_vector(v)[0] if good else np.zeros(3)
                               for v, good in zip(rows, ok)]).reshape(value.shape)

@@ -28,9 +28,10 @@ from scipy.special import gammaincinv
 from adcs_controllers.estimators.mekf import attitude_error
 from adcs_core.attitude import rotation_from_quaternion
 from adcs_msgs_py import names
+from adcs_msgs_py.sensor_interfaces import NIS_DOF as SENSOR_NIS_DOF
 from adcs_sim.bag.reader import read_messages
 
-NIS_DOF = {'star_tracker': 3, 'sun': 2, 'magnetometer': 2}
+NIS_DOF = SENSOR_NIS_DOF   # each sensor's declaration (adcs_msgs_py.sensor_interfaces)
 CONFIDENCE = 0.95
 
 

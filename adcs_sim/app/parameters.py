@@ -25,6 +25,7 @@ from typing import Any
 
 from adcs_msgs_py.params import BUILTIN_PARAMETERS, REQUIRED, Param, Schema
 from adcs_msgs_py.params_file import load_params_file
+from adcs_msgs_py.sensor_interfaces import SENSORS
 from adcs_sim.app.registry import NODES
 from adcs_sim.app.scenario_files import validate_scenario
 
@@ -48,7 +49,7 @@ CHECKS = {
     'check_unit_quaternion': 'unit norm (within 1e-3)',
     '_check_inertia_values': 'symmetric, positive definite, triangle inequality of the principal moments',
     '_fraction': 'in [0, 1]',
-    '_known_sensors': 'distinct names among `gyro`, `star_tracker`, `sun`, `magnetometer`',
+    '_known_sensors': 'distinct names among ' + ', '.join(f'`{name}`' for name in SENSORS),
     '_distinct_positive': 'three distinct values > 0',
     '_nonzero_vector': 'not the zero vector',
     '_scale_factor': 'each in (-1, 1]',

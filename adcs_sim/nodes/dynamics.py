@@ -54,7 +54,7 @@ import time
 import numpy as np
 from std_msgs.msg import String
 
-from adcs_core.faults import FaultTracker, split_snapshot
+from adcs_core.faults import FaultTracker
 from adcs_msgs_py import cdr, topics
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import conversions_determination as cd
@@ -67,6 +67,7 @@ from adcs_msgs_py.names import (
 )
 from adcs_msgs_py.node import AdcsNode, RunStopped, main_for
 from adcs_msgs_py.recorded_topics import config_text
+from adcs_msgs_py.sensor_interfaces import SENSOR_TOPICS, split_snapshot
 from adcs_msgs_py.visual import VisualMessages
 from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.link_faults import DELAY, FATE_NAMES, OK, LinkFaults
@@ -87,10 +88,7 @@ from adcs_sim.truth.thrusters import Thrusters, step_pulsed
 # The plant's command key of each command topic (thrusters/cmd is held as on-times: self.on_time).
 COMMAND_KEYS = {topics.WHEELS_CMD: 'wheels', topics.TORQUE_CMD: 'torquers'}
 # Each sensor's topic and message conversion (adcs_msgs_py.measurements.SENSORS names).
-SENSOR_OUTPUTS = {'gyro': (topics.SENSOR_IMU, cd.imu_to_msg),
-                  'star_tracker': (topics.SENSOR_STAR_TRACKER, cd.star_tracker_to_msg),
-                  'sun': (topics.SENSOR_SUN, cd.sun_to_msg),
-                  'magnetometer': (topics.SENSOR_MAGNETOMETER, cd.magnetometer_to_msg)}
+SENSOR_OUTPUTS = {name: (SENSOR_TOPICS[name], codec.to_msg) for name, codec in cd.SENSOR_CODECS.items()}
 
 
 class DynamicsNode(AdcsNode):

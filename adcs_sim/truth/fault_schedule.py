@@ -2,16 +2,17 @@
 it publishes on the latched ``faults`` topic (pure, no ROS; the node is :mod:`adcs_sim.nodes.fault_injector`).
 
 An event names a wheel (of ``wheels.names``) or a sensor fault target of
-:data:`adcs_core.faults.SENSOR_FAULT_MODES` (``star_tracker``, ``sun``, ``magnetometer``: ``failed`` /
+:data:`adcs_msgs_py.sensor_interfaces.SENSOR_FAULT_MODES` (``star_tracker``, ``sun``, ``magnetometer``: ``failed`` /
 ``recovered``; ``gyro.x`` / ``gyro.y`` / ``gyro.z``: ``bias`` (value rad/s), ``stuck``, ``recovered``).
 A snapshot holds every wheel and the sensor targets the schedule names (none: as before)."""
 from __future__ import annotations
 
 import math
 
-from adcs_core.faults import FAULT_ERROR_MODES, FAULT_OK_MODES, SENSOR_FAULT_MODES, FaultState
+from adcs_core.faults import FAULT_ERROR_MODES, FAULT_OK_MODES, FaultState
 from adcs_msgs_py.blocks import startup_params
 from adcs_msgs_py.params import Param, ParameterError, Schema
+from adcs_msgs_py.sensor_interfaces import SENSOR_FAULT_MODES
 
 FAULT_MODES = FAULT_ERROR_MODES + ('recovered',)  # what a schedule may say
 

@@ -64,12 +64,27 @@ def sensor_frame(boresight) -> np.ndarray:
 
 
 class _Model:
-    """Shared plumbing: per-run generators, output shaping."""
+    """Shared plumbing: per-run generators, output shaping, and what the suite
+    (:class:`adcs_sim.truth.sensor_suite.SensorSuite`) calls: :meth:`read` a step's reading from the
+    true state and the environment, :meth:`follow_fault` one of its fault targets. ``ENVIRONMENT``: the
+    :class:`~adcs_sim.truth.sensor_suite.SensorEnvironment` fields its reading cannot do without (a
+    model with any needs ``environment.enabled``)."""
+
+    ENVIRONMENT: tuple[str, ...] = ()
 
     def __init__(self, seed, stream: int) -> None:
         self.rngs, self.batched = run_generators(seed, stream)
         self.n_runs = len(self.rngs)
         self.failed = False
+
+    def read(self, k: int, q, w, env) -> Reading:
+        """The reading at step ``k`` of true attitude ``q`` and rate ``w`` in the environment ``env``."""
+        raise NotImplementedError
+
+    def follow_fault(self, target: str, fault) -> None:
+        """A fault snapshot's entry for one of its targets (``adcs_msgs_py.sensor_interfaces``):
+        ``failed`` until another mode."""
+        self.failed = fault.mode == 'failed'
 
     def _batch(self, a, width: int) -> np.ndarray:
         a = np.asarray(a, dtype=float)
@@ -133,6 +148,12 @@ class Gyro(_Model):
         if mode == 'stuck' and not self.stuck[axis]:
             self._freeze[axis] = True
         self.stuck[axis] = mode == 'stuck'
+
+    def read(self, k: int, q, w, env) -> Reading:
+        return self.measure(w)
+
+    def follow_fault(self, target: str, fault) -> None:
+        self.apply_fault(GYRO_AXES.index(target.split('.', 1)[1]), fault.mode, fault.value)
 
     def measure(self, w) -> Reading:
         """The reading of true body rate ``w`` (3,) or (runs, 3) at this step."""
@@ -200,6 +221,9 @@ class StarTracker(_Model):
             out |= dot(b, self._batch(nadir, 3)) > np.cos(cone)
         return out
 
+    def read(self, k: int, q, w, env) -> Reading:
+        return self.measure(k, q, env.sun, env.nadir, env.earth_angular_radius)
+
     def measure(self, k: int, q, sun=None, nadir=None, earth_radius=None) -> Reading:
         """The reading at step ``k`` (called once per step, in order) of true attitude ``q``."""
         if self._last_k is not None and k != self._last_k + 1:
@@ -227,6 +251,7 @@ class SunSensor(_Model):
     """
 
     STREAM = 3
+    ENVIRONMENT = ('sun', 'illumination')
 
     def __init__(self, seed, std: float = 0.0, boresight=(0.0, 0.0, 1.0), fov: float = math.pi,
                  min_illumination: float = 0.0) -> None:
@@ -236,6 +261,9 @@ class SunSensor(_Model):
         self.cos_fov = math.cos(fov)
         self.min_illumination = float(min_illumination)
         self.cov = np.zeros((self.n_runs, 3, 3))
+
+    def read(self, k: int, q, w, env) -> Reading:
+        return self.measure(q, env.sun, env.illumination)
 
     def measure(self, q, sun, illumination) -> Reading:
         q = self._batch(q, 4)
@@ -255,12 +283,16 @@ class Magnetometer(_Model):
     ``N`` (3)."""
 
     STREAM = 4
+    ENVIRONMENT = ('field',)
 
     def __init__(self, seed, std: float = 0.0, bias=(0.0, 0.0, 0.0)) -> None:
         super().__init__(seed, self.STREAM)
         self.std = float(std)
         self.bias = _runs(bias, self.n_runs, (3,))
         self.cov = np.broadcast_to(self.std ** 2 * np.eye(3), (self.n_runs, 3, 3))
+
+    def read(self, k: int, q, w, env) -> Reading:
+        return self.measure(q, env.field)
 
     def measure(self, q, field) -> Reading:
         q = self._batch(q, 4)
@@ -293,6 +325,7 @@ class CoarseSunSensors(_Model):
     run: one normal per detector."""
 
     STREAM = 3   # the sun sensor's stream: one sun sensor is fitted, of either kind
+    ENVIRONMENT = ('sun', 'illumination')
 
     def __init__(self, seed, normals, std: float = 0.0, fov: float = 0.5 * math.pi,
                  min_illumination: float = 0.0) -> None:
@@ -303,6 +336,9 @@ class CoarseSunSensors(_Model):
         self.cos_fov = math.cos(fov)
         self.min_illumination = float(min_illumination)
         self.cov = np.zeros((self.n_runs, 3, 3))
+
+    def read(self, k: int, q, w, env) -> Reading:
+        return self.measure(q, env.sun, env.illumination)
 
     def measure(self, q, sun, illumination) -> Reading:
         q = self._batch(q, 4)
@@ -322,3 +358,63 @@ class CoarseSunSensors(_Model):
         valid = (det > 1e-6) & (norm > 0.0) & (frac > self.min_illumination) & (not self.failed)
         value = np.where(valid[:, None], x / np.where(norm > 0.0, norm, 1.0)[:, None], 0.0)
         return self._reading(value, self.cov, valid)
+
+
+class FineSunSensor(_Model):
+    """Fine (two-axis) sun sensor: it measures the two angles of the Sun direction in its own frame
+    (``R_bs`` :func:`sensor_frame` of the boresight, ``s_s = R_bsᵀ R(q)ᵀ s_I``),
+    ``α = atan2(s_x, s_z)``, ``β = atan2(s_y, s_z)`` (the angles of the two slit or quadrant detector
+    axes: Wertz (ed.), *Spacecraft Attitude Determination and Control*, Reidel 1978, §6.1, two-axis
+    sun sensors; Markley & Crassidis, *Fundamentals of Spacecraft Attitude Determination and Control*,
+    Springer 2014, ch. 4, sun sensors; section numbers not checked), each with its own white noise:
+    ``α̃ = α + σ N₁``, ``β̃ = β + σ N₂``. The reading is the unit vector of the measured angles,
+    ``s̃ = R_bs unit(sin α̃ cos β̃, cos α̃ sin β̃, cos α̃ cos β̃)`` (= ``unit(tan α̃, tan β̃, 1)``).
+
+    Noise on the angles, not on the unit vector, because the angles are what the detector outputs,
+    each from its own axis and electronics. To first order the error of ``s̃`` is ``σ (∂s/∂α N₁ +
+    ∂s/∂β N₂)``: ``σ²(I − s sᵀ)`` on the boresight (the QUEST measurement model the MEKF's vector update
+    assumes, Markley & Crassidis 2014 ch. 6), and within a half-cone ``θ ≤ 45°`` each of the two
+    sensitivities lies in ``[σ cos θ, σ]``: the filter's σ is exact on the boresight and conservative
+    off it.
+
+    Valid when the illuminated fraction exceeds ``min_illumination`` (0: not in umbra), the Sun is
+    within the half-cone ``fov`` (< 90°) of the boresight and the sensor has not failed; otherwise the
+    zero vector (what its message, ``sensors/fine_sun``, a Vector3Stamped as the sun sensor's, carries).
+    Covariance reported as zeros (the message has none). Draws per step and run: ``N₁, N₂``.
+    """
+
+    STREAM = 5
+    ENVIRONMENT = ('sun', 'illumination')
+
+    def __init__(self, seed, std: float = 0.0, boresight=(0.0, 0.0, 1.0), fov: float = math.radians(60.0),
+                 min_illumination: float = 0.0) -> None:
+        super().__init__(seed, self.STREAM)
+        if not 0.0 < fov < 0.5 * math.pi:
+            raise ValueError(f'fine sun sensor: the field of view half angle must be in (0, 90) deg, got '
+                             f'{math.degrees(fov)}')
+        self.std = float(std)
+        self.frame = sensor_frame(boresight)
+        self.cos_fov = math.cos(fov)
+        self.min_illumination = float(min_illumination)
+        self.cov = np.zeros((self.n_runs, 3, 3))
+
+    def angles(self, s_body: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The true angles ``(α, β)`` (runs,) of unit Sun directions ``s_body`` (runs, 3), rad."""
+        s = matvec(self.frame.T, s_body)
+        return np.arctan2(s[:, 0], s[:, 2]), np.arctan2(s[:, 1], s[:, 2])
+
+    def read(self, k: int, q, w, env) -> Reading:
+        return self.measure(q, env.sun, env.illumination)
+
+    def measure(self, q, sun, illumination) -> Reading:
+        q = self._batch(q, 4)
+        n = _normals(self.rngs, 2)
+        s = unit(rotate_to_body(q, self._batch(sun, 3)))
+        alpha, beta = self.angles(s)
+        a, b = alpha + self.std * n[:, 0], beta + self.std * n[:, 1]
+        seen = np.stack([np.sin(a) * np.cos(b), np.cos(a) * np.sin(b), np.cos(a) * np.cos(b)], axis=-1)
+        turned = matvec(self.frame, seen)
+        lit = np.broadcast_to(np.asarray(illumination, dtype=float), (self.n_runs,)) > self.min_illumination
+        inside = dot(s, np.broadcast_to(self.frame[:, 2], s.shape)) >= self.cos_fov
+        valid = lit & inside & (not self.failed)
+        return self._reading(np.where(valid[:, None], unit(turned), 0.0), self.cov, valid)

@@ -1,4 +1,7 @@
-"""The ``sensors.*`` block of the ``dynamics`` section and the :class:`SensorSuite` built from it (no ROS).
+"""The truth half of each sensor, declared once (:class:`SensorModel` in :data:`SENSOR_MODELS`): its
+``sensors.<name>.*`` block of the ``dynamics`` section, the model it builds, what it needs of the
+environment; and the :class:`SensorSuite` built from them (no ROS). Its interface half (topic, message,
+faults, NIS) is :mod:`adcs_msgs_py.sensor_interfaces`.
 
 Every sensor is off by default (``sensors.<name>.enabled``), so a scenario without the block runs and
 records exactly as before. Units are SI and radians, except the geometry angles whose names end in
@@ -8,16 +11,15 @@ latency is exact: :class:`adcs_sim.truth.sensor_models.StarTracker`).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import Any, Callable
 
 import numpy as np
 
 from adcs_msgs_py.params import Param, ParameterError, non_negative, positive
-from adcs_sim.truth.sensor_models import CoarseSunSensors, Gyro, Magnetometer, StarTracker, SunSensor
+from adcs_msgs_py.sensor_interfaces import BY_NAME, SENSORS
+from adcs_sim.truth.sensor_models import CoarseSunSensors, FineSunSensor, Gyro, Magnetometer, StarTracker, SunSensor
 from adcs_sim.truth.sensor_suite import SensorSuite
-
-# The sensors that cannot measure without the environment models (adcs_core.environment: the Sun
-# direction, the eclipse, the geomagnetic field): fitted, they need `environment.enabled: true`.
-NEEDS_ENVIRONMENT = ('sun', 'magnetometer')
 
 MAX_LATENCY_STEPS = 100_000   # the star tracker keeps one attitude per step of latency
 
@@ -80,12 +82,14 @@ def _enabled(name: str, what: str) -> Param:
                  'readings every step; off: not fitted)')
 
 
-def sensor_params() -> list[Param]:
-    """The ``sensors.*`` parameters of the dynamics section."""
+def _seed_param() -> list[Param]:
+    return [Param('sensors.seed', 'int', default=0, check=non_negative, batch=True,
+                  doc='seed of the sensor noise (each sensor its own stream of it; >= 0)')]
+
+
+def _gyro_params() -> list[Param]:
     zeros = [0.0, 0.0, 0.0]
     return [
-        Param('sensors.seed', 'int', default=0, check=non_negative, batch=True,
-              doc='seed of the sensor noise (each sensor its own stream of it; >= 0)'),
         _enabled('gyro', 'gyro'),
         Param('sensors.gyro.arw', 'double', default=0.0, check=_rate_noise,
               doc='angle random walk sigma_v (rad/sqrt(s))'),
@@ -101,6 +105,11 @@ def sensor_params() -> list[Param]:
               doc='bias instability: stationary sigma of a first-order Gauss-Markov bias (rad/s; 0: none)'),
         Param('sensors.gyro.markov_time', 'double', default=3600.0, check=positive,
               doc='correlation time of the Gauss-Markov bias (s)'),
+    ]
+
+
+def _star_tracker_params() -> list[Param]:
+    return [
         _enabled('star_tracker', 'star tracker'),
         Param('sensors.star_tracker.boresight', 'double_array', default=[0.0, 0.0, 1.0], length=3,
               check=_nonzero_vector, doc='boresight in body axes (need not be unit)'),
@@ -116,6 +125,11 @@ def sensor_params() -> list[Param]:
               doc='no reading with the Sun within this angle of the boresight (deg; 0: none)'),
         Param('sensors.star_tracker.earth_exclusion_deg', 'double', default=0.0, check=_angle_below_180,
               doc="no reading with the boresight within this angle of the Earth's limb (deg; 0: none)"),
+    ]
+
+
+def _sun_params() -> list[Param]:
+    return [
         _enabled('sun', 'sun sensor'),
         Param('sensors.sun.type', 'string', default='vector', choices=('vector', 'coarse'),
               doc='vector: a sun vector sensor (std, boresight, fov_deg); coarse: an assembly of cosine '
@@ -131,6 +145,11 @@ def sensor_params() -> list[Param]:
               doc='field-of-view half angle (deg; 180: the whole sky); coarse: of each detector'),
         Param('sensors.sun.min_illumination', 'double', default=0.0, check=_fraction_below_1,
               doc='no reading unless the illuminated fraction of the Sun exceeds this (fraction; 0: none in umbra)'),
+    ]
+
+
+def _magnetometer_params() -> list[Param]:
+    return [
         _enabled('magnetometer', 'magnetometer'),
         Param('sensors.magnetometer.std', 'double', default=0.0, check=_field_std,
               doc='noise (T, 1 sigma per axis)'),
@@ -138,6 +157,35 @@ def sensor_params() -> list[Param]:
               batch=True,
               doc='constant bias (T, body axes)'),
     ]
+
+
+def _fine_sun_params() -> list[Param]:
+    return [
+        _enabled('fine_sun_sensor', 'fine (two-axis) sun sensor'),
+        Param('sensors.fine_sun_sensor.std', 'double', default=0.0, check=_angle_std,
+              doc='noise of each of the two measured angles (rad, 1 sigma)'),
+        Param('sensors.fine_sun_sensor.boresight', 'double_array', default=[0.0, 0.0, 1.0], length=3,
+              check=_nonzero_vector, doc='boresight (mounting) in body axes; alpha is measured towards x_s, body x '
+                                         'made perpendicular to it (body y for a boresight along x), beta towards '
+                                         'boresight x x_s'),
+        Param('sensors.fine_sun_sensor.fov_deg', 'double', default=60.0, check=_half_cone_below_90,
+              doc='field-of-view half-cone angle (deg): no reading with the Sun further from the boresight'),
+        Param('sensors.fine_sun_sensor.min_illumination', 'double', default=0.0, check=_fraction_below_1,
+              doc='no reading unless the illuminated fraction of the Sun exceeds this (fraction; 0: none in umbra)'),
+    ]
+
+
+def _half_cone_below_90(v) -> str | None:
+    return None if 0.0 < v < 90.0 else f'must be in (0, 90) deg, got {v}'
+
+
+_half_cone_below_90.description = 'in (0, 90) deg'   # for docs/parameters.md
+
+
+def _fine_sun(v: dict, seed, period_ns: int) -> FineSunSensor:
+    f = 'sensors.fine_sun_sensor.'
+    return FineSunSensor(seed, v[f + 'std'], v[f + 'boresight'], math.radians(v[f + 'fov_deg']),
+                         v[f + 'min_illumination'])
 
 
 def _steps(v: dict, key: str) -> int:
@@ -150,20 +198,6 @@ def _steps(v: dict, key: str) -> int:
         raise ParameterError(key, f'must be a whole multiple of control_period ({v["control_period"]} s), '
                              f'got {v[key]}')
     return value_ns // period_ns
-
-
-def check_sensors(v: dict) -> None:
-    """Cross-check of the ``sensors.*`` block (the dynamics section's cross-check calls it)."""
-    _steps(v, 'sensors.star_tracker.period')
-    if _steps(v, 'sensors.star_tracker.latency') > MAX_LATENCY_STEPS:
-        raise ParameterError('sensors.star_tracker.latency', f'at most {MAX_LATENCY_STEPS} control periods, '
-                             f'got {v["sensors.star_tracker.latency"]} s')
-    _check_coarse(v)
-    if not v['environment.enabled']:
-        for name in NEEDS_ENVIRONMENT:
-            if v[f'sensors.{name}.enabled']:
-                raise ParameterError(f'sensors.{name}.enabled', 'needs environment.enabled: true (the Sun '
-                                     'direction, eclipse and geomagnetic field at the orbit: environment.*)')
 
 
 def _check_coarse(v: dict) -> None:
@@ -184,41 +218,106 @@ def _check_coarse(v: dict) -> None:
         raise ParameterError('sensors.sun.normals', 'the detector normals must span 3-D')
 
 
+def _star_tracker_check(v: dict) -> None:
+    _steps(v, 'sensors.star_tracker.period')
+    if _steps(v, 'sensors.star_tracker.latency') > MAX_LATENCY_STEPS:
+        raise ParameterError('sensors.star_tracker.latency', f'at most {MAX_LATENCY_STEPS} control periods, '
+                             f'got {v["sensors.star_tracker.latency"]} s')
+
+
+def _gyro(v: dict, seed, period_ns: int) -> Gyro:
+    g = 'sensors.gyro.'
+    return Gyro(seed, period_ns / 1e9, v[g + 'arw'], v[g + 'rrw'], v[g + 'bias'], v[g + 'scale_factor'],
+                v[g + 'max_rate'], v[g + 'markov_std'], v[g + 'markov_time'])
+
+
+def _star_tracker(v: dict, seed, period_ns: int) -> StarTracker:
+    st = 'sensors.star_tracker.'
+    return StarTracker(seed, v[st + 'boresight'], v[st + 'cross_std'], v[st + 'about_std'],
+                       max(1, _steps(v, st + 'period')), _steps(v, st + 'latency'),
+                       math.radians(v[st + 'sun_exclusion_deg']), math.radians(v[st + 'earth_exclusion_deg']))
+
+
+def _sun(v: dict, seed, period_ns: int) -> SunSensor | CoarseSunSensors:
+    if v['sensors.sun.type'] == 'coarse':
+        return CoarseSunSensors(seed, v['sensors.sun.normals'], v['sensors.sun.std'],
+                                math.radians(v['sensors.sun.fov_deg']), v['sensors.sun.min_illumination'])
+    return SunSensor(seed, v['sensors.sun.std'], v['sensors.sun.boresight'],
+                     math.radians(v['sensors.sun.fov_deg']), v['sensors.sun.min_illumination'])
+
+
+def _magnetometer(v: dict, seed, period_ns: int) -> Magnetometer:
+    return Magnetometer(seed, v['sensors.magnetometer.std'], v['sensors.magnetometer.bias'])
+
+
+def _no_check(v: dict) -> None:
+    return None
+
+
+@dataclass(frozen=True)
+class SensorModel:
+    """The truth half of one sensor (its interface half: :mod:`adcs_msgs_py.sensor_interfaces`, same
+    name): its ``sensors.<name>.*`` parameters, the model it builds from a validated section
+    (``build(v, seed, period_ns)``, ``seed`` one per run for a batch), the model classes it may build
+    (their ``ENVIRONMENT``: what it needs of the environment) and its cross-check."""
+
+    name: str
+    params: Callable[[], list[Param]]
+    build: Callable[[dict, Any, int], Any]
+    models: tuple[type, ...]
+    check: Callable[[dict], None] = _no_check
+
+    @property
+    def needs_environment(self) -> bool:
+        return any(m.ENVIRONMENT for m in self.models)
+
+
+SENSOR_MODELS: tuple[SensorModel, ...] = (
+    SensorModel('gyro', _gyro_params, _gyro, (Gyro,)),
+    SensorModel('star_tracker', _star_tracker_params, _star_tracker, (StarTracker,), _star_tracker_check),
+    SensorModel('sun', _sun_params, _sun, (SunSensor, CoarseSunSensors), _check_coarse),
+    SensorModel('magnetometer', _magnetometer_params, _magnetometer, (Magnetometer,)),
+    SensorModel('fine_sun_sensor', _fine_sun_params, _fine_sun, (FineSunSensor,)),
+)
+# One truth declaration per interface declaration, in the same order (the Measurements fields).
+if tuple(s.name for s in SENSOR_MODELS) != SENSORS:
+    raise ImportError(f'SENSOR_MODELS {[s.name for s in SENSOR_MODELS]} are not the interface declarations {SENSORS}')
+# The sensors that cannot measure without the environment models (adcs_core.environment: the Sun
+# direction, the eclipse, the geomagnetic field): fitted, they need `environment.enabled: true`.
+NEEDS_ENVIRONMENT = tuple(s.name for s in SENSOR_MODELS if s.needs_environment)
+
+
+def sensor_params() -> list[Param]:
+    """The ``sensors.*`` parameters of the dynamics section."""
+    return _seed_param() + [p for s in SENSOR_MODELS for p in s.params()]
+
+
+def check_sensors(v: dict) -> None:
+    """Cross-check of the ``sensors.*`` block (the dynamics section's cross-check calls it)."""
+    for s in SENSOR_MODELS:
+        s.check(v)
+    if not v['environment.enabled']:
+        for name in NEEDS_ENVIRONMENT:
+            if v[f'sensors.{name}.enabled']:
+                raise ParameterError(f'sensors.{name}.enabled', 'needs environment.enabled: true (the Sun '
+                                     'direction, eclipse and geomagnetic field at the orbit: environment.*)')
+
+
 def build_sensors(v: dict, seed=None) -> SensorSuite | None:
     """The suite of a validated dynamics section (None when no sensor is fitted); ``seed`` one per run
     for a batch (default ``sensors.seed``)."""
     seed = v['sensors.seed'] if seed is None else seed
     period_ns = int(round(float(v['control_period']) * 1e9))
-    parts = {}
-    if v['sensors.gyro.enabled']:
-        parts['gyro'] = Gyro(seed, period_ns / 1e9, v['sensors.gyro.arw'], v['sensors.gyro.rrw'],
-                             v['sensors.gyro.bias'], v['sensors.gyro.scale_factor'], v['sensors.gyro.max_rate'],
-                             v['sensors.gyro.markov_std'], v['sensors.gyro.markov_time'])
-    if v['sensors.star_tracker.enabled']:
-        st = 'sensors.star_tracker.'
-        parts['star_tracker'] = StarTracker(
-            seed, v[st + 'boresight'], v[st + 'cross_std'], v[st + 'about_std'],
-            max(1, _steps(v, st + 'period')), _steps(v, st + 'latency'),
-            math.radians(v[st + 'sun_exclusion_deg']), math.radians(v[st + 'earth_exclusion_deg']))
-    if v['sensors.sun.enabled'] and v['sensors.sun.type'] == 'coarse':
-        parts['sun'] = CoarseSunSensors(seed, v['sensors.sun.normals'], v['sensors.sun.std'],
-                                        math.radians(v['sensors.sun.fov_deg']), v['sensors.sun.min_illumination'])
-    elif v['sensors.sun.enabled']:
-        parts['sun'] = SunSensor(seed, v['sensors.sun.std'], v['sensors.sun.boresight'],
-                                 math.radians(v['sensors.sun.fov_deg']), v['sensors.sun.min_illumination'])
-    if v['sensors.magnetometer.enabled']:
-        parts['magnetometer'] = Magnetometer(seed, v['sensors.magnetometer.std'], v['sensors.magnetometer.bias'])
+    parts = {s.name: s.build(v, seed, period_ns) for s in SENSOR_MODELS if v[f'sensors.{s.name}.enabled']}
     return SensorSuite(period_ns, **parts) if parts else None
 
 
 def fitted_sensors(v: dict) -> tuple[str, ...]:
     """Names of the sensors a dynamics section fits (``adcs_msgs_py.measurements.SENSORS`` order)."""
-    return tuple(n for n in ('gyro', 'star_tracker', 'sun', 'magnetometer') if v[f'sensors.{n}.enabled'])
+    return tuple(s.name for s in SENSOR_MODELS if v[f'sensors.{s.name}.enabled'])
 
 
 def fault_targets(v: dict) -> set[str]:
-    """The sensor fault targets (:data:`adcs_core.faults.SENSOR_FAULT_MODES`) a dynamics section has."""
-    fitted = fitted_sensors(v)
-    out = {n for n in fitted if n != 'gyro'}
-    return out | ({'gyro.x', 'gyro.y', 'gyro.z'} if 'gyro' in fitted else set())
-
+    """The sensor fault targets (:data:`adcs_msgs_py.sensor_interfaces.SENSOR_FAULT_MODES`) a dynamics
+    section has."""
+    return {target for name in fitted_sensors(v) for target in BY_NAME[name].targets}

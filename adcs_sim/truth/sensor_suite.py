@@ -4,7 +4,7 @@
 returns one :class:`adcs_msgs_py.measurements.Measurements` per step, stamped ``t_k`` (None for a sensor
 not fitted). The dynamics node publishes it (each reading on its ``sensors/*`` topic) and the batch
 engine hands it to an estimator: the same code, the same numbers. Sensor faults of the fault schedule
-(:data:`adcs_core.faults.SENSOR_FAULT_MODES`) are applied with :meth:`SensorSuite.apply_faults` at the
+(:data:`adcs_msgs_py.sensor_interfaces.SENSOR_FAULT_MODES`) are applied with :meth:`SensorSuite.apply_faults` at the
 step they are due, before that step's measurement, as the wheel faults are.
 """
 from __future__ import annotations
@@ -16,8 +16,8 @@ import numpy as np
 from adcs_core.environment.environment import EnvironmentSample
 from adcs_core.faults import FaultState
 from adcs_core.orbit import R_EARTH
-from adcs_msgs_py.measurements import Measurements
-from adcs_sim.truth.sensor_models import GYRO_AXES, CoarseSunSensors, Gyro, Magnetometer, StarTracker, SunSensor
+from adcs_msgs_py.measurements import SENSORS, Measurements
+from adcs_msgs_py.sensor_interfaces import BY_NAME, FAULT_TARGET_SENSOR
 
 
 @dataclass(frozen=True)
@@ -46,48 +46,50 @@ def sensor_environment(sample: EnvironmentSample) -> SensorEnvironment:
                              field=sample.b_eci)
 
 
-class SensorSuite:
-    """The fitted sensors (each None when not fitted) on the control step grid ``period_ns``."""
+# What each SensorEnvironment field is, for the error of a model that needs it and has not got it.
+ENVIRONMENT_WORDS = {'sun': 'Sun direction', 'illumination': 'illumination', 'nadir': 'nadir',
+                     'earth_angular_radius': "Earth's angular radius", 'field': 'magnetic field'}
 
-    def __init__(self, period_ns: int, gyro: Gyro | None = None, star_tracker: StarTracker | None = None,
-                 sun: SunSensor | CoarseSunSensors | None = None, magnetometer: Magnetometer | None = None) -> None:
+
+class SensorSuite:
+    """The fitted sensors on the control step grid ``period_ns``: one attribute per declared sensor
+    (:data:`adcs_msgs_py.measurements.SENSORS`; None when not fitted), given in that order or by name.
+    Each model reads through its :meth:`~adcs_sim.truth.sensor_models._Model.read` and follows its
+    faults through ``follow_fault``: the suite never names a sensor."""
+
+    def __init__(self, period_ns: int, *models, **named) -> None:
         self.period_ns = int(period_ns)
-        self.gyro, self.star_tracker, self.sun, self.magnetometer = gyro, star_tracker, sun, magnetometer
+        given = dict(zip(SENSORS, models))
+        unknown = sorted(set(named) - set(SENSORS))
+        if len(models) > len(SENSORS) or unknown:
+            raise TypeError(f'SensorSuite: sensors are {list(SENSORS)}, got {len(models)} models and {unknown}')
+        given.update(named)
+        for name in SENSORS:
+            setattr(self, name, given.get(name))
         self.faults: dict[str, FaultState] = {}
 
     def fitted(self) -> tuple[str, ...]:
-        return tuple(name for name in ('gyro', 'star_tracker', 'sun', 'magnetometer')
-                     if getattr(self, name) is not None)
+        return tuple(name for name in SENSORS if getattr(self, name) is not None)
 
     def measure(self, k: int, t: float, q, w, env: SensorEnvironment | None = None) -> Measurements:
         """Every fitted sensor's reading at step ``k`` (time ``t = k period``, s) of the true attitude
         ``q`` and rate ``w`` ((4,), (3,) or with the batch axis). Call once per step, in order."""
         env = env or NO_ENVIRONMENT
         readings = {}
-        if self.gyro is not None:
-            readings['gyro'] = self.gyro.measure(w)
-        if self.star_tracker is not None:
-            readings['star_tracker'] = self.star_tracker.measure(k, q, env.sun, env.nadir,
-                                                                 env.earth_angular_radius)
-        if self.sun is not None:
-            if env.sun is None or env.illumination is None:
-                raise ValueError('the sun sensor needs the environment\'s Sun direction and illumination')
-            readings['sun'] = self.sun.measure(q, env.sun, env.illumination)
-        if self.magnetometer is not None:
-            if env.field is None:
-                raise ValueError('the magnetometer needs the environment\'s magnetic field')
-            readings['magnetometer'] = self.magnetometer.measure(q, env.field)
+        for name in self.fitted():
+            model = getattr(self, name)
+            missing = [ENVIRONMENT_WORDS[f] for f in model.ENVIRONMENT if getattr(env, f) is None]
+            if missing:
+                raise ValueError(f"the {BY_NAME[name].label} needs the environment's {' and '.join(missing)}")
+            readings[name] = model.read(k, q, w, env)
         return Measurements(t_ns=int(k) * self.period_ns, **readings)
 
     def apply_faults(self, snapshot: dict) -> None:
         """Apply the sensor part of a fault snapshot (``{target: FaultState}``, targets of
-        :data:`adcs_core.faults.SENSOR_FAULT_MODES`) from this step on; a target whose sensor is not
-        fitted is ignored (the scenario checks refuse such a schedule before a run)."""
-        for name, fault in snapshot.items():
-            self.faults[name] = fault
-            failed = fault.mode == 'failed'
-            if name.startswith('gyro.'):
-                if self.gyro is not None:
-                    self.gyro.apply_fault(GYRO_AXES.index(name.split('.', 1)[1]), fault.mode, fault.value)
-            elif name in ('star_tracker', 'sun', 'magnetometer') and getattr(self, name) is not None:
-                getattr(self, name).failed = failed
+        :data:`adcs_msgs_py.sensor_interfaces.SENSOR_FAULT_MODES`) from this step on; a target whose
+        sensor is not fitted is ignored (the scenario checks refuse such a schedule before a run)."""
+        for target, fault in snapshot.items():
+            self.faults[target] = fault
+            model = getattr(self, FAULT_TARGET_SENSOR[target], None)
+            if model is not None:
+                model.follow_fault(target, fault)
