@@ -6,8 +6,9 @@ domain; no sleeps (the test waits on the recorder's message counts)."""
 from __future__ import annotations
 
 import numpy as np
-from conftest import InProcessGraph, make_scenario
 from numpy.testing import assert_array_equal
+from support.ros_graph import InProcessGraph
+from support.scenarios import make_scenario
 
 from adcs_msgs_py import conversions_determination as cd
 from adcs_msgs_py.measurements import Reading

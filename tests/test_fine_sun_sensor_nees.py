@@ -16,8 +16,8 @@ import copy
 
 import numpy as np
 import pytest
-from conftest import make_scenario
-from estimation_truth import perturbed
+from support.estimation_truth import perturbed
+from support.scenarios import make_scenario
 
 from adcs_sim.app import estimation
 from adcs_sim.app.batch import BatchSimulation
