@@ -114,8 +114,14 @@ class TimeAtWheelSpeedLimit(Metric):
         t, speed = chunk['t_ns'], np.asarray(chunk['wheel_speed'], dtype=float)   # (m,), (runs, m, n)
         if not t.size:
             return state
+        limited = np.isfinite(state['threshold'])
+        if not limited.any():   # no limit (the schema's default): never at it, nothing to compute
+            state['first_t'] = t[0] if state['last_t'] is None else state['first_t']
+            state['first_finite'] = state['first_finite'] if state['first_finite'] is not None else limited
+            state['last_t'], state['last_at'] = t[-1], limited
+            return state
         with np.errstate(invalid='ignore'):
-            at = np.abs(speed) >= state['threshold'][:, None, :]
+            at = (np.abs(speed) >= state['threshold'][:, None, :]) & limited[:, None, :]
         finite = np.isfinite(speed)
         if state['last_t'] is None:
             state['first_t'], state['first_finite'] = t[0], finite[:, 0]
