@@ -120,16 +120,24 @@ class TimeAtWheelSpeedLimit(Metric):
             state['first_finite'] = state['first_finite'] if state['first_finite'] is not None else limited
             state['last_t'], state['last_at'] = t[-1], limited
             return state
-        with np.errstate(invalid='ignore'):
-            at = (np.abs(speed) >= state['threshold'][:, None, :]) & limited[:, None, :]
-        finite = np.isfinite(speed)
         if state['last_t'] is None:
-            state['first_t'], state['first_finite'] = t[0], finite[:, 0]
-        else:
-            state['total'] += (state['last_at'] & finite[:, 0]) * (t[0] - state['last_t'])
-        held = (at[:, :-1] & finite[:, 1:]) * np.diff(t)[None, :, None]
-        state['total'] += held.sum(axis=1, dtype=np.int64)
-        state['last_t'], state['last_at'] = t[-1], at[:, -1]
+            state['first_t'], state['first_finite'] = t[0], np.isfinite(speed[:, 0])
+        elif state['last_at'].any():
+            state['total'] += (state['last_at'] & np.isfinite(speed[:, 0])) * (t[0] - state['last_t'])
+        # Only the runs with a sample at a limit (or NaN) need the per-sample pass: most runs never
+        # reach one, and two reductions tell which (exact: max and min only compare).
+        with np.errstate(invalid='ignore'):
+            near = ~((np.maximum(speed.max(axis=1), -speed.min(axis=1)) < state['threshold']) | ~limited).all(axis=1)
+        last_at = np.zeros(state['total'].shape, dtype=bool)
+        rows = np.flatnonzero(near)
+        if rows.size:
+            v = speed[rows]
+            with np.errstate(invalid='ignore'):
+                at = (np.abs(v) >= state['threshold'][rows, None, :]) & limited[rows, None, :]
+            held = (at[:, :-1] & np.isfinite(v[:, 1:])) * np.diff(t)[None, :, None]
+            state['total'][rows] += held.sum(axis=1, dtype=np.int64)
+            last_at[rows] = at[:, -1]
+        state['last_t'], state['last_at'] = t[-1], last_at
         return state
 
     def merge(self, a, b):
