@@ -42,7 +42,7 @@ def definition(t_s, speed, limits) -> list:
     """The definition on a run's whole arrays: one chunk of one run."""
     m = METRIC
     state = m.update(m.init({'wheel_max_speed': np.asarray(limits, float)[None]}),
-                     {'t_ns': metric_defs.stamps_ns(t_s), 'wheel_speed': np.asarray(speed, float)[None]})
+                     {'t_s': np.asarray(t_s, float), 'wheel_speed': np.asarray(speed, float)[None]})
     return m.finish(state)[0].tolist()
 
 
@@ -92,9 +92,9 @@ def test_any_chunking_or_merge_gives_the_whole_runs_value(values, cuts, runs):
     speed = np.stack([np.roll(values, r) for r in range(runs)])[:, :, None] * np.array([1.0, -1.0])   # (runs, n, 2)
     limits = np.full((runs, 2), 10.0)
     m = METRIC
-    whole = m.finish(m.update(m.init({'wheel_max_speed': limits}), {'t_ns': metric_defs.stamps_ns(t), 'wheel_speed': speed}))
+    whole = m.finish(m.update(m.init({'wheel_max_speed': limits}), {'t_s': t, 'wheel_speed': speed}))
     bounds = [0, *sorted({c for c in cuts if c < n}), n]
-    chunks = [{'t_ns': metric_defs.stamps_ns(t[a:b]), 'wheel_speed': speed[:, a:b]} for a, b in zip(bounds, bounds[1:])]
+    chunks = [{'t_s': t[a:b], 'wheel_speed': speed[:, a:b]} for a, b in zip(bounds, bounds[1:])]
     fed = m.init({'wheel_max_speed': limits})
     for c in chunks:
         fed = m.update(fed, c)

@@ -5,8 +5,9 @@ campaign's columns), the series it reads (``needs``) and the run constants it ta
 a run's samples chunk by chunk:
 
 * ``state = init(context)``: ``context`` the run constants, each with a leading run axis;
-* ``state = update(state, chunk)`` for each chunk in time order: ``chunk['t_ns']`` (samples,)
-  int64 stamps shared by the runs (:func:`stamps_ns`), each series of ``needs`` (runs, samples, ...);
+* ``state = update(state, chunk)`` for each chunk in time order: ``chunk['t_s']`` (samples,)
+  stamps (s) shared by the runs (:func:`stamps_ns` gives their exact integer nanoseconds), each
+  series of ``needs`` (runs, samples, ...);
 * ``merge(a, b)``: the state of span ``a`` followed by span ``b`` (each from ``init``);
 * ``finish(state)``: the value of each run, an array (runs, ...).
 
@@ -111,19 +112,20 @@ class TimeAtWheelSpeedLimit(Metric):
                 'first_t': None, 'first_finite': None, 'last_t': None, 'last_at': None}
 
     def update(self, state, chunk: dict):
-        t, speed = chunk['t_ns'], np.asarray(chunk['wheel_speed'], dtype=float)   # (m,), (runs, m, n)
-        if not t.size:
+        t_s, speed = chunk['t_s'], np.asarray(chunk['wheel_speed'], dtype=float)   # (m,), (runs, m, n)
+        if not len(t_s):
             return state
+        first, last = stamps_ns([t_s[0], t_s[-1]])
         limited = np.isfinite(state['threshold'])
         if not limited.any():   # no limit (the schema's default): never at it, nothing to compute
-            state['first_t'] = t[0] if state['last_t'] is None else state['first_t']
+            state['first_t'] = first if state['last_t'] is None else state['first_t']
             state['first_finite'] = state['first_finite'] if state['first_finite'] is not None else limited
-            state['last_t'], state['last_at'] = t[-1], limited
+            state['last_t'], state['last_at'] = last, limited
             return state
         if state['last_t'] is None:
-            state['first_t'], state['first_finite'] = t[0], np.isfinite(speed[:, 0])
+            state['first_t'], state['first_finite'] = first, np.isfinite(speed[:, 0])
         elif state['last_at'].any():
-            state['total'] += (state['last_at'] & np.isfinite(speed[:, 0])) * (t[0] - state['last_t'])
+            state['total'] += (state['last_at'] & np.isfinite(speed[:, 0])) * (first - state['last_t'])
         # Only the runs with a sample at a limit (or NaN) need the per-sample pass: most runs never
         # reach one, and two reductions tell which (exact: max and min only compare).
         with np.errstate(invalid='ignore'):
@@ -134,10 +136,10 @@ class TimeAtWheelSpeedLimit(Metric):
             v = speed[rows]
             with np.errstate(invalid='ignore'):
                 at = (np.abs(v) >= state['threshold'][rows, None, :]) & limited[rows, None, :]
-            held = (at[:, :-1] & np.isfinite(v[:, 1:])) * np.diff(t)[None, :, None]
+            held = (at[:, :-1] & np.isfinite(v[:, 1:])) * np.diff(stamps_ns(t_s))[None, :, None]
             state['total'][rows] += held.sum(axis=1, dtype=np.int64)
             last_at[rows] = at[:, -1]
-        state['last_t'], state['last_at'] = t[-1], last_at
+        state['last_t'], state['last_at'] = last, last_at
         return state
 
     def merge(self, a, b):
@@ -200,7 +202,7 @@ def _listed(metric: Metric, values: np.ndarray):
 def run_values(run) -> dict:
     """The defined metrics of one run in memory: one chunk (the in-memory path)."""
     context = run_context(run)
-    chunk = {'t_ns': stamps_ns(run.t_wheels), 'wheel_speed': run.wheel_speed[None]}
+    chunk = {'t_s': run.t_wheels, 'wheel_speed': run.wheel_speed[None]}
     out = {}
     for m in DEFINED:
         out[m.name] = _listed(m, m.finish(m.update(m.init(context), chunk))[0])
@@ -217,7 +219,7 @@ def batch_values(result, rows: np.ndarray, twins: dict | None = None) -> dict[st
     speed = result.wheel_speed[take] if n else np.zeros((rows.size, result.t.size, 0))
     limits = result.wheel_limits()[take] if n else np.zeros((rows.size, 0))
     context = {'wheel_max_speed': limits}
-    chunk = {'t_ns': stamps_ns(result.t), 'wheel_speed': speed}
+    chunk = {'t_s': result.t, 'wheel_speed': speed}
     return {m.name: twins[m.name] if m.name in twins else m.finish(m.update(m.init(context), chunk))
             for m in DEFINED}
 
@@ -235,7 +237,7 @@ class StreamedValues:
             context = {'wheel_max_speed': np.asarray(limits, dtype=float).reshape(1, len(names))}
             self.states[names] = [m.init(context) for m in DEFINED]
             self.limits[names] = limits
-        chunk = {'t_ns': stamps_ns(t_s), 'wheel_speed': speed[None]}
+        chunk = {'t_s': t_s, 'wheel_speed': speed[None]}
         self.states[names] = [m.update(s, chunk) for m, s in zip(DEFINED, self.states[names])]
 
     def values(self, names, n_wheels: int) -> dict:
