@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The speed of each metric path, this tree against another (issue #32 item 4: none may get slower).
 
-Times, best of ``--repeat`` in one process each:
+Times (process CPU time), best of ``--repeat`` in one process each:
 
 * **in-memory**: :func:`adcs_sim.app.analysis.run_metrics` of a committed bag's
   :class:`~adcs_sim.app.run_data.RunData` (read once, not timed), what ``adcs-analyze`` prints;
@@ -34,11 +34,13 @@ DEFAULT_BAG = 'bags/microsat_gsmn_slew/bag'   # a regulation run with wheels (th
 
 
 def best(fn, repeat: int) -> float:
+    """The least process CPU time of ``repeat`` calls (on a shared, loaded machine the wall time of
+    one call varies several-fold; its CPU time much less)."""
     times = []
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         fn()
-        times.append(time.perf_counter() - t0)
+        times.append(time.process_time() - t0)
     return min(times)
 
 

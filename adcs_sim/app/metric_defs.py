@@ -129,10 +129,15 @@ class TimeAtWheelSpeedLimit(Metric):
         # Only the runs with a sample at a limit (or NaN) need the per-sample pass: most runs never
         # reach one, and two reductions tell which (exact: max and min only compare). Over each
         # run's samples flattened: numpy reduces a middle axis of length-3 rows ~50x slower.
-        flat = speed.reshape(speed.shape[0], -1)
+        # ``chunk['wheel_peak']``: that max |Ω| of each run if a path has it already (the campaign's
+        # compiled pass, the twin of PeakWheelSpeed: equal to it, tests/test_metrics_kernel.py).
+        peak = chunk.get('wheel_peak')
+        if peak is None:
+            flat = speed.reshape(speed.shape[0], -1)
+            peak = np.maximum(flat.max(axis=1), -flat.min(axis=1))
         lowest = np.where(limited, state['threshold'], math.inf).min(axis=1)   # the run's lowest limit
         with np.errstate(invalid='ignore'):
-            near = ~(np.maximum(flat.max(axis=1), -flat.min(axis=1)) < lowest)
+            near = ~(peak < lowest)
         last_at = np.zeros(state['total'].shape, dtype=bool)
         rows = np.flatnonzero(near)
         if rows.size:
@@ -223,6 +228,8 @@ def batch_values(result, rows: np.ndarray, twins: dict | None = None) -> dict[st
     limits = result.wheel_limits()[take] if n else np.zeros((rows.size, 0))
     context = {'wheel_max_speed': limits}
     chunk = {'t_s': result.t, 'wheel_speed': speed}
+    if n and twins.get('peak_wheel_speed_rad_s') is not None:   # the whole run's max |Ω|, known
+        chunk['wheel_peak'] = twins['peak_wheel_speed_rad_s']
     return {m.name: twins[m.name] if m.name in twins else m.finish(m.update(m.init(context), chunk))
             for m in DEFINED}
 
