@@ -10,12 +10,15 @@ first (ignored by git) and replaces the old recording only when it succeeded.
     .venv/bin/python bags/regenerate.py microsat_pd_slew
     .venv/bin/python bags/regenerate.py --check         # no run: do the kept metrics still match?
     .venv/bin/python bags/regenerate.py --reports       # no run: rewrite every report/ from its bag
+    .venv/bin/python bags/regenerate.py --metrics       # no run: rewrite every metrics.json from its bag
 
 ``adcs-run`` leases its own ROS_DOMAIN_ID and keeps discovery on localhost. ``--check`` recomputes
 every recording's metrics from its bag with the current :mod:`adcs_sim.app.analysis` and compares
 them with its ``metrics.json`` (what tests/test_any_bag.py also checks). ``--reports`` rewrites
 each kept ``report/`` (``adcs-analyze``'s report, named after the scenario) from the bag beside it,
-without running anything: after a change to the reports, or after a merge.
+without running anything: after a change to the reports, or after a merge. ``--metrics`` rewrites
+each kept ``metrics.json`` from the bag beside it as ``adcs-run`` computes it (after a metric is
+added), and refuses (status 1, nothing written) if a value already kept would change.
 """
 from __future__ import annotations
 
@@ -125,6 +128,22 @@ def check(folder: Path) -> list[str]:
             for k in kept if now.get(k) != kept[k]]
 
 
+def rewrite_metrics(folder: Path) -> list[str]:
+    """Write ``folder/metrics.json`` from its bag (adcs-run's streamed metrics) unless a kept value
+    would change; returns those changes (then nothing is written)."""
+    sys.path.insert(0, str(ROOT))
+    from adcs_sim.app.analysis import jsonable_metrics
+    from adcs_sim.app.stream_metrics import analyse_bag
+    path = folder / 'metrics.json'
+    kept = json.loads(path.read_text())
+    text = json.dumps(jsonable_metrics(analyse_bag(folder / 'bag').metrics), indent=2)
+    now = json.loads(text)
+    changed = [f'{folder.name}: {k}: kept {kept[k]!r}, now {now.get(k)!r}' for k in kept if now.get(k) != kept[k]]
+    if not changed:
+        path.write_text(text)
+    return changed
+
+
 def total_bytes() -> int:
     return sum(f.stat().st_size for d in HERE.iterdir() if d.is_dir() and not d.name.endswith('.tmp')
                for f in d.rglob('*') if f.is_file())
@@ -136,12 +155,18 @@ def main(argv=None) -> int:
     parser.add_argument('--check', action='store_true', help='only compare kept metrics with the bags')
     parser.add_argument('--reports', action='store_true',
                         help='only rewrite the kept reports from the bags (no run)')
+    parser.add_argument('--metrics', action='store_true',
+                        help='only rewrite the kept metrics.json from the bags (no run; kept values must not change)')
     args = parser.parse_args(argv)
     names = args.scenarios or sorted(p.stem for p in CONFIG.glob('*.yaml') if p.stem not in NOT_RECORDED)
     if args.reports:
         for name in (n for n in names if has_report(n)):
             print(f'{write_report(HERE / name, name).relative_to(ROOT)}', flush=True)
         return 0
+    if args.metrics:
+        problems = [p for name in names for p in rewrite_metrics(HERE / name)]
+        print('\n'.join(problems) or f'ok: {len(names)} metrics.json rewritten, no kept value changed')
+        return 1 if problems else 0
     if args.check:
         problems = [p for name in names for p in check(HERE / name)]
         print('\n'.join(problems) or f'ok: {len(names)} recording(s) match their metrics.json')

@@ -30,9 +30,11 @@ Definitions (every metric printed by ``adcs-run`` and ``adcs-analyze``):
   (:func:`adcs_core.attitude.pointing_error`, true attitude); at 1°, 0.1° and
   0.01° (Table 1) the *first entry* and the *settling* (staying below to the end) times, as above,
   and the final pointing error.
-* **Peak torque** per body axis ``max |u_i|`` over the applied-torque samples; **peak wheel
-  speed** ``max |Ω|`` over all wheels and samples (rad/s, relative to the body); **missed
+* **Peak torque** per body axis ``max |u_i|`` over the applied-torque samples; **missed
   steps** from the last ``dynamics/status`` that reports them.
+* The metrics of :data:`adcs_sim.app.metric_defs.DEFINED`, each defined there once and computed
+  by every path from that definition (the **peak wheel speed**, the **time each wheel spends at
+  its speed limit**), between the peak torque and the missed steps.
 
 The time series come from :class:`~adcs_sim.app.run_data.RunData` (a bag read in one pass).
 :func:`run_metrics` gives these at one tolerance; :func:`settling_times` the settling times at
@@ -47,6 +49,7 @@ import warnings
 import numpy as np
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213, pointing_error
+from adcs_sim.app import metric_defs
 
 # The run's time series and what its scenario asks for (re-exported: this module's historical API).
 from adcs_sim.app.run_data import (  # noqa: F401
@@ -244,15 +247,14 @@ def run_metrics(run: RunData, tol_deg: float = 0.5, eigen_tol_deg: float | None 
         'settling_euler213_per_axis_s': [settling_time(run.t, euler[:, i], tol_deg) for i in range(3)],
         'final_eigenaxis_error_deg': float(eigen[-1]),
         'integrated_torque_Nms': math.nan, 'control_energy_N2m2s': math.nan,
-        'peak_torque_Nm': [math.nan] * 3, 'peak_wheel_speed_rad_s': math.nan,
+        'peak_torque_Nm': [math.nan] * 3,
+        **metric_defs.run_values(run),   # the metrics defined once (metric_defs.DEFINED)
         'missed_steps': run.missed_steps,
     }
     if run.u.size:
         out['integrated_torque_Nms'] = integrated_norm(run.t_u, run.u, run.t_end)
         out['control_energy_N2m2s'] = integrated_square(run.t_u, run.u, run.t_end)
         out['peak_torque_Nm'] = np.abs(run.u).max(axis=0).tolist()
-    if run.wheel_speed.size:
-        out['peak_wheel_speed_rad_s'] = float(np.abs(run.wheel_speed).max())
     out.update(missed_step_gaps(run))
     out.update(fault_metrics(run))
     out.update(thruster_metrics(run))

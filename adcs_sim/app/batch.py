@@ -77,6 +77,7 @@ class BatchResult:
     failure: list = field(default_factory=list)  # per run: None, or why it stopped early
     wheel_names: list = field(default_factory=list)
     wheel_speed: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))  # (N, K + 1, n)
+    wheel_max_speed: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (n,) or (N, n) rad/s
     q_ref: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))  # (4,) or (N, 4)
     faults: list = field(default_factory=list)  # (t, level, actuator, mode) as RunData.faults
     thruster_names: list = field(default_factory=list)
@@ -106,7 +107,14 @@ class BatchResult:
         if self.wheel_names:
             run.t_wheels, run.wheel_names = self.t[:k + 1], list(self.wheel_names)
             run.wheel_speed = self.wheel_speed[i, :k + 1]
+            run.wheel_max_speed = self.wheel_limits()[i]
         return run
+
+    def wheel_limits(self) -> np.ndarray:
+        """The wheels' speed limits (N, n) (``inf``: unlimited or not given)."""
+        n = len(self.wheel_names)
+        limits = self.wheel_max_speed if np.size(self.wheel_max_speed) else np.full(n, math.inf)
+        return np.broadcast_to(limits, (self.n_runs, n))
 
     def metrics(self, i: int, tol_deg: float = 0.5) -> dict:
         """:func:`adcs_sim.app.analysis.run_metrics` of run ``i`` and, with an estimator section,
@@ -429,6 +437,7 @@ class BatchSimulation:
         return BatchResult(t=t_grid, q=hist['q'], w=hist['w'], u=hist['u'], n_steps=done_steps,
                            failure=failure, wheel_names=list(self.wheels.names) if self.wheels else [],
                            wheel_speed=hist['speed'], q_ref=np.asarray(self.q_ref, dtype=float),
+                           wheel_max_speed=self.wheels.max_speed if self.wheels else np.zeros(0),
                            faults=[(t_ns / NS_PER_S, 2 if mode in FAULT_ERROR_MODES else 0, name, mode)
                                    for t_ns, snap in self.fault_schedule
                                    for name, (mode, _, _) in snap.items()],

@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from adcs_core.attitude import euler_213, pointing_error
+from adcs_sim.app import metric_defs
 from adcs_sim.app import metrics_kernel as mk
 from adcs_sim.app.analysis import POINTING_BANDS_DEG, run_metrics, zoh_durations
 from adcs_sim.app.estimation import estimation_metrics, series_from_batch
@@ -102,7 +103,8 @@ def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.
         'integrated_torque_Nms': cols[:, mk.TORQUE],
         'control_energy_N2m2s': cols[:, mk.ENERGY],
         'peak_torque_Nm': cols[:, mk.PEAK_TORQUE:mk.PEAK_TORQUE + 3],
-        'peak_wheel_speed_rad_s': cols[:, mk.PEAK_SPEED],
+        # the metrics defined once; the peak wheel speed from the compiled pass, its twin
+        **metric_defs.batch_values(result, rows, {'peak_wheel_speed_rad_s': cols[:, mk.PEAK_SPEED]}),
     }
     if result.faults:
         qe = np.empty(q.shape)
@@ -141,8 +143,7 @@ def full_run_columns_numpy(result, rows: np.ndarray, tol_deg: float) -> dict[str
         'integrated_torque_Nms': np.sum(np.sqrt((u0 * u0 + u1 * u1) + u2 * u2) * zoh, axis=-1),   # norm(u, axis=-1)
         'control_energy_N2m2s': np.sum(((u0 ** 2 + u1 ** 2) + u2 ** 2) * zoh, axis=-1),
         'peak_torque_Nm': np.stack([np.abs(c).max(axis=1) for c in (u0, u1, u2)], axis=1),   # |u|.max(axis=1)
-        'peak_wheel_speed_rad_s': (np.abs(result.wheel_speed[take]).max(axis=(1, 2)) if result.wheel_names
-                                   and result.wheel_speed.shape[-1] else np.full(rows.size, math.nan)),
+        **metric_defs.batch_values(result, rows),   # the metrics defined once (metric_defs.DEFINED)
     }
     out.update(_fault_columns(result, t, qe, (u0, u1, u2), t_end))
     if result.pointing is not None:
@@ -194,7 +195,7 @@ def batch_run_metrics(result, tol_deg: float = 0.5) -> list[dict]:
             m = {}
             for key, values in lists:
                 m[key] = values[r]
-                if key == 'peak_wheel_speed_rad_s':
+                if key == metric_defs.DEFINED[-1].name:   # run_metrics' order: missed_steps after them
                     m['missed_steps'] = 0  # BatchResult.run_data's: the batch engine misses none
             metrics[j] = m
     for j in range(result.n_runs):

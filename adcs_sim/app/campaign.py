@@ -80,12 +80,15 @@ from adcs_sim.truth.schema import step_timing
 log = logging.getLogger(__name__)
 
 
-def metric_names(tol_deg: float, pointing: bool = False) -> list[str]:
-    """Names of the scalar metric columns at settling band ``tol_deg`` (lists are split per axis);
-    ``pointing``: with the pointing metrics of a seed 003 scenario."""
+def metric_names(tol_deg: float, pointing: bool = False, wheels: int = 0) -> list[str]:
+    """Names of the scalar metric columns at settling band ``tol_deg`` (lists are split per axis or
+    per wheel); ``pointing``: with the pointing metrics of a seed 003 scenario; ``wheels``: the
+    truth model's wheel count (the per-wheel metrics of :data:`adcs_sim.app.metric_defs.DEFINED`)."""
     t = np.array([0.0, 1.0])
     dummy = RunData(t=t, q=np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), w=np.zeros((2, 3)),
                     t_u=t[:1], u=np.zeros((1, 3)), missed_steps=0,
+                    t_wheels=t, wheel_names=[f'w{i}' for i in range(wheels)], wheel_speed=np.zeros((2, wheels)),
+                    wheel_max_speed=np.full(wheels, np.inf),
                     pointing=(np.array([1.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0])) if pointing else None)
     return list(metric_columns(run_metrics(dummy, tol_deg)))
 
@@ -120,7 +123,8 @@ class Campaign:
         scenario_path, defaults, nominal = campaign_scenario(c, path)
         where_runs = runs_key(runs)
         runs, seed, chunk, tol, series_every = campaign_numbers(c, runs)
-        known = metric_names(tol, pointing=_points_an_axis(defaults)) + _estimation_columns(defaults)
+        known = (metric_names(tol, pointing=_points_an_axis(defaults), wheels=_wheel_count(defaults))
+                 + _estimation_columns(defaults))
         metrics = campaign_metrics(c, known)
         requirements = campaign_requirements(c, known)
         campaign = cls(path=path.resolve(), scenario_path=scenario_path, nominal=nominal,
@@ -406,6 +410,11 @@ def _estimation_columns(sections: dict) -> list[str]:
     return [name for section, params in sections.items() if section in NODES and NODES[section].role == 'estimator'
             # a filter with bias states models their random walk (gyro.sigma_u): its NEES has 6 dof
             for name in estimation_metric_names(params['sensors'], bias_states='gyro.sigma_u' in params)]
+
+
+def _wheel_count(sections: dict) -> int:
+    """The truth model's wheels (the ``dynamics`` section's ``wheels.names``)."""
+    return len(sections.get('dynamics', {}).get('wheels.names') or [])
 
 
 def _points_an_axis(sections: dict) -> bool:

@@ -57,6 +57,7 @@ class RunData:
     wheel_names: list = field(default_factory=list)
     wheel_speed: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     wheel_torque: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    wheel_max_speed: np.ndarray | None = None   # (n,) rad/s; None: the scenario's (metric_defs.wheel_limits)
     t_thrusters: np.ndarray = field(default_factory=lambda: np.zeros(0))  # step starts
     thruster_names: list = field(default_factory=list)
     thruster_impulse: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # at step ends, N s

@@ -33,6 +33,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from adcs_msgs_py import names as topics
+from adcs_sim.app import metric_defs
 from adcs_sim.app import run_data as rd
 from adcs_sim.app.analysis import (
     POINTING_BANDS_DEG,
@@ -238,11 +239,12 @@ class JointStream:
     """A JointState topic: per joint-name list, what the wheel / thruster metrics need of the
     messages with those names (RunData keeps those named as in the topic's last message)."""
 
-    def __init__(self, topic: str, thrusters: bool) -> None:
+    def __init__(self, topic: str, thrusters: bool, limits=None) -> None:
         self.order = _Ordered(topic)
         self.thrusters = thrusters
+        self.limits = limits                           # names -> the wheels' speed limits (metric_defs)
+        self.defined = metric_defs.StreamedValues()    # the metrics defined once, per names
         self.last_names = None
-        self.peak: dict = {}                           # names -> max |velocity| (wheels)
         self.on_time: dict = defaultdict(list)         # names -> [on-time parts] (thrusters)
         self.impulse: dict = {}                        # names -> latest impulse row (thrusters)
 
@@ -264,13 +266,17 @@ class JointStream:
                     last = (row0 + int(c.rows[-1]), c.fields['position'][-1])
                     if c.extra not in self.impulse or last[0] > self.impulse[c.extra][0]:
                         self.impulse[c.extra] = last
-            elif c.fields['velocity'].shape[1] == n and n:
-                peak = np.abs(c.fields['velocity']).max()
-                self.peak[c.extra] = np.maximum(self.peak[c.extra], peak) if c.extra in self.peak else peak
+        if not self.thrusters:   # the defined metrics in file order (several layouts: interleaved rows)
+            for names in dict.fromkeys(c.extra for c in parts):
+                same = [c for c in parts if c.extra == names and c.fields['velocity'].shape[1] == len(names)]
+                if not same or not names:
+                    continue
+                t, _, speed = _in_file_order(same, 'velocity')
+                self.defined.add(names, self.limits(names), t, speed)
 
-    def wheel_peak(self) -> float:
-        peak = self.peak.get(self.last_names)
-        return math.nan if peak is None else float(peak)
+    def defined_values(self) -> dict:
+        """The defined metrics (metric_defs.DEFINED) of the wheels named in the last message."""
+        return self.defined.values(self.last_names, len(self.last_names or ()))
 
     def thruster_metrics(self) -> dict:
         parts = self.on_time.get(self.last_names)
@@ -332,6 +338,8 @@ class _Pass:
         self.seen: dict[str, int] = defaultdict(int)
         self.target = None            # (q_ref, pointing) the attitude streams use
         self.target_text = None       # the scenario text it was read from
+        self.limits_text = None       # the scenario text the wheels' speed limits were read from
+        self.limits: dict = {}        # wheel names -> their speed limits (metric_defs.wheel_limits)
 
     def run(self) -> None:
         for batch in self.reader:
@@ -344,7 +352,8 @@ class _Pass:
     def _columns(self, topic: str, type_name: str, parts: list) -> None:
         if type_name == rd.JOINT_STATE:
             if topic not in self.joints:
-                self.joints[topic] = JointStream(topic, topic.endswith('/' + topics.THRUSTERS_STATE))
+                self.joints[topic] = JointStream(topic, topic.endswith('/' + topics.THRUSTERS_STATE),
+                                                 self._wheel_limits)
             self.joints[topic].add(parts, self.seen[topic])
         elif type_name == rd.VECTOR3_STAMPED:
             self.torque.setdefault(topic, TorqueStream(topic)).add(*_in_file_order(parts, 'vector'))
@@ -355,6 +364,15 @@ class _Pass:
             if topic not in self.attitude:
                 self.attitude[topic] = AttitudeStream(topic, *self.target, self.tol, self.eigen_tol)
             self.attitude[topic].add(*_in_file_order(parts, 'orientation'))
+
+    def _wheel_limits(self, names: tuple) -> np.ndarray:
+        """The speed limits of wheels ``names`` in the bag's scenario, as RunData reads them."""
+        if names not in self.limits:
+            if self.limits_text is None:
+                self.limits_text = _scenario_text(self.reader.metadata) or ''
+            scenario = rd._scenario(self.limits_text, self.reader.bag)
+            self.limits[names] = metric_defs.wheel_limits(scenario, names)
+        return self.limits[names]
 
     def metrics(self, path, fixed: str | None) -> tuple[dict, str]:
         """run_metrics' dict (same keys, same order) and the namespace."""
@@ -374,7 +392,15 @@ class _Pass:
         t_end = float(att.t_parts[-1][-1])
         out = att.metrics(self.tol, self.eigen_tol)
         out.update({'integrated_torque_Nms': math.nan, 'control_energy_N2m2s': math.nan,
-                    'peak_torque_Nm': [math.nan] * 3, 'peak_wheel_speed_rad_s': math.nan})
+                    'peak_torque_Nm': [math.nan] * 3})
+        wheels = self.joints.get(ns + topics.WHEELS_STATE)
+        if self.limits and (_scenario_text(reader.metadata) or '') != self.limits_text:
+            scenario = rd._scenario(_scenario_text(reader.metadata), reader.bag)
+            if any(not np.array_equal(metric_defs.wheel_limits(scenario, names), limits)
+                   for names, limits in self.limits.items()):
+                raise Unstreamable('the scenario (wheel speed limits) was written after the wheel states')
+        out.update(wheels.defined_values() if wheels is not None else   # metric_defs.DEFINED
+                   metric_defs.StreamedValues().values(None, 0))
         dynamics = self.diagnostics.get(ns + topics.DYNAMICS_STATUS, [])
         out['missed_steps'] = rd._missed_steps(dynamics)
         torque = self.torque.get(ns + topics.APPLIED_TORQUE)
@@ -384,9 +410,6 @@ class _Pass:
             out['integrated_torque_Nms'] = float(np.sum(torque.terms('norm', t_end)))
             out['control_energy_N2m2s'] = float(np.sum(torque.terms('square', t_end)))
             out['peak_torque_Nm'] = torque.peak.tolist()
-        wheels = self.joints.get(ns + topics.WHEELS_STATE)
-        if wheels is not None:
-            out['peak_wheel_speed_rad_s'] = wheels.wheel_peak()
         missed_at = rd._missed_at(dynamics)
         if missed_at.size:
             out.update(missed_step_gaps(SimpleNamespace(missed_at=missed_at, t=np.concatenate(att.t_parts))))

@@ -5,6 +5,8 @@ import math
 
 import numpy as np
 
+from adcs_sim.app import metric_defs
+
 METRIC_NOTES = {
     'duration_s': 'simulated time of the last state (s)',
     'settling_eigenaxis': 'time after which the eigenaxis error stays inside the band (s; inf: not settled)',
@@ -14,7 +16,6 @@ METRIC_NOTES = {
     'integrated_torque_Nms': '∫‖u‖dt of the applied torque (N·m·s)',
     'control_energy_N2m2s': '∫uᵀu dt of the applied torque (N²·m²·s)',
     'peak_torque_Nm': 'max |u_i| per body axis x, y, z (N·m)',
-    'peak_wheel_speed_rad_s': 'max |Ω| over all wheels (rad/s)',
     'missed_steps': 'lockstep steps without the awaited command',
     'thruster_impulse_Ns': 'total thruster impulse Σ∫F dt at the end (N·s)',
     'thruster_firings': 'thruster-periods with a non-zero on-time',
@@ -25,6 +26,7 @@ METRIC_NOTES = {
     'pointing_first_': 'first time the pointing error ∠(σ̂, τ̂) reaches the band (s; seed 003 Table 1)',
     'pointing_settling_': 'time after which the pointing error ∠(σ̂, τ̂) stays inside the band (s)',
     'final_pointing_error_deg': 'pointing error ∠(σ̂, τ̂) at the end (deg)',
+    **metric_defs.notes(),   # the metrics defined once: their notes are in their definitions
 }
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Callable
 
 from adcs_msgs_py import names as topics
+from adcs_sim.app import metric_defs
 from adcs_sim.app.analysis import attitude_errors, run_metrics
 from adcs_sim.app.report.estimation import estimation_lines
 from adcs_sim.app.report.figures import FIGURES, Context, save_figure
@@ -225,6 +226,9 @@ def run_figures(data: RunData, name: str = '', tol_deg: float = 0.5, eigen_tol_d
     return {fname: d[0] for fname, d in drawn.items() if not isinstance(d, str)}
 
 
+WHEEL_METRICS = {m.name for m in metric_defs.DEFINED if 'wheel_speed' in m.needs}
+
+
 def _metric_lines(report: Report) -> list[str]:
     """Every metric of :func:`run_metrics` that means something for the run, with its meaning."""
     metrics, kind = report.ctx.metrics, report.ctx.kind.kind
@@ -236,7 +240,7 @@ def _metric_lines(report: Report) -> list[str]:
             left.append(f'`{k}` (seed 000\'s 1 − |q4| to a fixed target: not meaningful for a {kind} run)')
         elif k.startswith('settling_q4_') and not actuator_fault(report.run.data, report.ctx.kind):
             left.append(f'`{k}` (seed 000\'s settling after a wheel fault: the fault here is not on an actuator)')
-        elif k == 'peak_wheel_speed_rad_s' and not has_wheels(report.run.data.scenario):
+        elif k in WHEEL_METRICS and not has_wheels(report.run.data.scenario):
             left.append(f'`{k}` (the spacecraft has no reaction wheels)')
         else:
             shown[k] = v
