@@ -16,9 +16,10 @@ import math
 
 import numpy as np
 import yaml
-from conftest import ROOT, make_scenario
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from support.paths import ROOT
+from support.scenarios import make_scenario
 
 from adcs_sim.app import metric_defs
 from adcs_sim.app.analysis import run_metrics
