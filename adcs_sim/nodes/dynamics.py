@@ -55,6 +55,7 @@ import numpy as np
 from std_msgs.msg import String
 
 from adcs_core.faults import FaultTracker, split_snapshot
+from adcs_core.orbit import CircularOrbit
 from adcs_msgs_py import cdr, topics
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import conversions_determination as cd
@@ -172,6 +173,7 @@ class DynamicsNode(AdcsNode):
         if not p['visualization.enabled']:
             return None, {}
         w, th, orbit = self.wheels, self.thrusters, self.plant.orbit
+        orbit = orbit if isinstance(orbit, CircularOrbit) else None   # an SGP4 orbit has no fixed frame rate
         visual = VisualMessages(p['visualization.target_attitude'], p['visualization.axis_length'],
                                 *((w.axes, w.spin_inertia, w.max_speed) if w else (None, None, None)),
                                 *((th.positions, th.directions) if th else (None, None)), orbit=orbit)
