@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from adcs_core.attitude import quat_norm
+
 SENSORS = ('gyro', 'star_tracker', 'sun', 'magnetometer')  # the fields of Measurements, in this order
 # A received sun vector within this of unit norm is taken as it is (not renormalised): the sensor model's
 # unit vectors then read back bit for bit, so an estimator on the graph sees the batch engine's numbers
@@ -38,6 +40,36 @@ def received_unit_vector(v: np.ndarray) -> tuple[np.ndarray, float]:
     if n == 0.0 or abs(n - 1.0) <= UNIT_AS_IS:
         return v, n
     return v / n, n
+
+
+def received_attitude(q: np.ndarray, norm=None) -> np.ndarray:
+    """The attitude a flight-software node receives for a sent quaternion ``q`` (..., 4): ``q`` divided
+    by its norm (:func:`adcs_core.attitude.quat_norm`, or ``norm`` when the caller has it). The one rule
+    of the message side (:func:`adcs_msgs_py.conversions.checked_quaternion`, which also refuses a norm
+    too far from 1) and of the batch engine's flight step (:class:`adcs_controllers.step.FlightStep`)."""
+    q = np.asarray(q, dtype=float)
+    return q / (quat_norm(q)[..., None] if norm is None else norm)
+
+
+def received_readings(m: 'Measurements') -> 'Measurements':
+    """The readings as an estimator node receives them from the messages
+    (:mod:`adcs_msgs_py.conversions_determination`): the star tracker's quaternion by
+    :func:`received_attitude` (the identity when it has no measurement: what the message carries),
+    the sun vector by :func:`received_unit_vector` (the zero vector without a measurement); the rest
+    as sent. The batch engine's estimator (:class:`adcs_controllers.step.EstimationStep`) sees the
+    very bits of the graph's."""
+    out = {}
+    for name in m.fitted():
+        r = getattr(m, name)
+        value, valid = np.asarray(r.value, dtype=float), np.asarray(r.valid, dtype=bool)[..., None]
+        if name == 'star_tracker':   # no measurement: the message carries the identity
+            value = np.where(valid, received_attitude(value), [0.0, 0.0, 0.0, 1.0])
+        elif name == 'sun':          # no measurement: the zero vector; else sun_from_msg's own rule
+            rows, ok = value.reshape(-1, 3), np.broadcast_to(valid[..., 0], value.shape[:-1]).reshape(-1)
+            value = np.array([received_unit_vector(v)[0] if good else np.zeros(3)
+                              for v, good in zip(rows, ok)]).reshape(value.shape)
+        out[name] = Reading(value, r.cov, r.valid)
+    return Measurements(m.t_ns, **out)
 
 
 @dataclass(frozen=True)

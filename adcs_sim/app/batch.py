@@ -43,10 +43,9 @@ from typing import Callable
 
 import numpy as np
 
-from adcs_controllers.laws.failure import answer, estimate_step
-from adcs_core.attitude import quat_norm, quat_normalize
-from adcs_core.faults import FAULT_ERROR_MODES, FaultTracker
-from adcs_msgs_py.measurements import Estimate, Measurements, Reading, received_unit_vector
+from adcs_controllers.step import MOMENTUM, EstimationStep, FlightStep
+from adcs_core.faults import FAULT_ERROR_MODES
+from adcs_msgs_py.measurements import Estimate, Measurements, received_readings
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app import fused
 from adcs_sim.app.analysis import RunData, run_metrics
@@ -157,11 +156,12 @@ class BatchSimulation:
         self.n_steps = np.broadcast_to(np.asarray(self.truth.n_steps, dtype=np.int64), (n_runs,)).copy()
         self.record_sensors = False   # set True to get every step's readings in BatchResult.sensors
         self._measured: tuple[int, Measurements] | None = None
-        self.law = self.actuation = None
+        self.law = self.actuation = self.flight = None
         if self.controller is not None:
-            p = sections[self.controller]
-            self.law, self.actuation = NODES[self.controller].family.build(p)
-            self.actuation.inform(self.law)
+            # the flight step (adcs_controllers/step.py): the controller node's very objects
+            self.flight = FlightStep.build(self.controller, NODES[self.controller].family, sections[self.controller])
+            self.flight.faults.hold(self.fault_schedule)
+            self.law, self.actuation = self.flight.law, self.flight.actuation
             missing = [a for a in self.actuation.plant_actuators if a not in self.plant.slices]
             if missing:
                 raise ParameterError('actuator', f'the controller commands {", ".join(missing)} '
@@ -171,20 +171,19 @@ class BatchSimulation:
         # the law's own (normalised) target, identity in free flight.
         self.q_ref = self.law.q_ref if self.law is not None else np.array([0.0, 0.0, 0.0, 1.0])
         self.wheels, self.thrusters = self.truth.wheels, self.truth.thrusters
-        # A law that needs the wheels' momentum (seed 003) gets it as its node does: from the true
-        # speeds of the controller's wheels (by name; wheels/state carries no noise), through
-        # Actuation.wheel_momentum.
+        # A law that needs the wheels' momentum (seed 003) or an allocation that needs the wheel speed
+        # (seed 002) gets them as its node does: the true speeds of the controller's wheels of the same
+        # step (by name; wheels/state carries no noise).
         sigma, tau = getattr(self.law, 'sigma', None), getattr(self.law, 'tau', None)
         self.pointing = None if sigma is None or tau is None else (np.asarray(sigma), np.asarray(tau))
-        self.needs_wheel_momentum = bool(getattr(self.law, 'needs_wheel_momentum', False))
-        self.momentum_index = None
-        if self.needs_wheel_momentum:
+        self.speed_index = None
+        if self.flight is not None and self.flight.needs_wheel_speed:
             names = list(self.wheels.names) if self.wheels else []
             missing = [n for n in self.actuation.wheel_names if n not in names]
             if missing:
                 raise ParameterError('wheels.names', f'wheel(s) {missing} of the controller are not '
                                      f'in the dynamics section ({names})', self.controller)
-            self.momentum_index = np.array([names.index(n) for n in self.actuation.wheel_names])
+            self.speed_index = np.array([names.index(n) for n in self.actuation.wheel_names])
 
     @property
     def measurement(self) -> MeasurementModel:
@@ -207,8 +206,9 @@ class BatchSimulation:
             if sensors is None and self.sensors is None:
                 raise ParameterError(names[0], 'an estimator needs sensors: fit them in the dynamics section '
                                      '(sensors.*.enabled)')
-            self.estimator = NODES[names[0]].family.build(sections[names[0]], references)
-            self.estimator_name = names[0]
+            # the estimation step (adcs_controllers/step.py): the estimator node's very object
+            self.estimation = EstimationStep(names[0], NODES[names[0]].family.build(sections[names[0]], references))
+            self.estimator, self.estimator_name = self.estimation.estimator, names[0]
         elif self.feedback == 'estimate':
             raise ParameterError('feedback', "'estimate' needs an estimator section", self.controller)
 
@@ -220,8 +220,9 @@ class BatchSimulation:
         else:                                # the dynamics section's sensor suite, as the node publishes it
             raw = self._measure(k, (k * self.period_ns) / NS_PER_S, x)
             bias_true = self.sensors.gyro.true_bias if self.sensors.gyro is not None else None
-        # the node's call: FlightSoftwareError (naming the runs of a non-finite estimate) where it stops
-        est, status = estimate_step(self.estimator_name, self.estimator, as_received(raw))
+        # the node's step, the message round trip made by it: FlightSoftwareError (naming the runs of a
+        # non-finite estimate) where the node stops
+        est, status = self.estimation.step(raw, batch=True)
         rec = hist.setdefault('estimate', {'status': {}})
         values = {'q': est.q, 'w': est.w, 'bias': est.bias, 'cov': est.cov, 'rate_cov': est.rate_cov}
         if bias_true is not None:
@@ -234,15 +235,6 @@ class BatchSimulation:
                 store[name] = np.full((self.n_runs, self.K) + v.shape[1:], math.nan)
             store[name][self.active, k] = v[self.active]
         return est
-
-    def _apply_faults(self, t_ns: int) -> None:
-        """Apply the fault snapshot due at ``t_ns`` (:meth:`TruthStep.apply_due_faults`, the dynamics
-        node's call; the rule is :meth:`adcs_core.faults.FaultTracker.due`) to the plant's wheels and
-        the sensors, and (the controller's) to the allocation and the law."""
-        self.truth.apply_due_faults(t_ns)
-        snapshot = self._flight_faults.due(t_ns)
-        if snapshot is not None and self.actuation is not None and self.actuation.follow_faults(snapshot):
-            self.actuation.inform(self.law)
 
     def _commands(self, values, speed_mode: bool = False) -> tuple[dict, object]:
         """(the plant's commands of the controller's command ``values``, the thrusters' on-times or None)."""
@@ -297,32 +289,21 @@ class BatchSimulation:
             rec[has_state, k] = self.sensors.gyro.true_bias[has_state]
 
     def _control(self, k: int, t: float, x: np.ndarray, observe, est: Estimate | None = None) -> tuple:
-        """Step ``k``'s commands as the controller node computes them: (values, momentum mode)."""
-        if self.law is None:
+        """Step ``k``'s commands as the controller node computes them (:meth:`FlightStep.step`, its due
+        faults first): (values, momentum mode)."""
+        if self.flight is None:
             return None, False
-        N = self.n_runs
-        wheel_sl = self.plant.slices.get('wheels')
         if self.feedback == 'estimate':   # the controller's state:=estimate/state
             q_m, w_m = est.q, est.w
         else:
             q_m, w_m = self.truth.measure_state(x)
-        q_m = quat_normalize(q_m)  # what a controller does to the attitude it receives
-        momentum = self.law.output == 'wheel_momentum'
+        speed = None if self.speed_index is None else x[:, self.plant.slices['wheels']][:, self.speed_index]
         # FlightSoftwareError where the controller node stops (the law raises); the node counts a
         # refused state (ValueError) instead, which a batch cannot skip for one run: it fails too
-        if self.needs_wheel_momentum:
-            speed = x[:, wheel_sl][:, self.momentum_index]
-            out, status = answer(self.controller, k * self.period_ns, lambda: self.law.control(
-                t, q_m, w_m, self.actuation.wheel_momentum(speed)))
-        else:
-            out, status = answer(self.controller, k * self.period_ns, lambda: self.law.control(t, q_m, w_m))
+        out = self.flight.step(k * self.period_ns, q_m, w_m, speed, batch=True)
         if observe is not None:
-            observe(k, t, status)
-        if momentum:
-            return self.actuation.command_momentum(np.broadcast_to(out, (N, 3))), True
-        speed = x[:, wheel_sl][:, :self.wheels.count] if self.actuation.needs_wheel_speed else None
-        values = self.actuation.command_values(np.broadcast_to(out, (N, 3)), w_m, speed)
-        return values, False
+            observe(k, t, out.status)
+        return out.values, out.output == MOMENTUM
 
     def _record(self, hist: dict, k: int, x: np.ndarray, u: np.ndarray, active: np.ndarray) -> None:
         """Step ``k``'s torque and the state at ``t_k+1`` of the active runs."""
@@ -347,11 +328,10 @@ class BatchSimulation:
         hist['sensors'] = {}
         if loop is not None:
             return self._run_fused(loop, x, hist, K)
-        self.truth.restart()   # each run from t = 0: fresh sensor streams
+        self.truth.restart()   # each run from t = 0: fresh sensor streams, no fault in force
+        if self.flight is not None:
+            self.flight.faults.rewind()
         self._measured = None
-        self._flight_faults = FaultTracker()
-        for i, (t_ns, snapshot) in enumerate(self.fault_schedule):
-            self._flight_faults.add(t_ns, i, len(self.fault_schedule), snapshot)
         failure: list = [None] * N
         active = self.n_steps > 0
         done_steps = np.zeros(N, dtype=np.int64)
@@ -361,8 +341,8 @@ class BatchSimulation:
                 if not active.any():
                     break
                 t = (k * self.period_ns) / NS_PER_S
-                if self.fault_schedule:
-                    self._apply_faults(k * self.period_ns)
+                if self.fault_schedule:   # the controller's: in FlightStep.step
+                    self.truth.apply_due_faults(k * self.period_ns)
                 self._sense(hist, k, x, done_steps == k)
                 self.active = active
                 est = self._estimate(k, x, hist) if self.estimator is not None else None
@@ -382,7 +362,7 @@ class BatchSimulation:
                     progress(k + 1)
             if self.sensors is not None:   # the last state's readings, as the dynamics node publishes them
                 k_end = int(done_steps.max())
-                self._apply_faults(k_end * self.period_ns)
+                self.truth.apply_due_faults(k_end * self.period_ns)
                 self._sense(hist, k_end, x, done_steps == k_end)
         return self._result(hist, K, done_steps, failure)
 
@@ -438,20 +418,5 @@ SensorSource = Callable[[int, int, np.ndarray, np.ndarray], Measurements]
 an optional attribute ``true_bias`` (N, 3) is the gyro's true bias at that step (6-dof NEES)."""
 
 
-def as_received(m: Measurements) -> Measurements:
-    """The readings as an estimator node receives them from the messages
-    (:mod:`adcs_msgs_py.conversions_determination`): the star tracker's quaternion divided by its
-    norm, the sun vector by :func:`adcs_msgs_py.measurements.received_unit_vector`; the rest as sent. So a batch run's estimator sees
-    the very bits of the graph's."""
-    out = {}
-    for name in m.fitted():
-        r = getattr(m, name)
-        value, valid = np.asarray(r.value, dtype=float), np.asarray(r.valid, dtype=bool)[..., None]
-        if name == 'star_tracker':   # no measurement: the message carries the identity
-            value = np.where(valid, value / quat_norm(value)[..., None], [0.0, 0.0, 0.0, 1.0])
-        elif name == 'sun':          # no measurement: the zero vector; else sun_from_msg's own rule
-            rows, ok = value.reshape(-1, 3), np.broadcast_to(valid[..., 0], value.shape[:-1]).reshape(-1)
-            value = np.array([received_unit_vector(v)[0] if good else np.zeros(3)
-                              for v, good in zip(rows, ok)]).reshape(value.shape)
-        out[name] = Reading(value, r.cov, r.valid)
-    return Measurements(m.t_ns, **out)
+# The readings as an estimator node receives them (the rule is the interface's, one place for both drivers).
+as_received = received_readings

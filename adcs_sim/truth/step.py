@@ -72,7 +72,7 @@ class TruthStep:
     def restart(self) -> None:
         """Back to t = 0: fresh sensor noise streams and no fault applied (a batch runs from here)."""
         self.sensors = self._build_sensors()
-        self.faults.applied = -1
+        self.faults.rewind()
 
     def initial_state(self) -> np.ndarray:
         """The state at t = 0 (``(n_runs, n)`` for a batch)."""
@@ -86,8 +86,7 @@ class TruthStep:
     def add_schedule(self, schedule: list) -> None:
         """Hold a whole fault schedule (:func:`adcs_sim.truth.fault_schedule.fault_schedule`), as the
         node holds it once the ``faults`` topic has delivered it."""
-        for i, (t_ns, snapshot) in enumerate(schedule):
-            self.faults.add(t_ns, i, len(schedule), snapshot)
+        self.faults.hold(schedule)
 
     def apply_due_faults(self, t_ns: int) -> tuple[dict, dict] | None:
         """Apply the fault snapshot due at ``t_ns`` (the latest stamped ``<= t_ns``, if not yet in
