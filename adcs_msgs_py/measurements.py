@@ -27,7 +27,7 @@ from adcs_core.attitude import quat_norm
 SENSORS = ('gyro', 'star_tracker', 'sun', 'magnetometer')  # the fields of Measurements, in this order
 # A received sun vector within this of unit norm is taken as it is (not renormalised): the sensor model's
 # unit vectors then read back bit for bit, so an estimator on the graph sees the batch engine's numbers
-# (the message side, adcs_msgs_py.conversions_determination, and the batch engine's as_received both apply it).
+# (the message side, adcs_msgs_py.conversions_determination, and received_readings, the batch engine's, both apply it).
 UNIT_AS_IS = 8 * float(np.finfo(float).eps)
 
 
@@ -35,7 +35,7 @@ def received_unit_vector(v: np.ndarray) -> tuple[np.ndarray, float]:
     """(the direction an estimator receives for a measured unit vector ``v`` (3,), its norm): ``v`` as it
     is within :data:`UNIT_AS_IS` of unit norm (and the zero vector), else ``v`` divided by its norm
     (``math.hypot``: no overflow). The one rule of the message side (``sun_from_msg``) and of the batch
-    engine (``as_received``), so both give the same bits."""
+    engine (:func:`received_readings`), so both give the same bits."""
     n = math.hypot(*v)
     if n == 0.0 or abs(n - 1.0) <= UNIT_AS_IS:
         return v, n
