@@ -1,7 +1,10 @@
 """Batch engine: N runs of one scenario advanced together, no ROS in the loop (numpy only).
 
 The graph is the faithful one-run-at-a-time path; campaigns (:mod:`adcs_sim.app.campaign`) need
-thousands of runs. This engine runs the *same* code as the graph with a leading batch axis:
+thousands of runs. This engine drives the graph's own step objects with a leading batch axis (the
+truth step, :class:`adcs_sim.truth.step.TruthStep`, the dynamics node's; the flight-software steps,
+:class:`adcs_controllers.step.FlightStep` and :class:`~adcs_controllers.step.EstimationStep`, the
+controller and estimator nodes'), so it runs the *same* code:
 
 * the plant (:class:`adcs_sim.truth.plant.Plant`, built by :func:`adcs_sim.truth.schema.build_plant` from
   the ``dynamics`` section) with the same fixed-step RK4 and zero-order hold over each control
