@@ -86,10 +86,12 @@ class FlightStep:
         the same step, when :attr:`needs_wheel_speed`). ``batch``: (q, w) as the truth model gives them
         (the received attitude is made here), a leading run axis, no refusal (module doc); else one
         run's decoded message. ``log`` gets the fault notes."""
-        notes = answer(self.name, t_ns, lambda: self.apply_due_faults(t_ns))
-        if log is not None:
-            for note in notes:
-                log(note)
+        if not batch or self.faults.snapshots:   # a batch holds its schedule from the start: none, none due
+            # (a node checks every step: a snapshot received late is counted, FaultTracker.late)
+            notes = answer(self.name, t_ns, lambda: self.apply_due_faults(t_ns))
+            if log is not None:
+                for note in notes:
+                    log(note)
         if batch:
             q = received_attitude(q)
         output = self.law.output   # torque or wheel momentum (a reconfiguring law's current phase)
