@@ -120,9 +120,8 @@ def quat_norm(q: np.ndarray) -> np.ndarray:
 
 
 def quat_normalize(q: np.ndarray) -> np.ndarray:
-    """Project onto the unit sphere with :func:`quat_norm`: the controllers renormalise every
-    received attitude this way (:func:`adcs_msgs_py.conversions.checked_quaternion`), and the
-    batch engine does the same to their input."""
+    """Project onto the unit sphere with :func:`quat_norm` (the operation of
+    :func:`adcs_msgs_py.measurements.received_attitude`, the controllers' rule for a received attitude)."""
     q = np.asarray(q, dtype=float)
     return q / quat_norm(q)[..., None]
 

@@ -46,6 +46,16 @@ class FaultTracker:
             self.events = events
         self.snapshots[event] = (t_ns, snapshot)
 
+    def hold(self, schedule: list) -> None:
+        """Hold a whole schedule ``[(t_ns, snapshot)]`` (:func:`adcs_sim.truth.fault_schedule.fault_schedule`),
+        as a node holds it once the latched ``faults`` topic has delivered every snapshot (the batch engine's way)."""
+        for i, (t_ns, snapshot) in enumerate(schedule):
+            self.add(t_ns, i, len(schedule), snapshot)
+
+    def rewind(self) -> None:
+        """Back to before t = 0: no snapshot in force (a batch engine's new run)."""
+        self.applied, self._current, self._previous, self.late = -1, None, None, 0
+
     @property
     def complete(self) -> bool:
         return self.events is not None and all(i in self.snapshots for i in range(self.events))

@@ -22,6 +22,7 @@ from sensor_msgs.msg import JointState
 
 from adcs_core.attitude import quat_norm
 from adcs_core.faults import FAULT_ERROR_MODES, FAULT_OK_MODES, FaultState
+from adcs_msgs_py.measurements import received_attitude
 from adcs_msgs_py.sensor_interfaces import SENSOR_FAULT_MODES
 
 NS_PER_S = 1_000_000_000
@@ -105,10 +106,10 @@ def _finite(name: str, values, length: int | None = None) -> np.ndarray:
 def checked_quaternion(name: str, xyzw, tol: float = UNIT_QUATERNION_TOLERANCE) -> np.ndarray:
     """Validate a unit quaternion (x, y, z, w); return it as an array (renormalised within tol)."""
     q = _finite(name, xyzw, 4)
-    norm = float(quat_norm(q))  # the norm quat_normalize divides by: the batch engine's input
+    norm = float(quat_norm(q))  # the norm received_attitude divides by
     if abs(norm - 1.0) > tol:
         raise InvalidMessage(f'{name}: quaternion norm {norm:.9g} is not 1 (tolerance {tol:g})')
-    return q / norm
+    return received_attitude(q, norm)
 
 
 # --- state (attitude + rate in one stamped message) ---------------------------------------

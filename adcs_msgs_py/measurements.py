@@ -22,12 +22,14 @@ from dataclasses import dataclass, field, make_dataclass
 
 import numpy as np
 
-from adcs_msgs_py.sensor_interfaces import SENSOR_INTERFACES, SENSORS
+from adcs_core.attitude import quat_norm
+from adcs_msgs_py.sensor_interfaces import BY_NAME, SENSOR_INTERFACES, SENSORS
 
-__all__ = ['SENSORS', 'UNIT_AS_IS', 'Estimate', 'Measurements', 'Reading', 'received_unit_vector']
+__all__ = ['SENSORS', 'UNIT_AS_IS', 'Estimate', 'Measurements', 'Reading', 'received_attitude',
+           'received_readings', 'received_unit_vector']
 # A received sun vector within this of unit norm is taken as it is (not renormalised): the sensor model's
 # unit vectors then read back bit for bit, so an estimator on the graph sees the batch engine's numbers
-# (the message side, adcs_msgs_py.conversions_determination, and the batch engine's as_received both apply it).
+# (the message side, adcs_msgs_py.conversions_determination, and received_readings, the batch engine's, both apply it).
 UNIT_AS_IS = 8 * float(np.finfo(float).eps)
 
 
@@ -35,11 +37,43 @@ def received_unit_vector(v: np.ndarray) -> tuple[np.ndarray, float]:
     """(the direction an estimator receives for a measured unit vector ``v`` (3,), its norm): ``v`` as it
     is within :data:`UNIT_AS_IS` of unit norm (and the zero vector), else ``v`` divided by its norm
     (``math.hypot``: no overflow). The one rule of the message side (``sun_from_msg``) and of the batch
-    engine (``as_received``), so both give the same bits."""
+    engine (:func:`received_readings`), so both give the same bits."""
     n = math.hypot(*v)
     if n == 0.0 or abs(n - 1.0) <= UNIT_AS_IS:
         return v, n
     return v / n, n
+
+
+def received_attitude(q: np.ndarray, norm=None) -> np.ndarray:
+    """The attitude a flight-software node receives for a sent quaternion ``q`` (..., 4): ``q`` divided
+    by its norm (:func:`adcs_core.attitude.quat_norm`, or ``norm`` when the caller has it). The one rule
+    of the message side (:func:`adcs_msgs_py.conversions.checked_quaternion`, which also refuses a norm
+    too far from 1) and of the batch engine's flight step (:class:`adcs_controllers.step.FlightStep`)."""
+    q = np.asarray(q, dtype=float)
+    return q / (quat_norm(q)[..., None] if norm is None else norm)
+
+
+def received_readings(m: 'Measurements') -> 'Measurements':
+    """The readings as an estimator node receives them from the messages
+    (:mod:`adcs_msgs_py.conversions_determination`), by each sensor's declared ``received`` rule
+    (:mod:`adcs_msgs_py.sensor_interfaces`): a quaternion by :func:`received_attitude` (the identity
+    when it has no measurement: what the message carries), a unit vector by
+    :func:`received_unit_vector` (the zero vector without a measurement); the rest as sent. The
+    batch engine's estimator (:class:`adcs_controllers.step.EstimationStep`) sees the very bits of
+    the graph's."""
+    out = {}
+    for name in m.fitted():
+        r = getattr(m, name)
+        value, valid = np.asarray(r.value, dtype=float), np.asarray(r.valid, dtype=bool)[..., None]
+        rule = BY_NAME[name].received
+        if rule == 'quaternion':     # no measurement: the message carries the identity
+            value = np.where(valid, received_attitude(value), [0.0, 0.0, 0.0, 1.0])
+        elif rule == 'unit_vector':  # no measurement: the zero vector; else sun_from_msg's own rule
+            rows, ok = value.reshape(-1, 3), np.broadcast_to(valid[..., 0], value.shape[:-1]).reshape(-1)
+            value = np.array([received_unit_vector(v)[0] if good else np.zeros(3)
+                              for v, good in zip(rows, ok)]).reshape(value.shape)
+        out[name] = Reading(value, r.cov, r.valid)
+    return Measurements(m.t_ns, **out)
 
 
 @dataclass(frozen=True)

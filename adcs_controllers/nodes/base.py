@@ -37,9 +37,9 @@ from __future__ import annotations
 import numpy as np
 
 from adcs_controllers.families import ControllerFamily, state_topic
-from adcs_controllers.laws.base import LawOutputRejected, checked_control
-from adcs_controllers.laws.failure import FlightSoftwareError, answer
-from adcs_core.faults import FaultTracker
+from adcs_controllers.laws.base import LawOutputRejected
+from adcs_controllers.laws.failure import FlightSoftwareError
+from adcs_controllers.step import MOMENTUM, FlightStep
 from adcs_msgs_py import cdr
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
@@ -153,7 +153,9 @@ class ControllerNode(FlightSoftwareStop, WheelStatePairing, AdcsNode):
     def __init__(self, context) -> None:
         super().__init__(context)
         p = self.params
-        self.law, self.actuation = self.family.build(p)
+        # the flight step (adcs_controllers/step.py): the objects the batch engine drives too
+        self.flight = FlightStep.build(self.get_name(), self.family, p)
+        self.law, self.actuation = self.flight.law, self.flight.actuation
         self.wheel_names = self.actuation.wheel_names
         # one publisher and codec per command topic of the actuation (its command_messages)
         self.pub_cmds = {t: self.publisher(t) for t in self.actuation.command_topics}
@@ -166,26 +168,17 @@ class ControllerNode(FlightSoftwareStop, WheelStatePairing, AdcsNode):
         self.sub_state = None
         self.states = 0  # steps computed (the acknowledgement pacing counts them)
         self.sub_wheels = None
-        self.needs_wheel_momentum = bool(getattr(self.law, 'needs_wheel_momentum', False))
         # the state paired with the wheel speeds of its step: for the law's h, or the allocation's
-        self.pairs_wheels = self.needs_wheel_momentum or self.actuation.needs_wheel_speed
+        self.pairs_wheels = self.flight.needs_wheel_speed
         self.pairs = StampPairs()  # (q, w) and the wheel speeds of one stamp
-        self.faults = FaultTracker()
+        self.faults = self.flight.faults   # fed from the wire; the flight step applies what is due
         self.wheel_index = {n: i for i, n in enumerate(self.wheel_names)}
         self.sub_faults = self.subscription(topics.FAULTS, self._on_faults)
-        self._note(self.actuation.inform(self.law))
+        self._note(self.flight.note)
 
     def _note(self, note: str | None) -> None:
         if note:
             self.get_logger().info(note)
-
-    def control(self, t: float, q: np.ndarray, w: np.ndarray, h: np.ndarray | None = None
-                ) -> tuple[np.ndarray, dict]:
-        """Desired body torque (N m) and status values for state (q, w) at time t: the law's
-        (with the wheel momentum ``h`` of the same step for a law that needs it)."""
-        if self.needs_wheel_momentum:
-            return self.law.control(t, q, w, h)
-        return self.law.control(t, q, w)
 
     # --- plumbing ---------------------------------------------------------------------------
 
@@ -216,14 +209,6 @@ class ControllerNode(FlightSoftwareStop, WheelStatePairing, AdcsNode):
         self.spin_until(executor, f'the fault schedule on {self.sub_faults.topic_name}',
                         lambda: self.faults.complete, self.params['startup.timeout'])
 
-    def apply_due_faults(self, t_ns: int) -> None:
-        """Re-allocate over the usable wheels if the fault state due at ``t_ns`` changed."""
-        snapshot = self.faults.due(t_ns)
-        if snapshot is not None and self.actuation.follow_faults(snapshot):
-            self.get_logger().info(f't = {t_ns / cv.NS_PER_S:g} s: allocating over '
-                                   f'{self.actuation.usable() or "no wheels"}')
-            self._note(self.actuation.inform(self.law))
-
     # --- state -> command -------------------------------------------------------------------
 
 
@@ -238,40 +223,32 @@ class ControllerNode(FlightSoftwareStop, WheelStatePairing, AdcsNode):
         self._pair_state(t_ns, q, w)
 
     def on_pair(self, t_ns: int, q: np.ndarray, w: np.ndarray, speed: np.ndarray) -> None:
-        """Compute the step ``t_ns`` once its state and wheel speeds are both here (with
-        ``h = sum_i a_i Js_i Ω_i`` for a law that needs it)."""
-        h = self.actuation.wheel_momentum(speed) if self.needs_wheel_momentum else None
-        self._step(t_ns, q, w, h, speed)
+        """Compute the step ``t_ns`` once its state and wheel speeds are both here (the flight step
+        makes ``h = sum_i a_i Js_i Ω_i`` of them for a law that needs it)."""
+        self._step(t_ns, q, w, speed)
 
-    def _step(self, t_ns: int, q: np.ndarray, w: np.ndarray, h: np.ndarray | None = None,
-              speed: np.ndarray | None = None) -> None:
+    def _step(self, t_ns: int, q: np.ndarray, w: np.ndarray, speed: np.ndarray | None = None) -> None:
         self.states += 1
-        self.answer_step(self.states, lambda: self._answer(t_ns, q, w, h, speed),
+        self.answer_step(self.states, lambda: self._answer(t_ns, q, w, speed),
                          (*self.pub_cmds.values(), self.pub_status))
 
-    def _answer(self, t_ns: int, q: np.ndarray, w: np.ndarray, h: np.ndarray | None,
-                speed: np.ndarray | None = None) -> None:
-        """Compute and publish the command (and the status) of the state stamped ``t_ns``."""
-        name = self.get_name()
-        answer(name, t_ns, lambda: self.apply_due_faults(t_ns))
-        output = self.law.output  # torque or wheel momentum (a reconfiguring law's current phase)
+    def _answer(self, t_ns: int, q: np.ndarray, w: np.ndarray, speed: np.ndarray | None = None) -> None:
+        """The flight step's answer to the state stamped ``t_ns`` (:meth:`FlightStep.step`), published:
+        the commands, then the status."""
         try:  # a law refusing the state or giving a non-finite output: counted, nothing published
-            value, status = answer(name, t_ns, lambda: checked_control(self, name, t_ns / cv.NS_PER_S, q, w, h),
-                                   refusals=(LawOutputRejected,))
+            out = self.flight.step(t_ns, q, w, speed, log=self.get_logger().info)
         except LawOutputRejected as exc:
             self.refused(t_ns, str(exc))
             return
         self.refusals_in_a_row = 0
-        extra = {}
-        if output == 'wheel_momentum':
-            speeds = answer(name, t_ns, lambda: self.actuation.command_momentum(value))
-            self.publish_commands(t_ns, self.actuation.momentum_messages(speeds))
+        output, value, status, values, applied, extra = out
+        if output == MOMENTUM:
+            self.publish_commands(t_ns, self.actuation.momentum_messages(values))
         else:
-            values, applied, extra = answer(name, t_ns, lambda: self.actuation.actuate(value, w, speed))
             self.publish_commands(t_ns, self.actuation.command_messages(values))
         if self.pub_status.get_subscription_count():  # after the command: off the critical path
             status = self.law.published_status(status)
-            if output == 'wheel_momentum':  # h_x..: the wheel momentum commanded (speed mode)
+            if output == MOMENTUM:  # h_x..: the wheel momentum commanded (speed mode)
                 status.update({'h_x': value[0], 'h_y': value[1], 'h_z': value[2]})
             else:  # u_x.. what the actuators are commanded (saturated); demand_max: the law's |u|_inf
                 status.update({'u_x': applied[0], 'u_y': applied[1], 'u_z': applied[2],

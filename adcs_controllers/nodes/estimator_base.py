@@ -29,8 +29,8 @@ from __future__ import annotations
 import numpy as np
 
 from adcs_controllers.estimators.families import EstimatorFamily
-from adcs_controllers.laws.failure import estimate_step
 from adcs_controllers.nodes.base import FlightSoftwareStop
+from adcs_controllers.step import EstimationStep
 from adcs_msgs_py import cdr
 from adcs_msgs_py import conversions_determination as cd
 from adcs_msgs_py import topics
@@ -81,7 +81,9 @@ class EstimatorNode(FlightSoftwareStop, AdcsNode):
 
     def __init__(self, context, references=None) -> None:
         super().__init__(context)
-        self.estimator = self.family.build(self.params, references)
+        # the estimation step (adcs_controllers/step.py): the object the batch engine drives too
+        self.flight = EstimationStep(self.get_name(), self.family.build(self.params, references))
+        self.estimator = self.flight.estimator
         self.sensors = tuple(self.params['sensors'])
         self.pub_estimate = self.publisher(topics.ESTIMATE_STATE)
         self.pub_status = self.publisher(topics.ESTIMATOR_STATUS)
@@ -126,7 +128,7 @@ class EstimatorNode(FlightSoftwareStop, AdcsNode):
         self.answer_step(self.steps, lambda: self._answer(t_ns, readings), (self.pub_estimate, self.pub_status))
 
     def _answer(self, t_ns: int, readings: dict) -> None:
-        est, status = estimate_step(self.get_name(), self.estimator, Measurements(t_ns, **readings))
+        est, status = self.flight.step(Measurements(t_ns, **readings))
         self.pub_estimate.publish(cd.estimate_to_msg(est))
         if self.pub_status.get_subscription_count():   # after the estimate: off the critical path
             values = {k: _plain(v) for k, v in status.items()}

@@ -20,7 +20,8 @@ from adcs_core.environment.magnetic import DipoleModel, IgrfModel, load_igrf
 from adcs_core.environment.options import IGRF_YEARS, MAGNETIC_MODELS, ORBIT_KINDS, SHADOW_MODELS
 from adcs_core.environment.sun import sun_position_eci
 from adcs_core.environment.tle import CircularOrbitSource, OrbitSource, TleOrbit
-from adcs_core.orbit import CircularOrbit
+from adcs_core.attitude import cross, matvec, rotate_to_body
+from adcs_core.orbit import MU_EARTH, CircularOrbit
 
 _SHADOWS = {'cylindrical': shadow_cylindrical, 'conical': shadow_conical}
 
@@ -73,19 +74,44 @@ def circular_orbit_from_params(p: Mapping[str, Any]) -> CircularOrbit:
                          arg_latitude0=math.radians(p['environment.circular.arg_latitude_deg']))
 
 
+def orbit_source(p: Mapping[str, Any]) -> OrbitSource:
+    """The orbit of validated ``environment.*`` parameters (what :func:`build_environment` samples and
+    what the truth model's gravity gradient follows, :class:`SourceOrbit`), without the field model."""
+    kind = p['environment.orbit']
+    if kind == 'circular':
+        return CircularOrbitSource(circular_orbit_from_params(p), parse_epoch(p['environment.epoch']))
+    if kind == 'tle':
+        return TleOrbit(p['environment.tle.line1'], p['environment.tle.line2'])
+    raise ValueError(f'environment.orbit must be one of {list(ORBIT_KINDS)}, got {kind!r}')
+
+
+class SourceOrbit:
+    """An :class:`OrbitSource` (SGP4 of a TLE) as the plant's orbit: the gravity-gradient torque
+    ``3 mu / |r|^3 c x (J c)``, ``c = -r / |r|`` in body axes, at the position the environment gives at
+    ``t`` (s since ``epoch_days``). For a circular orbit ``mu / r^3 = n^2``: the torque of
+    :meth:`adcs_core.orbit.CircularOrbit.gravity_gradient` (whose own object the plant then uses)."""
+
+    def __init__(self, source: OrbitSource, epoch_days: float, mu: float = MU_EARTH) -> None:
+        self.source, self.epoch_days, self.mu = source, epoch_days, mu
+
+    def position(self, t: float) -> np.ndarray:
+        """ECI position (m) at ``t`` s since the epoch."""
+        return self.source.state(days_since_j2000(self.epoch_days, np.asarray(t, dtype=float)))[0]
+
+    def gravity_gradient(self, t: float, q: np.ndarray, inertia: np.ndarray) -> np.ndarray:
+        r = self.position(t)
+        radius = float(np.linalg.norm(r))
+        c = rotate_to_body(q, -r / radius)
+        return 3.0 * (self.mu / radius ** 3) * cross(c, matvec(inertia, c))
+
+
 def build_environment(p: Mapping[str, Any]) -> Environment:
     """The :class:`Environment` of validated ``environment.*`` parameters (dotted names, the block of
     :func:`adcs_msgs_py.blocks.environment_params`). The dipole's coefficients are the IGRF's at the
     epoch."""
     epoch = p['environment.epoch']
     epoch_days = parse_epoch(epoch)
-    kind = p['environment.orbit']
-    if kind == 'circular':
-        orbit: OrbitSource = CircularOrbitSource(circular_orbit_from_params(p), epoch_days)
-    elif kind == 'tle':
-        orbit = TleOrbit(p['environment.tle.line1'], p['environment.tle.line2'])
-    else:
-        raise ValueError(f'environment.orbit must be one of {list(ORBIT_KINDS)}, got {kind!r}')
+    orbit = orbit_source(p)
     model = p['environment.magnetic_model']
     if model not in MAGNETIC_MODELS:
         raise ValueError(f'environment.magnetic_model must be one of {list(MAGNETIC_MODELS)}, got {model!r}')

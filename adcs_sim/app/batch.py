@@ -1,7 +1,10 @@
 """Batch engine: N runs of one scenario advanced together, no ROS in the loop (numpy only).
 
 The graph is the faithful one-run-at-a-time path; campaigns (:mod:`adcs_sim.app.campaign`) need
-thousands of runs. This engine runs the *same* code as the graph with a leading batch axis:
+thousands of runs. This engine drives the graph's own step objects with a leading batch axis (the
+truth step, :class:`adcs_sim.truth.step.TruthStep`, the dynamics node's; the flight-software steps,
+:class:`adcs_controllers.step.FlightStep` and :class:`~adcs_controllers.step.EstimationStep`, the
+controller and estimator nodes'), so it runs the *same* code:
 
 * the plant (:class:`adcs_sim.truth.plant.Plant`, built by :func:`adcs_sim.truth.schema.build_plant` from
   the ``dynamics`` section) with the same fixed-step RK4 and zero-order hold over each control
@@ -43,24 +46,17 @@ from typing import Callable
 
 import numpy as np
 
-from adcs_controllers.laws.failure import answer, estimate_step
-from adcs_core.attitude import quat_norm, quat_normalize
+from adcs_controllers.step import MOMENTUM, EstimationStep, FlightStep
 from adcs_core.faults import FAULT_ERROR_MODES
-from adcs_msgs_py.measurements import Estimate, Measurements, Reading, received_unit_vector
+from adcs_msgs_py.measurements import Estimate, Measurements, received_readings
 from adcs_msgs_py.params import ParameterError
-from adcs_msgs_py.sensor_interfaces import BY_NAME as SENSOR_INTERFACES, split_snapshot
 from adcs_sim.app import fused
 from adcs_sim.app.analysis import RunData, run_metrics
 from adcs_sim.app.estimation import estimation_metrics, series_from_batch
 from adcs_sim.app.registry import NODES
-from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.fault_schedule import fault_schedule
-from adcs_sim.truth.plant import ReactionWheels
-from adcs_sim.truth.schema import build_plant, build_truth_environment, initial_state, step_timing
-from adcs_sim.truth.sensor_schema import build_sensors
-from adcs_sim.truth.sensor_suite import sensor_environment
 from adcs_sim.truth.sensors import MeasurementModel
-from adcs_sim.truth.thrusters import Thrusters, step_pulsed
+from adcs_sim.truth.step import TruthStep
 
 NS_PER_S = 1_000_000_000
 
@@ -163,16 +159,20 @@ class BatchSimulation:
         if len(controllers) > 1:
             raise ParameterError(controllers[1], f'more than one controller section ({controllers})')
         self.controller = controllers[0] if controllers else None
-        self.plant = build_plant(d)
-        self.period_ns, steps = step_timing(d)
-        self.n_steps = np.broadcast_to(np.asarray(steps, dtype=np.int64), (n_runs,)).copy()
-        self.max_step = d['integrator.max_step']
-        self._build_measurement(d, n_runs)
-        self.law = self.actuation = None
+        # the truth step (adcs_sim/truth/step.py): the dynamics node's very objects, with a batch axis
+        self.truth = TruthStep(d, n_runs)
+        self.truth.add_schedule(self.fault_schedule)
+        self.plant = self.truth.plant
+        self.period_ns, self.max_step = self.truth.period_ns, self.truth.max_step
+        self.n_steps = np.broadcast_to(np.asarray(self.truth.n_steps, dtype=np.int64), (n_runs,)).copy()
+        self.record_sensors = False   # set True to get every step's readings in BatchResult.sensors
+        self._measured: tuple[int, Measurements] | None = None
+        self.law = self.actuation = self.flight = None
         if self.controller is not None:
-            p = sections[self.controller]
-            self.law, self.actuation = NODES[self.controller].family.build(p)
-            self.actuation.inform(self.law)
+            # the flight step (adcs_controllers/step.py): the controller node's very objects
+            self.flight = FlightStep.build(self.controller, NODES[self.controller].family, sections[self.controller])
+            self.flight.faults.hold(self.fault_schedule)
+            self.law, self.actuation = self.flight.law, self.flight.actuation
             missing = [a for a in self.actuation.plant_actuators if a not in self.plant.slices]
             if missing:
                 raise ParameterError('actuator', f'the controller commands {", ".join(missing)} '
@@ -181,37 +181,30 @@ class BatchSimulation:
         # The regulation target the metrics measure errors from (as analysis.target_attitude):
         # the law's own (normalised) target, identity in free flight.
         self.q_ref = self.law.q_ref if self.law is not None else np.array([0.0, 0.0, 0.0, 1.0])
-        self.wheels = next((a for a in self.plant.actuators if isinstance(a, ReactionWheels)), None)
-        self.thrusters = next((a for a in self.plant.actuators if isinstance(a, Thrusters)), None)
-        # A law that needs the wheels' momentum (seed 003) gets it as its node does: from the true
-        # speeds of the controller's wheels (by name; wheels/state carries no noise), through
-        # Actuation.wheel_momentum.
+        self.wheels, self.thrusters = self.truth.wheels, self.truth.thrusters
+        # A law that needs the wheels' momentum (seed 003) or an allocation that needs the wheel speed
+        # (seed 002) gets them as its node does: the true speeds of the controller's wheels of the same
+        # step (by name; wheels/state carries no noise).
         sigma, tau = getattr(self.law, 'sigma', None), getattr(self.law, 'tau', None)
         self.pointing = None if sigma is None or tau is None else (np.asarray(sigma), np.asarray(tau))
-        self.needs_wheel_momentum = bool(getattr(self.law, 'needs_wheel_momentum', False))
-        self.momentum_index = None
-        if self.needs_wheel_momentum:
+        self.speed_index = None
+        if self.flight is not None and self.flight.needs_wheel_speed:
             names = list(self.wheels.names) if self.wheels else []
             missing = [n for n in self.actuation.wheel_names if n not in names]
             if missing:
                 raise ParameterError('wheels.names', f'wheel(s) {missing} of the controller are not '
                                      f'in the dynamics section ({names})', self.controller)
-            self.momentum_index = np.array([names.index(n) for n in self.actuation.wheel_names])
+            self.speed_index = np.array([names.index(n) for n in self.actuation.wheel_names])
 
-    def _build_measurement(self, d: dict, n_runs: int) -> None:
-        """What the dynamics node measures: the noisy state (``noise.*``) and the sensor suite
-        (``sensors.*``) on the truth model's environment, one seed per run."""
-        seeds = np.broadcast_to(np.asarray(d['noise.seed']), (n_runs,))
-        noise = (d['noise.attitude_std'], d['noise.rate_std'], d['noise.gyro_bias'])
-        # a generator per run only if it draws: seeding one costs ~20 us (20 ms for 1000 runs)
-        self.measurement = MeasurementModel(seeds[:1], *noise)
-        if self.measurement.active:
-            self.measurement = MeasurementModel(seeds, *noise)
-        self._sensor_seeds = np.broadcast_to(np.asarray(d['sensors.seed']), (n_runs,))
-        self.sensors = build_sensors(d, self._sensor_seeds)   # rebuilt by run(): each run from t = 0
-        self.environment = build_truth_environment(d) if self.sensors is not None else None
-        self.record_sensors = False   # set True to get every step's readings in BatchResult.sensors
-        self._measured: tuple[int, Measurements] | None = None
+    @property
+    def measurement(self) -> MeasurementModel:
+        """The truth step's state measurement model (``noise.*``, one seed per run)."""
+        return self.truth.measurement
+
+    @property
+    def sensors(self):
+        """The truth step's sensor suite (``sensors.*``, one seed per run; rebuilt by :meth:`run`), or None."""
+        return self.truth.sensors
 
     def _build_estimator(self, sections: dict, sensors, references) -> None:
         """The estimator section's family object (what its node builds) and the sensors feeding it."""
@@ -224,8 +217,9 @@ class BatchSimulation:
             if sensors is None and self.sensors is None:
                 raise ParameterError(names[0], 'an estimator needs sensors: fit them in the dynamics section '
                                      '(sensors.*.enabled)')
-            self.estimator = NODES[names[0]].family.build(sections[names[0]], references)
-            self.estimator_name = names[0]
+            # the estimation step (adcs_controllers/step.py): the estimator node's very object
+            self.estimation = EstimationStep(names[0], NODES[names[0]].family.build(sections[names[0]], references))
+            self.estimator, self.estimator_name = self.estimation.estimator, names[0]
         elif self.feedback == 'estimate':
             raise ParameterError('feedback', "'estimate' needs an estimator section", self.controller)
 
@@ -237,8 +231,9 @@ class BatchSimulation:
         else:                                # the dynamics section's sensor suite, as the node publishes it
             raw = self._measure(k, (k * self.period_ns) / NS_PER_S, x)
             bias_true = self.sensors.gyro.true_bias if self.sensors.gyro is not None else None
-        # the node's call: FlightSoftwareError (naming the runs of a non-finite estimate) where it stops
-        est, status = estimate_step(self.estimator_name, self.estimator, as_received(raw))
+        # the node's step, the message round trip made by it: FlightSoftwareError (naming the runs of a
+        # non-finite estimate) where the node stops
+        est, status = self.estimation.step(raw, batch=True)
         rec = hist.setdefault('estimate', {'status': {}})
         values = {'q': est.q, 'w': est.w, 'bias': est.bias, 'cov': est.cov, 'rate_cov': est.rate_cov}
         if bias_true is not None:
@@ -252,34 +247,14 @@ class BatchSimulation:
             store[name][self.active, k] = v[self.active]
         return est
 
-    def _apply_faults(self, t_ns: int, applied: int) -> int:
-        """Apply the latest fault snapshot stamped ``<= t_ns`` if newer than snapshot ``applied``
-        (the dynamics node's and the controller's rule, :mod:`adcs_core.faults`): to the plant's
-        wheels, the allocation and the law. Returns the index of the snapshot in force."""
-        due = max((i for i, (ts, _) in enumerate(self.fault_schedule) if ts <= t_ns), default=-1)
-        if due <= applied:
-            return applied
-        snapshot, sensors = split_snapshot(self.fault_schedule[due][1])
-        if self.sensors is not None and sensors:
-            self.sensors.apply_faults(sensors)
-        if self.wheels is None:
-            return due
-        self.wheels.apply_faults(snapshot)
-        if self.actuation is not None and self.actuation.follow_faults(snapshot):
-            self.actuation.inform(self.law)
-        return due
-
-    def _commands(self, values, speed_mode: bool = False, t: float = 0.0, period: float = 0.0) -> dict:
-        commands = {a.name: a.zero_command() for a in self.plant.actuators}
-        if self.thrusters is not None:  # the dynamics node's valve command (none fired: off)
-            on_time = self.actuation.thruster_on_time(values) if values is not None else 0.0
-            commands['thrusters'] = self.thrusters.command(
-                t, np.broadcast_to(on_time, (self.n_runs, self.thrusters.count)), period)
+    def _commands(self, values, speed_mode: bool = False) -> tuple[dict, object]:
+        """(the plant's commands of the controller's command ``values``, the thrusters' on-times or None)."""
+        commands = self.plant.zero_commands()
         if values is None:
-            return commands
+            return commands, None
         for name, parts in self.actuation.plant_commands(values, speed_mode).items():
             commands[name] = self.plant.actuator(name).command_from(*parts)
-        return commands
+        return commands, self.actuation.thruster_on_time(values) if self.thrusters is not None else None
 
     def _history(self, x: np.ndarray, K: int, fill: bool = True) -> dict[str, np.ndarray]:
         """The recorded series (NaN where a run has no sample), with the initial state's; ``fill``
@@ -304,8 +279,7 @@ class BatchSimulation:
         if self.sensors is None:
             return None
         if self._measured is None or self._measured[0] != k:
-            env = sensor_environment(self.environment.sample(t)) if self.environment is not None else None
-            self._measured = (k, self.sensors.measure(k, t, x[:, :4], x[:, 4:7], env))
+            self._measured = (k, self.truth.read_sensors(k, t, x))
         return self._measured[1]
 
     def _sense(self, hist: dict, k: int, x: np.ndarray, has_state: np.ndarray) -> None:
@@ -326,32 +300,21 @@ class BatchSimulation:
             rec[has_state, k] = self.sensors.gyro.true_bias[has_state]
 
     def _control(self, k: int, t: float, x: np.ndarray, observe, est: Estimate | None = None) -> tuple:
-        """Step ``k``'s commands as the controller node computes them: (values, momentum mode)."""
-        if self.law is None:
+        """Step ``k``'s commands as the controller node computes them (:meth:`FlightStep.step`, its due
+        faults first): (values, momentum mode)."""
+        if self.flight is None:
             return None, False
-        N = self.n_runs
-        wheel_sl = self.plant.slices.get('wheels')
         if self.feedback == 'estimate':   # the controller's state:=estimate/state
             q_m, w_m = est.q, est.w
         else:
-            q_m, w_m = self.measurement.measure(x[:, :4], x[:, 4:7])
-        q_m = quat_normalize(q_m)  # what a controller does to the attitude it receives
-        momentum = self.law.output == 'wheel_momentum'
+            q_m, w_m = self.truth.measure_state(x)
+        speed = None if self.speed_index is None else x[:, self.plant.slices['wheels']][:, self.speed_index]
         # FlightSoftwareError where the controller node stops (the law raises); the node counts a
         # refused state (ValueError) instead, which a batch cannot skip for one run: it fails too
-        if self.needs_wheel_momentum:
-            speed = x[:, wheel_sl][:, self.momentum_index]
-            out, status = answer(self.controller, k * self.period_ns, lambda: self.law.control(
-                t, q_m, w_m, self.actuation.wheel_momentum(speed)))
-        else:
-            out, status = answer(self.controller, k * self.period_ns, lambda: self.law.control(t, q_m, w_m))
+        out = self.flight.step(k * self.period_ns, q_m, w_m, speed, batch=True)
         if observe is not None:
-            observe(k, t, status)
-        if momentum:
-            return self.actuation.command_momentum(np.broadcast_to(out, (N, 3))), True
-        speed = x[:, wheel_sl][:, :self.wheels.count] if self.actuation.needs_wheel_speed else None
-        values = self.actuation.command_values(np.broadcast_to(out, (N, 3)), w_m, speed)
-        return values, False
+            observe(k, t, out.status)
+        return out.values, out.output == MOMENTUM
 
     def _record(self, hist: dict, k: int, x: np.ndarray, u: np.ndarray, active: np.ndarray) -> None:
         """Step ``k``'s torque and the state at ``t_k+1`` of the active runs."""
@@ -370,17 +333,17 @@ class BatchSimulation:
         after each control step if given; ``observe(k, t, status)`` with the law's status of
         step ``k`` (what the controller node publishes, with the batch axis), if given."""
         N, K = self.n_runs, int(self.n_steps.max())
-        plant = self.plant
-        period = self.period_ns / NS_PER_S
-        x = np.broadcast_to(initial_state(plant, self.dynamics), (N, plant.n_states)).copy()
+        x = self.truth.initial_state()
         loop = fused.plan(self, x, progress, observe)
         hist = self._history(x, K, fill=loop is None)
         hist['sensors'] = {}
         if loop is not None:
             return self._run_fused(loop, x, hist, K)
-        self.sensors, self._measured = build_sensors(self.dynamics, self._sensor_seeds), None
+        self.truth.restart()   # each run from t = 0: fresh sensor streams, no fault in force
+        if self.flight is not None:
+            self.flight.faults.rewind()
+        self._measured = None
         failure: list = [None] * N
-        fault_applied = -1
         active = self.n_steps > 0
         done_steps = np.zeros(N, dtype=np.int64)
         self.K = K
@@ -389,19 +352,16 @@ class BatchSimulation:
                 if not active.any():
                     break
                 t = (k * self.period_ns) / NS_PER_S
-                if self.fault_schedule:
-                    fault_applied = self._apply_faults(k * self.period_ns, fault_applied)
+                if self.fault_schedule:   # the controller's: in FlightStep.step
+                    self.truth.apply_due_faults(k * self.period_ns)
                 self._sense(hist, k, x, done_steps == k)
                 self.active = active
                 est = self._estimate(k, x, hist) if self.estimator is not None else None
                 values, momentum = self._control(k, t, x, observe, est)
-                commands = self._commands(values, momentum, t, period)
-                u = plant.control_torque(t, x, commands)
+                commands, on_time = self._commands(values, momentum)
+                x_new, u = self.truth.integrate(t, x, commands, on_time)
                 if self.thrusters is not None:
-                    x_new = step_pulsed(plant, t, x, commands, period, self.max_step)
                     hist['on'][active, k] = commands['thrusters'].on_time[active]
-                else:
-                    x_new = plant.step(t, x, commands, period, self.max_step)
                 finite = np.isfinite(x_new).all(axis=-1) & np.isfinite(u).all(axis=-1)
                 for i in np.flatnonzero(active & ~finite):
                     failure[i] = self._failure(k, x_new[i], u[i])
@@ -413,15 +373,13 @@ class BatchSimulation:
                     progress(k + 1)
             if self.sensors is not None:   # the last state's readings, as the dynamics node publishes them
                 k_end = int(done_steps.max())
-                self._apply_faults(k_end * self.period_ns, fault_applied)
+                self.truth.apply_due_faults(k_end * self.period_ns)
                 self._sense(hist, k_end, x, done_steps == k_end)
         return self._result(hist, K, done_steps, failure)
 
     def _failure(self, k: int, x_new: np.ndarray, u: np.ndarray) -> str:
         """Why a run stopped at control step ``k``: its state after the step or its torque is not finite."""
-        t, period = (k * self.period_ns) / NS_PER_S, self.period_ns / NS_PER_S
-        return (f'the plant state is no longer finite at t = {t + period:g} s (non-finite '
-                f'{nonfinite_cause(self.plant, x_new, u)} after the step from t = {t:g} s)')
+        return self.truth.failure((k * self.period_ns) / NS_PER_S, x_new, u)
 
     def _run_fused(self, loop: 'fused.FusedLoop', x: np.ndarray, hist: dict, K: int) -> BatchResult:
         """:meth:`run` on the fused compiled loop (:mod:`adcs_sim.app.fused`): the same rows."""
@@ -472,22 +430,5 @@ SensorSource = Callable[[int, int, np.ndarray, np.ndarray], Measurements]
 an optional attribute ``true_bias`` (N, 3) is the gyro's true bias at that step (6-dof NEES)."""
 
 
-def as_received(m: Measurements) -> Measurements:
-    """The readings as an estimator node receives them from the messages
-    (:mod:`adcs_msgs_py.conversions_determination`), by each sensor's declared ``received`` rule
-    (:mod:`adcs_msgs_py.sensor_interfaces`): a quaternion divided by its norm, a unit vector by
-    :func:`adcs_msgs_py.measurements.received_unit_vector`; the rest as sent. So a batch run's estimator sees
-    the very bits of the graph's."""
-    out = {}
-    for name in m.fitted():
-        r = getattr(m, name)
-        value, valid = np.asarray(r.value, dtype=float), np.asarray(r.valid, dtype=bool)[..., None]
-        rule = SENSOR_INTERFACES[name].received
-        if rule == 'quaternion':     # no measurement: the message carries the identity
-            value = np.where(valid, value / quat_norm(value)[..., None], [0.0, 0.0, 0.0, 1.0])
-        elif rule == 'unit_vector':  # no measurement: the zero vector; else sun_from_msg's own rule
-            rows, ok = value.reshape(-1, 3), np.broadcast_to(valid[..., 0], value.shape[:-1]).reshape(-1)
-            value = np.array([received_unit_vector(v)[0] if good else np.zeros(3)
-                              for v, good in zip(rows, ok)]).reshape(value.shape)
-        out[name] = Reading(value, r.cov, r.valid)
-    return Measurements(m.t_ns, **out)
+# The readings as an estimator node receives them (the rule is the interface's, one place for both drivers).
+as_received = received_readings

@@ -54,7 +54,7 @@ import time
 import numpy as np
 from std_msgs.msg import String
 
-from adcs_core.faults import FaultTracker
+from adcs_core.orbit import CircularOrbit
 from adcs_msgs_py import cdr, topics
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import conversions_determination as cd
@@ -67,23 +67,12 @@ from adcs_msgs_py.names import (
 )
 from adcs_msgs_py.node import AdcsNode, RunStopped, main_for
 from adcs_msgs_py.recorded_topics import config_text
-from adcs_msgs_py.sensor_interfaces import SENSOR_TOPICS, split_snapshot
+from adcs_msgs_py.sensor_interfaces import SENSOR_TOPICS
 from adcs_msgs_py.visual import VisualMessages
-from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.link_faults import DELAY, FATE_NAMES, OK, LinkFaults
-from adcs_sim.truth.plant import ReactionWheels, WheelCommand
-from adcs_sim.truth.schema import (
-    DYNAMICS_SCHEMA,
-    build_plant,
-    build_truth_environment,
-    command_topics,
-    initial_state,
-    step_timing,
-)
-from adcs_sim.truth.sensor_schema import build_sensors
-from adcs_sim.truth.sensor_suite import sensor_environment
-from adcs_sim.truth.sensors import MeasurementModel
-from adcs_sim.truth.thrusters import Thrusters, step_pulsed
+from adcs_sim.truth.plant import WheelCommand
+from adcs_sim.truth.schema import DYNAMICS_SCHEMA, command_topics
+from adcs_sim.truth.step import TruthStep
 
 # The plant's command key of each command topic (thrusters/cmd is held as on-times: self.on_time).
 COMMAND_KEYS = {topics.WHEELS_CMD: 'wheels', topics.TORQUE_CMD: 'torquers'}
@@ -97,23 +86,16 @@ class DynamicsNode(AdcsNode):
     def __init__(self, context) -> None:
         super().__init__(context)
         p = self.params
-        self.plant = build_plant(p, warm=False)   # warmed in run(), once the endpoints exist
-        self.x = initial_state(self.plant, p)
+        # the truth step (adcs_sim/truth/step.py): the objects the batch engine drives too
+        self.truth = truth = TruthStep(p, warm=False)   # the plant is warmed in run(), once the endpoints exist
+        self.plant, self.measurement, self.sensors = truth.plant, truth.measurement, truth.sensors
+        self.wheels, self.thrusters = truth.wheels, truth.thrusters
+        self.x = truth.initial_state()
         self.commands = self.plant.zero_commands()
-        self.period_ns, self.n_steps = step_timing(p)
-        self.period = self.period_ns / cv.NS_PER_S
-        self.max_step = p['integrator.max_step']
+        self.period_ns, self.n_steps, self.period = truth.period_ns, truth.n_steps, truth.period
         self.lockstep = p['mode'] == 'lockstep'
         self.awaited = command_topics(p) if self.lockstep else []
-        self.measurement = MeasurementModel(p['noise.seed'], p['noise.attitude_std'],
-                                            p['noise.rate_std'], p['noise.gyro_bias'])
-        self.sensors = build_sensors(p)
-        self.environment = build_truth_environment(p) if self.sensors is not None else None
-        self.wheels: ReactionWheels | None = next(
-            (a for a in self.plant.actuators if isinstance(a, ReactionWheels)), None)
         self.wheel_index = {name: i for i, name in enumerate(self.wheels.names)} if self.wheels else {}
-        self.thrusters: Thrusters | None = next(
-            (a for a in self.plant.actuators if isinstance(a, Thrusters)), None)
         self.thruster_index = ({name: i for i, name in enumerate(self.thrusters.names)}
                                if self.thrusters else {})
         self.on_time = np.zeros(len(self.thruster_index))  # held thruster on-times (s)
@@ -152,7 +134,7 @@ class DynamicsNode(AdcsNode):
         if self.thrusters:
             self.subs[topics.THRUSTERS_CMD] = self.subscription(topics.THRUSTERS_CMD, self._on_thruster_cmd,
                                                                 raw=True)
-        self.faults = FaultTracker()
+        self.faults = self.truth.faults   # fed from the wire; the truth step applies what is due
         self.sub_faults = self.subscription(topics.FAULTS, self._on_faults)
 
     def _codecs(self) -> None:
@@ -170,6 +152,7 @@ class DynamicsNode(AdcsNode):
         if not p['visualization.enabled']:
             return None, {}
         w, th, orbit = self.wheels, self.thrusters, self.plant.orbit
+        orbit = orbit if isinstance(orbit, CircularOrbit) else None   # an SGP4 orbit has no fixed frame rate
         visual = VisualMessages(p['visualization.target_attitude'], p['visualization.axis_length'],
                                 *((w.axes, w.spin_inertia, w.max_speed) if w else (None, None, None)),
                                 *((th.positions, th.directions) if th else (None, None)), orbit=orbit)
@@ -190,19 +173,17 @@ class DynamicsNode(AdcsNode):
             self.faults.add(*parsed)
 
     def apply_due_faults(self) -> None:
-        """Apply the fault state due at the current step (if it changed)."""
-        snapshot = self.faults.due(self.step_ns)
-        if snapshot is None:
+        """Apply the fault state due at the current step (if it changed): :meth:`TruthStep.apply_due_faults`."""
+        applied = self.truth.apply_due_faults(self.step_ns)
+        if applied is None:
             return
-        wheels, sensors = split_snapshot(snapshot)
+        wheels, sensors = applied
         t = self.step_ns / cv.NS_PER_S
         if sensors and self.sensors is not None:
-            self.sensors.apply_faults(sensors)
             faulty = {n: f.mode for n, f in sensors.items() if f.mode not in ('nominal', 'recovered')}
             self.get_logger().info(f't = {t:g} s: sensor faults {faulty or "none"}')
         if self.wheels is None or not wheels:
             return
-        self.wheels.apply_faults(wheels)
         faulty = {n: m for n, m in zip(self.wheels.names, self.wheels.modes) if m != 'nominal'}
         self.get_logger().info(f't = {t:g} s: wheel faults {faulty or "none"}')
 
@@ -258,16 +239,10 @@ class DynamicsNode(AdcsNode):
 
     def _integrate(self, t: float) -> np.ndarray:
         """Advance the plant over ``[t, t + period]`` holding the commands; returns the applied
-        control torque at ``t``."""
-        if self.thrusters is not None:
-            self.commands['thrusters'] = self.thrusters.command(t, self.on_time, self.period)
+        control torque at ``t`` (:meth:`TruthStep.integrate`; with thrusters it sets the valve command)."""
         if self.visual is not None and self.wheels is not None:
             self._visual_speed = self.x[self.plant.slices['wheels']][:self.wheels.count].copy()
-        torque = self.plant.control_torque(t, self.x, self.commands)
-        if self.thrusters is not None:
-            self.x = step_pulsed(self.plant, t, self.x, self.commands, self.period, self.max_step)
-        else:
-            self.x = self.plant.step(t, self.x, self.commands, self.period, self.max_step)
+        self.x, torque = self.truth.integrate(t, self.x, self.commands, self.on_time)
         return torque
 
     def publish_thrusters(self, t: float, t_ns: int) -> None:
@@ -301,7 +276,7 @@ class DynamicsNode(AdcsNode):
         x = self.x
         q, w = x[:4], x[4:7]
         # The state first: the controllers start computing while the rest goes out.
-        q_m, w_m = self.measurement.measure(q, w)
+        q_m, w_m = self.truth.measure_state(x)
         self.pub_state.publish(self._state_cdr.encode(t_ns, q_m, w_m))   # state_to_msg's bytes
         # Then what other controllers and estimators answer from (a wheel-momentum law pairs the
         # state with wheels/state), then what is only recorded or observed: not even built when
@@ -312,7 +287,7 @@ class DynamicsNode(AdcsNode):
             speed = xa[:n]
             torque = self.wheels.motor_torque(speed, self.commands['wheels'])
             self.pub_wheels.publish(self._wheels_cdr.encode(t_ns, self.wheels.names, xa[n:], speed, torque))
-        self.publish_sensors(t_ns, q, w)
+        self.publish_sensors(t_ns, x)
         if self.pub_clock.get_subscription_count():
             self.pub_clock.publish(self._clock_cdr.encode(t_ns))
         if self.pub_truth is not None and self.pub_truth.get_subscription_count():
@@ -320,14 +295,12 @@ class DynamicsNode(AdcsNode):
         if self.visual is not None:
             self.publish_visual_state(t_ns, q)
 
-    def publish_sensors(self, t_ns: int, q: np.ndarray, w: np.ndarray) -> None:
-        """Every fitted sensor's reading of the true state at ``t_ns`` (measured every step, whoever
-        listens: the noise streams advance by step, not by subscriber)."""
+    def publish_sensors(self, t_ns: int, x: np.ndarray) -> None:
+        """Every fitted sensor's reading of the true state at ``t_ns`` (:meth:`TruthStep.read_sensors`:
+        measured every step, whoever listens: the noise streams advance by step, not by subscriber)."""
         if self.sensors is None:
             return
-        t = t_ns / cv.NS_PER_S
-        env = sensor_environment(self.environment.sample(t)) if self.environment is not None else None
-        m = self.sensors.measure(t_ns // self.period_ns, t, q, w, env)
+        m = self.truth.read_sensors(t_ns // self.period_ns, t_ns / cv.NS_PER_S, x)
         for name, pub in self.pub_sensors.items():
             pub.publish(SENSOR_OUTPUTS[name][1](t_ns, getattr(m, name)))
 
@@ -425,12 +398,11 @@ class DynamicsNode(AdcsNode):
     def _stop_if_not_finite(self, t: float, torque) -> None:
         """A state that is no longer finite ends the run (status published first): every later
         step would only wait out the controllers' refusal of it."""
-        cause = nonfinite_cause(self.plant, self.x, torque)
-        if cause is not None:
+        failure = self.truth.failure(t, self.x, torque)
+        if failure is not None:
             self.publish_status(final=True)
             self._drain_acks()
-            raise RunStopped(f'the plant state is no longer finite at t = {t + self.period:g} s (non-finite '
-                             f'{cause} after the step from t = {t:g} s); run stopped')
+            raise RunStopped(f'{failure}; run stopped')
 
     def _wait_commands(self, executor, timeout: float) -> None:
         awaited = self.awaited

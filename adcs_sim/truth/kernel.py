@@ -360,6 +360,8 @@ class KernelPlan:
             return None
         if plant.disturbance is not None and plant.disturbance.batched:   # one environment for every run
             return None
+        if plant.gravity_gradient and not hasattr(plant.orbit, 'mean_motion'):   # an SGP4 orbit: numpy's
+            return None
         return cls(plant)
 
     def warm(self, plant) -> None:

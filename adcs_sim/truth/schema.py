@@ -13,7 +13,9 @@ import math
 
 import numpy as np
 
-from adcs_core.environment.environment import Environment, build_environment
+from adcs_core.environment.environment import Environment, SourceOrbit, build_environment, orbit_source
+from adcs_core.environment.frames import parse_epoch
+from adcs_core.environment.tle import CircularOrbitSource
 from adcs_core.inertia import check_inertia, check_inertias, inertia_matrix
 from adcs_core.orbit import CircularOrbit
 from adcs_msgs_py import names as topics
@@ -69,8 +71,9 @@ def _dynamics_cross_check(v: dict) -> None:
                              f'({v["control_period"]} s), got {v["integrator.max_step"]}')
     if v['duration'] < v['control_period']:
         raise ParameterError('duration', f'must be at least one control period ({v["control_period"]} s)')
-    if v['gravity_gradient'] and v['orbit.altitude'] <= 0:
-        raise ParameterError('orbit.altitude', 'gravity_gradient needs an orbit altitude > 0 (m)')
+    if v['gravity_gradient'] and v['orbit.altitude'] <= 0 and not v['environment.enabled']:
+        raise ParameterError('orbit.altitude', 'gravity_gradient needs an orbit altitude > 0 (m), or '
+                             'environment.enabled (its orbit)')
     if v['link_faults.drop'] + v['link_faults.delay'] > 1.0:
         raise ParameterError('link_faults.delay', 'link_faults.drop + link_faults.delay must not exceed 1')
     commands = v['lockstep.commands']
@@ -86,7 +89,25 @@ def _dynamics_cross_check(v: dict) -> None:
         raise ParameterError('lockstep.commands', 'waits for thrusters/cmd but no thrusters are configured')
     if v['environment.enabled']:
         check_environment(v)
+        _check_one_orbit(v)
     check_sensors(v)
+
+
+_ORBIT_KEYS = ('altitude', 'inclination_deg', 'raan_deg', 'arg_latitude_deg')
+
+
+def _check_one_orbit(v: dict) -> None:
+    """The truth model has one orbit: with ``environment.enabled`` the environment's (the sensors',
+    the estimator references', the gravity gradient's, :func:`plant_orbit`). ``orbit.*`` may then only
+    repeat a circular ``environment.circular.*``."""
+    if v['orbit.altitude'] <= 0:
+        return
+    same = v['environment.orbit'] == 'circular' and all(
+        v[f'orbit.{k}'] == v[f'environment.circular.{k}'] for k in _ORBIT_KEYS)
+    if not same:
+        raise ParameterError('orbit.altitude', f'orbit.* (gravity gradient) and environment.orbit '
+                             f'({v["environment.orbit"]}: sensors, references) name two different orbits; '
+                             'with environment.enabled leave orbit.* unset: the environment\'s orbit is the plant\'s')
 
 
 _BODY_INERTIA = 'inertia minus the wheels\' spin inertia'
@@ -170,8 +191,10 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
     *[Param(f'disturbance.{name}', 'double_array', default=[0.0] * 3, length=3, doc=doc, batch=True, cross='none')
       for name, doc in (('constant', 'N m, body axes'), ('amplitude', 'N m, body axes'), ('frequency', 'rad/s'),
                         ('phase', 'rad'))],
-    Param('gravity_gradient', 'bool', default=False, doc='gravity-gradient torque on the orbit'),
-    Param('orbit.altitude', 'double', default=0.0, check=non_negative, doc='circular orbit altitude (m)'),
+    Param('gravity_gradient', 'bool', default=False,
+          doc="gravity-gradient torque on the orbit: orbit.*, or with environment.enabled the environment's"),
+    Param('orbit.altitude', 'double', default=0.0, check=non_negative,
+          doc='circular orbit altitude (m); with environment.enabled leave orbit.* unset (one orbit: environment.*)'),
     Param('orbit.inclination_deg', 'double', default=0.0, doc='deg'),
     Param('orbit.raan_deg', 'double', default=0.0, doc='deg'),
     Param('orbit.arg_latitude_deg', 'double', default=0.0, doc='argument of latitude at t = 0 (deg)'),
@@ -258,15 +281,28 @@ def build_plant(v: dict, warm: bool = True) -> Plant:
             directions=v['thrusters.directions'],  # (3 n,) or a batch (N, 3 n) of geometries
             max_force=v['thrusters.max_force'], min_on_time=v['thrusters.min_on_time'],
             min_on_rule=v['thrusters.min_on_rule']))
-    orbit = None
-    if v['orbit.altitude'] > 0:
-        orbit = CircularOrbit(altitude=v['orbit.altitude'],
-                              inclination=math.radians(v['orbit.inclination_deg']),
-                              raan=math.radians(v['orbit.raan_deg']),
-                              arg_latitude0=math.radians(v['orbit.arg_latitude_deg']))
     disturbance = Disturbance(v['disturbance.constant'], v['disturbance.amplitude'],
                               v['disturbance.frequency'], v['disturbance.phase'])
-    return Plant(inertia_matrix(v['inertia']), actuators, disturbance, orbit, v['gravity_gradient'], warm=warm)
+    return Plant(inertia_matrix(v['inertia']), actuators, disturbance, plant_orbit(v), v['gravity_gradient'],
+                 warm=warm)
+
+
+def plant_orbit(v: dict) -> CircularOrbit | SourceOrbit | None:
+    """The truth model's one orbit (the gravity gradient's; the viewers' orbit frame when circular):
+    with ``environment.enabled`` the environment's, the very elements its circular orbit samples
+    (:func:`adcs_core.environment.environment.orbit_source`) or the SGP4 of its TLE
+    (:class:`~adcs_core.environment.environment.SourceOrbit`); else ``orbit.*`` (None at altitude 0).
+    :func:`_check_one_orbit` refuses a scenario giving both, different."""
+    if v['environment.enabled']:
+        source = orbit_source(v)
+        if isinstance(source, CircularOrbitSource):
+            return source.orbit
+        return SourceOrbit(source, parse_epoch(v['environment.epoch']))
+    if v['orbit.altitude'] <= 0:
+        return None
+    return CircularOrbit(altitude=v['orbit.altitude'], inclination=math.radians(v['orbit.inclination_deg']),
+                         raan=math.radians(v['orbit.raan_deg']),
+                         arg_latitude0=math.radians(v['orbit.arg_latitude_deg']))
 
 
 def initial_state(plant: Plant, v: dict) -> np.ndarray:
