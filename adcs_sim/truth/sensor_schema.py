@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from adcs_msgs_py.params import Param, ParameterError, non_negative, positive
+from adcs_msgs_py.sections import Section, as_section
 from adcs_sim.truth.sensor_models import CoarseSunSensors, Gyro, Magnetometer, StarTracker, SunSensor
 from adcs_sim.truth.sensor_suite import SensorSuite
 
@@ -140,22 +141,24 @@ def sensor_params() -> list[Param]:
     ]
 
 
-def _steps(v: dict, key: str) -> int:
-    """A duration parameter as a whole number of control periods (ParameterError naming it if not)."""
-    period_ns = int(round(float(v['control_period']) * 1e9))
-    if float(v[key]) > v['duration'] + v['control_period'] and float(v[key]) > 1e9:
-        raise ParameterError(key, f'{v[key]} s is beyond any run (duration {v["duration"]} s)')
-    value_ns = int(round(float(v[key]) * 1e9))
+def _steps(period: float, duration, value: float, key: str) -> int:
+    """Duration parameter ``key`` = ``value`` (s) as a whole number of control periods ``period``
+    (ParameterError naming it if not)."""
+    period_ns = int(round(float(period) * 1e9))
+    if float(value) > duration + period and float(value) > 1e9:
+        raise ParameterError(key, f'{value} s is beyond any run (duration {duration} s)')
+    value_ns = int(round(float(value) * 1e9))
     if value_ns % period_ns:
-        raise ParameterError(key, f'must be a whole multiple of control_period ({v["control_period"]} s), '
-                             f'got {v[key]}')
+        raise ParameterError(key, f'must be a whole multiple of control_period ({period} s), '
+                             f'got {value}')
     return value_ns // period_ns
 
 
 def check_sensors(v: dict) -> None:
     """Cross-check of the ``sensors.*`` block (the dynamics section's cross-check calls it)."""
-    _steps(v, 'sensors.star_tracker.period')
-    if _steps(v, 'sensors.star_tracker.latency') > MAX_LATENCY_STEPS:
+    period, latency = 'sensors.star_tracker.period', 'sensors.star_tracker.latency'
+    _steps(v['control_period'], v['duration'], v[period], period)
+    if _steps(v['control_period'], v['duration'], v[latency], latency) > MAX_LATENCY_STEPS:
         raise ParameterError('sensors.star_tracker.latency', f'at most {MAX_LATENCY_STEPS} control periods, '
                              f'got {v["sensors.star_tracker.latency"]} s')
     _check_coarse(v)
@@ -184,30 +187,34 @@ def _check_coarse(v: dict) -> None:
         raise ParameterError('sensors.sun.normals', 'the detector normals must span 3-D')
 
 
-def build_sensors(v: dict, seed=None) -> SensorSuite | None:
+def build_sensors(v: dict | Section, seed=None) -> SensorSuite | None:
     """The suite of a validated dynamics section (None when no sensor is fitted); ``seed`` one per run
     for a batch (default ``sensors.seed``)."""
-    seed = v['sensors.seed'] if seed is None else seed
-    period_ns = int(round(float(v['control_period']) * 1e9))
+    v = as_section(v)
+    s = v.sensors
+    seed = s.seed if seed is None else seed
+    period_ns = int(round(float(v.control_period) * 1e9))
     parts = {}
-    if v['sensors.gyro.enabled']:
-        parts['gyro'] = Gyro(seed, period_ns / 1e9, v['sensors.gyro.arw'], v['sensors.gyro.rrw'],
-                             v['sensors.gyro.bias'], v['sensors.gyro.scale_factor'], v['sensors.gyro.max_rate'],
-                             v['sensors.gyro.markov_std'], v['sensors.gyro.markov_time'])
-    if v['sensors.star_tracker.enabled']:
-        st = 'sensors.star_tracker.'
+    if s.gyro.enabled:
+        g = s.gyro
+        parts['gyro'] = Gyro(seed, period_ns / 1e9, g.arw, g.rrw, g.bias, g.scale_factor, g.max_rate,
+                             g.markov_std, g.markov_time)
+    if s.star_tracker.enabled:
+        st = s.star_tracker
+        steps = lambda value, key: _steps(v.control_period, v.duration, value, key)  # noqa: E731
         parts['star_tracker'] = StarTracker(
-            seed, v[st + 'boresight'], v[st + 'cross_std'], v[st + 'about_std'],
-            max(1, _steps(v, st + 'period')), _steps(v, st + 'latency'),
-            math.radians(v[st + 'sun_exclusion_deg']), math.radians(v[st + 'earth_exclusion_deg']))
-    if v['sensors.sun.enabled'] and v['sensors.sun.type'] == 'coarse':
-        parts['sun'] = CoarseSunSensors(seed, v['sensors.sun.normals'], v['sensors.sun.std'],
-                                        math.radians(v['sensors.sun.fov_deg']), v['sensors.sun.min_illumination'])
-    elif v['sensors.sun.enabled']:
-        parts['sun'] = SunSensor(seed, v['sensors.sun.std'], v['sensors.sun.boresight'],
-                                 math.radians(v['sensors.sun.fov_deg']), v['sensors.sun.min_illumination'])
-    if v['sensors.magnetometer.enabled']:
-        parts['magnetometer'] = Magnetometer(seed, v['sensors.magnetometer.std'], v['sensors.magnetometer.bias'])
+            seed, st.boresight, st.cross_std, st.about_std,
+            max(1, steps(st.period, 'sensors.star_tracker.period')),
+            steps(st.latency, 'sensors.star_tracker.latency'),
+            math.radians(st.sun_exclusion_deg), math.radians(st.earth_exclusion_deg))
+    if s.sun.enabled and s.sun.type == 'coarse':
+        parts['sun'] = CoarseSunSensors(seed, s.sun.normals, s.sun.std, math.radians(s.sun.fov_deg),
+                                        s.sun.min_illumination)
+    elif s.sun.enabled:
+        parts['sun'] = SunSensor(seed, s.sun.std, s.sun.boresight, math.radians(s.sun.fov_deg),
+                                 s.sun.min_illumination)
+    if s.magnetometer.enabled:
+        parts['magnetometer'] = Magnetometer(seed, s.magnetometer.std, s.magnetometer.bias)
     return SensorSuite(period_ns, **parts) if parts else None
 
 
