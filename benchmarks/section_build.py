@@ -15,7 +15,7 @@ import time
 
 import yaml
 
-from adcs_msgs_py.params import flatten
+from adcs_msgs_py.params import Param, Schema, flatten
 from adcs_msgs_py.sections import _PLANS, section, section_type
 from adcs_sim.app.registry import NODES
 
@@ -48,6 +48,7 @@ def main() -> None:
     print(f'{"section":28s} {"params":>6s} {"type (ms)":>10s} {"validate (us)":>14s} {"section (us)":>13s} '
           f'{"ratio":>6s}')
     total_type = 0.0
+    section_type(Schema('warm_up', [Param('a.b', 'double', default=0.0)]))   # first-call costs apart
     for name, given in sorted(_sections().items()):
         schema = NODES[name].schema
         _PLANS.pop(id(schema), None)

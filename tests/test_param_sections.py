@@ -5,7 +5,6 @@ with a default of their own (the defaults live in the schemas only)."""
 from __future__ import annotations
 
 import ast
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +15,18 @@ from adcs_controllers.families import FAMILIES, MINNORM, PD, SNLC
 from adcs_controllers.laws.inverse_optimal import LGV, MinNormLaw
 from adcs_controllers.laws.underactuated import TWO_WHEEL_PARAMS, SnlcLaw
 from adcs_msgs_py.params import REQUIRED, Param, ParameterError, Schema, flatten
-from adcs_msgs_py.sections import Section, as_section, field_type, flat, section, section_type, validated
+from adcs_msgs_py.sections import (
+    Field,
+    FrozenSectionError,
+    Section,
+    as_section,
+    field_type,
+    fields,
+    flat,
+    section,
+    section_type,
+    validated,
+)
 from adcs_sim.app.registry import NODES
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -27,10 +37,10 @@ READERS = sorted([*(ROOT / 'adcs_controllers').rglob('*.py'),
                   ROOT / 'adcs_sim/truth/schema.py', ROOT / 'adcs_sim/truth/sensor_schema.py'])
 
 
-def _fields(cls: type, prefix: str = '') -> dict[str, dataclasses.Field]:
+def _fields(cls: type, prefix: str = '') -> dict[str, Field]:
     """Every leaf field of a generated section type, by its dotted name."""
     out = {}
-    for f in dataclasses.fields(cls):
+    for f in fields(cls):
         if isinstance(f.type, type) and issubclass(f.type, Section):
             out.update(_fields(f.type, f'{prefix}{f.name}.'))
         else:
@@ -47,7 +57,7 @@ def test_the_section_type_has_exactly_the_schema_parameters(node):
         f = fields[p.name]
         assert f.type == field_type(p), p.name
         if p.default is REQUIRED:
-            assert f.default is dataclasses.MISSING, p.name
+            assert f.default is REQUIRED, p.name
         else:
             expected = tuple(p.default) if isinstance(p.default, list) else p.default
             assert f.default == expected and type(f.default) is type(expected), p.name
@@ -75,12 +85,15 @@ def test_a_section_holds_the_validated_values_and_is_frozen():
     sec = section(PD.schema, values)
     assert flat(sec) == {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
     assert sec.kp == 0.5 and sec.wheels.names == ('a', 'b', 'c') and sec.target.attitude == (0.0, 0.0, 0.0, 1.0)
-    with pytest.raises(dataclasses.FrozenInstanceError):
+    with pytest.raises(FrozenSectionError, match='frozen'):
         sec.kp = 1.0
-    with pytest.raises(dataclasses.FrozenInstanceError):
+    with pytest.raises(FrozenSectionError, match='frozen'):
         sec.wheels.names = ('x',)
-    with pytest.raises((AttributeError, TypeError)):
-        object.__setattr__(sec, 'not_a_parameter', 1)
+    with pytest.raises(FrozenSectionError, match='frozen'):
+        del sec.kd
+    with pytest.raises(AttributeError):
+        object.__setattr__(sec, 'not_a_parameter', 1)   # no room for another attribute (slots)
+    assert sec == section(PD.schema, dict(values)) and sec != section(PD.schema, dict(values, kp=0.25))
     assert section(PD.schema, sec) is sec
 
 
