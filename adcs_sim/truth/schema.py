@@ -30,7 +30,7 @@ from adcs_msgs_py.blocks import (
     wheel_params,
 )
 from adcs_msgs_py.params import Param, ParameterError, Schema, all_positive, non_negative, positive
-from adcs_msgs_py.sections import Section, flat, section
+from adcs_msgs_py.sections import Section, as_section, flat
 from adcs_sim.truth.plant import Disturbance, Plant, ReactionWheels, Torquers
 from adcs_sim.truth.sensor_schema import check_sensors, sensor_params
 from adcs_sim.truth.thrusters import Thrusters
@@ -42,7 +42,7 @@ def step_timing(v: dict | Section) -> tuple[int, np.ndarray | int]:
     The one definition of the simulated time grid: step ``k`` starts at ``k * period_ns`` ns, on
     the graph and in the batch engine alike. A batched ``duration`` gives one count per run.
     """
-    v = section(DYNAMICS_SCHEMA, v)
+    v = as_section(v)
     period_ns = int(round(float(v.control_period) * 1e9))
     duration_ns = np.round(np.asarray(v.duration, dtype=float) * 1e9)
     n_steps = np.floor(duration_ns / period_ns + 1e-9).astype(np.int64)
@@ -235,13 +235,13 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
 def build_truth_environment(v: dict | Section) -> Environment | None:
     """The truth model's environment of a validated dynamics section (None unless
     ``environment.enabled``): what its sensors measure."""
-    v = section(DYNAMICS_SCHEMA, v)
+    v = as_section(v)
     return build_environment(flat(v.environment, 'environment.')) if v.environment.enabled else None
 
 
 def build_plant(v: dict | Section, warm: bool = True) -> Plant:
     """Plant from validated ``dynamics`` parameters (``warm``: as :class:`Plant`'s)."""
-    v = section(DYNAMICS_SCHEMA, v)
+    v = as_section(v)
     actuators = []
     wheels, thrusters = v.wheels, v.thrusters
     names = wheels.names
@@ -278,7 +278,7 @@ def initial_state(plant: Plant, v: dict | Section) -> np.ndarray:
     """The plant's state at t = 0. With ``initial.momentum`` (H, inertial axes) the wheels start at
     their ``initial_speed`` and the body carries the rest: ``J w0 = R(q0)^T H - sum_i a_i Js_i
     Omega0_i`` (total J, the plant's convention ``H = J w + sum_i a_i Js_i Omega_i``)."""
-    v = section(DYNAMICS_SCHEMA, v)
+    v = as_section(v)
     q = np.asarray(v.initial.attitude, dtype=float)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     H = np.asarray(v.initial.momentum, dtype=float)
