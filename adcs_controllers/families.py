@@ -23,14 +23,28 @@ from adcs_controllers.laws.allocation import (
     TorquerActuation,
     WheelActuation,
 )
-from adcs_controllers.laws.backstepping import BacksteppingLaw, ThrusterActuation, actuator_matrix, positive_null_vector
-from adcs_controllers.laws.inverse_optimal import DEFAULT_LGV, LGV_READINGS, GsmnLaw, KtLaw, MinNormLaw
+from adcs_controllers.laws.backstepping import (
+    ORBIT_REFERENCE_PARAMS,
+    BacksteppingLaw,
+    ThrusterActuation,
+    actuator_matrix,
+    positive_null_vector,
+)
+from adcs_controllers.laws.base import SHORTEST_PATH, TARGET_PARAMS
+from adcs_controllers.laws.inverse_optimal import LGV, GsmnLaw, KtLaw, MinNormLaw
 from adcs_controllers.laws.motion_to_rest import M2rLaw, actuation_matrix, check_m2r_gains
 from adcs_controllers.laws.motion_to_spin import M2sLaw
-from adcs_controllers.laws.pd import PdLaw
+from adcs_controllers.laws.pd import PD_SHORTEST_PATH, PdLaw
 from adcs_controllers.laws.reconfiguration import TwoWheelReconfiguration
-from adcs_controllers.laws.single_axis import PointingALaw, PointingBLaw, body_axis_angles, elevation
-from adcs_controllers.laws.underactuated import SnlcGsmnLaw, SnlcLaw, SnlcMinNormLaw, ZeroMomentumLaw
+from adcs_controllers.laws.single_axis import (
+    POINTING_A_PARAMS,
+    SOLUTION,
+    PointingALaw,
+    PointingBLaw,
+    body_axis_angles,
+    elevation,
+)
+from adcs_controllers.laws.underactuated import TWO_WHEEL_PARAMS, SnlcGsmnLaw, SnlcLaw, SnlcMinNormLaw, ZeroMomentumLaw
 from adcs_msgs_py.blocks import (
     check_per_wheel,
     check_thrusters,
@@ -44,6 +58,7 @@ from adcs_msgs_py.blocks import (
 )
 from adcs_msgs_py.names import ESTIMATE_STATE, STATE
 from adcs_msgs_py.params import Param, ParameterError, Schema, all_positive, non_negative, positive
+from adcs_msgs_py.sections import Section, section
 
 
 def _actuator_check(v: dict) -> None:
@@ -88,23 +103,9 @@ PD_SCHEMA = Schema('pd_controller', [
     inertia_param("the controller's inertia model (kg m^2): 3 principal moments or 9 entries"),
     Param('kp', 'double', check=non_negative, doc='proportional gain (1/s^2), multiplied by the inertia', batch=True),
     Param('kd', 'double', check=non_negative, doc='derivative gain (1/s), multiplied by the inertia', batch=True),
-    Param('target.attitude', 'double_array', default=[0.0, 0.0, 0.0, 1.0], length=4,
-          check=check_unit_quaternion, doc='commanded attitude [x, y, z, w]', batch=True),
-    Param('target.rate', 'double_array', default=[0.0, 0.0, 0.0], length=3, doc='commanded rate (rad/s)', batch=True),
-    Param('shortest_path', 'bool', default=False,
-          doc='flip q when q4 < 0 (not in seed 004 eq. 13, which is applied as printed by default)'),
+    *TARGET_PARAMS, PD_SHORTEST_PATH,
     *controller_params(),
 ], cross_check=_actuator_check, doc='quaternion PD benchmark law, seed 004 eq. (13)')
-
-
-def _target_params() -> list[Param]:
-    """The regulation target and the sign convention of the attitude error (every law has them)."""
-    return [
-        Param('target.attitude', 'double_array', default=[0.0, 0.0, 0.0, 1.0], length=4,
-              check=check_unit_quaternion, batch=True, doc='commanded attitude [x, y, z, w]'),
-        Param('target.rate', 'double_array', default=[0.0, 0.0, 0.0], length=3, batch=True,
-              doc='commanded rate (rad/s)'),
-    ]
 
 
 def _gain(name: str, doc: str) -> Param:
@@ -112,22 +113,12 @@ def _gain(name: str, doc: str) -> Param:
 
 
 _INERTIA_MODEL = "the controller's inertia model I (kg m^2): 3 principal moments or 9 entries"
-_SHORTEST = Param('shortest_path', 'bool', default=False,
-                  doc='flip q when q4 < 0 (not in seed 004, whose laws are applied as printed by default)')
-# The default is the reading the paper's own Table I numbers support (peaks to 4 digits, integrated torque
-# within 0.4 %); the printed text is (a) (docs/seed004_readings.md, "Eq. 14/17: the projection direction LgV").
-_LGV = Param('lgv', 'string', default=DEFAULT_LGV, choices=LGV_READINGS,
-             doc="projection direction of the min-norm torque: 'inertia_weighted' (default: Table I's numbers) "
-                 "LgV = (w + gamma q)^T, the exact LgV of V_I = c(1 - q4) + 1/2 w^T I w + gamma q^T I w; "
-                 "'printed' LgV = (w + gamma q)^T I^-1 with V of eq. (15), as the text prints it "
-                 "(docs/seed004_readings.md, eq. 17)")
-
 MINNORM_SCHEMA = Schema('minnorm_controller', [
     inertia_param(_INERTIA_MODEL),
     _gain('kp', 'PD gain of the reference torque u_PD = -kp I q - kd I w (1/s^2)'),
     _gain('kd', 'PD gain of the reference torque (1/s)'),
     _gain('gamma', 'cross-term weight of the Lyapunov function, eq. (15) (1/s)'),
-    *_target_params(), _SHORTEST, _LGV,
+    *TARGET_PARAMS, SHORTEST_PATH, LGV,
     *controller_params(),
 ], cross_check=_actuator_check, doc='standard minimum-norm law, seed 004 eq. (14) with V of eq. (15)')
 
@@ -140,7 +131,7 @@ GSMN_SCHEMA = Schema('gsmn_controller', [
     _gain('gamma', 'cross-term weight of the Lyapunov function, eq. (15) (1/s)'),
     Param('epsilon', 'double', check=positive, batch=True,
           doc='switching threshold on |u2|_inf (N m): high gains below it (eq. 17)'),
-    *_target_params(), _SHORTEST, _LGV,
+    *TARGET_PARAMS, SHORTEST_PATH, LGV,
     *controller_params(),
 ], cross_check=_actuator_check, doc='gain-scheduled minimum-norm law, seed 004 eq. (17)')
 
@@ -148,7 +139,7 @@ KT_SCHEMA = Schema('kt_controller', [
     inertia_param(_INERTIA_MODEL),
     _gain('k1', 'Krstic-Tsiotras gain k1 (1/s)'),
     _gain('k2', 'Krstic-Tsiotras gain k2 (1/s)'),
-    *_target_params(),
+    *TARGET_PARAMS,
     *controller_params(),
 ], cross_check=_actuator_check, doc='Krstic-Tsiotras inverse-optimal law, seed 004 eq. (18)')
 
@@ -176,18 +167,7 @@ def _two_wheel_params(*gains: Param) -> list[Param]:
     return [
         inertia_param("the controller's inertia model I (kg m^2), total (wheels locked)"),
         *gains,
-        Param('a1', 'double', default=float('inf'), check=positive, finite=False, batch=True,
-              doc='saturation of the singular term of eq. (8) on axis 1 (.inf: eq. 7)'),
-        Param('a2', 'double', default=float('inf'), check=positive, finite=False, batch=True,
-              doc='saturation of the singular term of eq. (8) on axis 2 (.inf: eq. 7)'),
-        Param('eps_den', 'double', default=0.0, check=non_negative, batch=True,
-              doc='the small constant added to q1^2 + q2^2 in eq. (7)/(8) (section IV.B.2; 0: none)'),
-        Param('scale_by_inertia', 'bool', default=False,
-              doc='eq. (14) as printed, I_i (-K_i (w_i - wd_i) + dwd_i/dt), instead of the eq. (31) '
-                  'form -K_i (w_i - wd_i) + I_i dwd_i/dt (docs/seed000_readings.md R3)'),
-        Param('unactuated_axis', 'string', default='z', choices=('x', 'y', 'z'),
-              doc="the body axis without a wheel, the law's axis 3 (UK-DMC: 'x'); follows the "
-                  'faults when two wheels are left'),
+        *TWO_WHEEL_PARAMS,
         Param('three_wheel.enabled', 'bool', default=False,
               doc='start with the three-wheel PD and switch to the two-wheel law when a wheel fails '
                   '(seed 000 VI.A); false: the two-wheel law from the start'),
@@ -198,7 +178,7 @@ def _two_wheel_params(*gains: Param) -> list[Param]:
         Param('three_wheel.target.attitude', 'double_array', default=[0.0, 0.0, 0.0, 1.0], length=4,
               check=check_unit_quaternion,
               doc='attitude [x, y, z, w] the three-wheel phase holds (the off-pointing of VI.A)'),
-        *_target_params(), _SHORTEST,
+        *TARGET_PARAMS, SHORTEST_PATH,
         *controller_params(),
     ]
 
@@ -254,7 +234,7 @@ def _inertia_free_check(v: dict) -> None:
     without momentum storage"); the torquer limit is the paper's u_max."""
     _require_actuation(v, TorquerActuation, 'the seed 001 laws command external torques (and need '
                        'torquers.enabled in the dynamics section)')
-    B = actuation_matrix(v)
+    B = actuation_matrix(v['B'])
     if B is not None and np.linalg.matrix_rank(B) != 3:
         raise ParameterError('B', f'the actuation matrix must be invertible (u = -B^-1(...)), got {v["B"]!r}')
 
@@ -266,7 +246,7 @@ def _m2r_check(v: dict) -> None:
     u_max = v['torquers.max_torque']
     if u_max != float('inf'):
         try:
-            check_m2r_gains(v['alpha'], v['beta'], u_max, actuation_matrix(v), v['proposition'])
+            check_m2r_gains(v['alpha'], v['beta'], u_max, actuation_matrix(v['B']), v['proposition'])
         except ValueError as exc:
             raise ParameterError('alpha', str(exc)) from None
 
@@ -281,7 +261,7 @@ def _inertia_free_params() -> list[Param]:
               doc='diag(A) of the attitude error S, eq. (13)'),
         Param('B', 'double_array', default=[], length=(0, 3, 9), batch=True,
               doc='actuation matrix B of eq. (1): 3 diagonal or 9 row-major values (empty: I)'),
-        *_target_params(),
+        *TARGET_PARAMS,
         *controller_params(),
     ]
 
@@ -370,9 +350,7 @@ def _pointing_params(*gains: Param) -> list[Param]:
               doc='target direction tau (normalised), inertial axes (the frame of the attitude)'),
         Param('momentum', 'double_array', length=3, check=_nonzero_vector,
               doc='total angular momentum H of the system in inertial axes (N m s): defines F_I (eq. 6)'),
-        Param('solution', 'int', default=0, check=lambda s: None if s in (0, 1, 2) else
-              f'must be 0 (the final attitude of eq. 16 nearer to the initial one), 1 or 2, got {s!r}',
-              doc='which final attitude of eq. (16): 1 (Psi*), 2 (pi - Psi*), 0 the nearer to q(0)'),
+        SOLUTION,
         _gain('K_p', 'gain K_p of eq. (22)/(33) (N m s/rad)'),
         _gain('K_h', 'gain K_h of eq. (20)/(32) (rad/(N m s))'),
         *gains,
@@ -384,17 +362,7 @@ def _pointing_params(*gains: Param) -> list[Param]:
 
 POINTING_A_SCHEMA = Schema('pointing_a_controller', [
     *_pointing_params(
-        Param('Q', 'double_array', default=[0.1, 100.0, 100.0, 100.0, 1.0], length=5, check=all_positive,
-              doc='LQR state weights on (e_Psi, w1, w2, w3, e_h) (section 5.3)'),
-        Param('R', 'double_array', default=[100.0, 100.0], length=2, check=all_positive,
-              doc='LQR control weights (section 5.3)'),
-        Param('eps_omega', 'double', default=0.01, check=positive,
-              doc='stage switch threshold on |w| (rad/s, section 3.3)'),
-        Param('eps_Phi', 'double', default=0.017453292519943295, check=positive,
-              doc='stage switch threshold on |e_Phi| (rad; 1 deg, section 3.3)'),
-        Param('momentum_state', 'string', default='auto', choices=('auto', 'h1', 'h2'),
-              doc="fifth LQR state e_h1 or e_h2 (dual state of section 3.1); auto: e_h1 iff "
-                  "|cos Phi_f| >= |sin Phi_f|")),
+        *POINTING_A_PARAMS),
 ], cross_check=_pointing_check,
     doc='seed 003 controller A: momentum stabilisation (eq. 20-22), then LQR on eq. (18)')
 
@@ -437,16 +405,8 @@ BACKSTEPPING_SCHEMA = Schema('backstepping_controller', [
     inertia_param(_INERTIA_MODEL),
     _gain('K1', 'backstepping gain K1 of eq. (29), alpha_1 = -K1 G z1 (rad/s)'),
     _gain('K2', 'backstepping gain K2 of eq. (32) (N m s)'),
-    *_target_params(),
-    Param('orbit.altitude', 'double', check=positive, doc='circular orbit altitude (m), as the dynamics'),
-    Param('orbit.inclination_deg', 'double', default=0.0, doc='deg, as the dynamics'),
-    Param('orbit.raan_deg', 'double', default=0.0, doc='deg, as the dynamics'),
-    Param('orbit.arg_latitude_deg', 'double', default=0.0, doc='argument of latitude at t = 0 (deg)'),
-    Param('reference.hold_time', 'double', default=0.0, check=non_negative, finite=False,
-          doc='target.attitude is the desired frame relative to the orbit frame, tracked until this '
-              'time (s) and then held inertially (section 4.2: 0); .inf: tracked for ever'),
-    Param('gravity_gradient_compensation', 'bool', default=True,
-          doc='subtract the modelled gravity-gradient torque of eq. (19) in eq. (32)'),
+    *TARGET_PARAMS,
+    *ORBIT_REFERENCE_PARAMS,
     Param('control_period', 'double', check=positive,
           doc='control period (s), as the dynamics: a firing lasts one period'),
     *thruster_params(with_physics=False),
@@ -507,19 +467,26 @@ class ControllerFamily:
         """The node's module (``python -m`` target, ``setup.py`` entry point)."""
         return f'adcs_controllers.nodes.{self.schema.node}'
 
-    def actuation_class(self, p: dict) -> type[Actuation]:
-        """The class of a validated section's actuation (its commands, topics, fault following)."""
-        return self.actuation or ACTUATION_KINDS[p['actuator']]
+    def section(self, p: dict | Section) -> Section:
+        """A validated (or stacked) section as its typed section (:mod:`adcs_msgs_py.sections`)."""
+        return section(self.schema, p)
 
-    def build(self, p: dict) -> tuple[Any, Any]:
-        """``(law, actuation)`` from a validated section: what the node and the batch engine run."""
-        return self.law(p), self.actuation_class(p)(p)
+    def actuation_class(self, p: dict | Section) -> type[Actuation]:
+        """The class of a validated section's actuation (its commands, topics, fault following)."""
+        return self.actuation or ACTUATION_KINDS[self.section(p).actuator]
+
+    def build(self, p: dict | Section) -> tuple[Any, Any]:
+        """``(law, actuation)`` from a validated (or stacked) section, read as its typed section:
+        what the node and the batch engine run."""
+        sec = self.section(p)
+        return self.law(sec), self.actuation_class(sec)(sec)
 
 
 def _pointing(law_class):
     """Seed 003's laws from a validated section: the section's ``momentum`` is the law's ``H``."""
-    def build(p: dict):
-        return law_class({**p, 'H': p['momentum']})
+    def build(p):
+        p = law_class.section(p)
+        return law_class(p, H=p.momentum)
     build.__name__ = f'{law_class.__name__}_from_section'
     return build
 

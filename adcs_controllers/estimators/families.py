@@ -42,6 +42,7 @@ from adcs_core.environment.environment import build_environment
 from adcs_msgs_py.blocks import check_environment, check_unit_quaternion, environment_params, startup_params
 from adcs_msgs_py.measurements import SENSORS, Estimate, Measurements
 from adcs_msgs_py.params import Param, ParameterError, Schema, positive, vectorised
+from adcs_msgs_py.sections import Section, as_section, flat, section
 from adcs_msgs_py.sensor_interfaces import BY_NAME, SENSOR_INTERFACES
 
 NS_PER_S = 1_000_000_000
@@ -195,26 +196,27 @@ QUEST_SCHEMA = Schema('quest_estimator', [
                                         'magnetometer vectors, Markley & Crassidis 2014 ch. 5) with the gyro rate')
 
 
-def _measurement_variances(p: dict) -> list[tuple[str, float, str]]:
-    """(key, variance (rad^2), what) of each measurement the section's filter updates with."""
+def _measurement_variances(p: Section) -> list[tuple[str, float, str]]:
+    """(key, variance (rad^2), what) of each measurement the section's filter updates with (the
+    star tracker only where the schema has it: the MEKF's)."""
     out = []
-    if 'star_tracker' in p['sensors'] and 'star_tracker.sigma' in p:
-        out.append(('star_tracker.sigma', float(np.min(p['star_tracker.sigma'])) ** 2, 'the star tracker'))
-    for name in (n for n in VECTOR_SENSORS if n in p['sensors']):
+    if 'star_tracker' in p.sensors and hasattr(p, 'star_tracker'):
+        out.append(('star_tracker.sigma', float(np.min(p.star_tracker.sigma)) ** 2, 'the star tracker'))
+    for name in (n for n in VECTOR_SENSORS if n in p.sensors):
         s = BY_NAME[name]
+        sigma = float(getattr(p, name).sigma)
         if s.measures == 'direction':
-            out.append((f'{name}.sigma', float(p[f'{name}.sigma']) ** 2, f'the {s.label}'))
+            out.append((f'{name}.sigma', sigma ** 2, f'the {s.label}'))
             continue
-        constant = p['references.model'] == 'constant'   # a field noise in T, a direction noise of sigma / |B|
+        constant = p.references.model == 'constant'   # a field noise in T, a direction noise of sigma / |B|
         ref = f'references.{s.reference}'
-        field = float(np.linalg.norm(p[ref])) if constant else EARTH_FIELD_MAX
+        field = float(np.linalg.norm(getattr(p.references, s.reference))) if constant else EARTH_FIELD_MAX
         key = ref if constant and field > MAX_FIELD_SIGMA else f'{name}.sigma'
-        out.append((key, (float(p[f'{name}.sigma']) / field) ** 2,
-                    f'the {s.label} (direction noise {name}.sigma / {field:.3g} T)'))
+        out.append((key, (sigma / field) ** 2, f'the {s.label} (direction noise {name}.sigma / {field:.3g} T)'))
     return out
 
 
-def covariance_problem(p: dict, period: float) -> tuple[str, str] | None:
+def covariance_problem(p: dict | Section, period: float) -> tuple[str, str] | None:
     """Whether a validated estimator section's filter can do its arithmetic at the start of a run with
     control period ``period`` (s), else ``(key, why)`` (None: it can).
 
@@ -225,6 +227,7 @@ def covariance_problem(p: dict, period: float) -> tuple[str, str] | None:
     prior, and one period of propagation: sigma_v^2 dt + sigma_u^2 dt^3 / 3 + the bias prior's
     sigma_b^2 dt^2). The single-frame solution weighs the two vectors by 1 / R: cond ~ R_max / R_min.
     Either must stay within MAX_CONDITION."""
+    p = as_section(p)
     with np.errstate(all='ignore'):
         measured = _measurement_variances(p)
         for key, r, what in measured:
@@ -232,11 +235,11 @@ def covariance_problem(p: dict, period: float) -> tuple[str, str] | None:
                 return key, (f'{what}: variance {r:.3g} rad^2 is not a normal double: the filter '
                              'could not invert its innovation covariance')
         dt = float(period)
-        sources = {'initial.attitude_sigma': float(np.max(p['initial.attitude_sigma'])) ** 2,
-                   'gyro.sigma_v': float(p['gyro.sigma_v']) ** 2 * dt}
-        if 'gyro.sigma_u' in p:   # the MEKF: bias states
-            sources['gyro.sigma_u'] = float(p['gyro.sigma_u']) ** 2 * dt ** 3 / 3.0
-            sources['initial.bias_sigma'] = float(np.max(p['initial.bias_sigma'])) ** 2 * dt ** 2
+        sources = {'initial.attitude_sigma': float(np.max(p.initial.attitude_sigma)) ** 2,
+                   'gyro.sigma_v': float(p.gyro.sigma_v) ** 2 * dt}
+        if hasattr(p.gyro, 'sigma_u'):   # the MEKF's schema: bias states
+            sources['gyro.sigma_u'] = float(p.gyro.sigma_u) ** 2 * dt ** 3 / 3.0
+            sources['initial.bias_sigma'] = float(np.max(p.initial.bias_sigma)) ** 2 * dt ** 2
             attitude = sum(sources.values())
             for key, r, what in measured:
                 cond = (attitude + r) / r
@@ -257,11 +260,11 @@ def covariance_problem(p: dict, period: float) -> tuple[str, str] | None:
 
 # --- shared machinery ------------------------------------------------------------------------------
 
-def environment_references(p: dict) -> References:
+def environment_references(p: Section) -> References:
     """The onboard reference models of the section's ``environment.*``: the Sun direction and the field
     (T) in inertial axes at ``t_ns`` (:class:`adcs_core.environment.environment.Environment`; flight
     software's own copy of the models, which may differ from the truth model's by its parameters)."""
-    env = build_environment(p)
+    env = build_environment(flat(p.environment, 'environment.'))
 
     def references(t_ns: int) -> dict:
         sample = env.sample(t_ns / NS_PER_S)
@@ -269,14 +272,14 @@ def environment_references(p: dict) -> References:
     return references
 
 
-def default_references(p: dict) -> References:
+def default_references(p: Section) -> References:
     """The references a section asks for (``references.model``)."""
-    return environment_references(p) if p['references.model'] == 'environment' else constant_references(p)
+    return environment_references(p) if p.references.model == 'environment' else constant_references(p)
 
 
-def constant_references(p: dict) -> References:
+def constant_references(p: Section) -> References:
     """The section's constant ``references.*`` vectors as a references callable."""
-    refs = {key: np.asarray(p[f'references.{key}'], dtype=float) for key in REFERENCES}
+    refs = {key: np.asarray(getattr(p.references, key), dtype=float) for key in REFERENCES}
     return lambda t_ns: refs  # noqa: ARG005
 
 
@@ -302,13 +305,14 @@ def _placeholder(value, ok: np.ndarray, fill: np.ndarray) -> np.ndarray:
 class _Base:
     """Time keeping, the gyro sample of the previous step and the per-sensor counters."""
 
-    def __init__(self, p: dict, references: References | None) -> None:
-        self.sensors = tuple(p['sensors'])
+    def __init__(self, p: Section, references: References | None) -> None:
+        p = as_section(p)
+        self.sensors = tuple(p.sensors)
         self.references = references or default_references(p)
-        self.sigma_v = np.asarray(p['gyro.sigma_v'], dtype=float)
-        self.average = p['gyro.propagation'] == 'average'
-        self.sigma_dir = {name: np.asarray(p[f'{name}.sigma'], dtype=float) for name in VECTOR_SENSORS
-                          if f'{name}.sigma' in p}
+        self.sigma_v = np.asarray(p.gyro.sigma_v, dtype=float)
+        self.average = p.gyro.propagation == 'average'
+        self.sigma_dir = {name: np.asarray(getattr(p, name).sigma, dtype=float) for name in VECTOR_SENSORS
+                          if hasattr(getattr(p, name, None), 'sigma')}
         self.t_ns: int | None = None
         self.rate = None          # the last valid gyro sample (what propagates the next interval)
         self.dt = 0.0             # the interval just propagated (s)
@@ -385,17 +389,18 @@ class MekfEstimator(_Base):
     """The MEKF as an estimator family (see the module doc). State ``q`` (..., 4), ``beta`` (..., 3),
     ``P`` (..., 6, 6); batch shape from the first step's readings."""
 
-    def __init__(self, p: dict, references: References | None = None) -> None:
+    def __init__(self, p: Section, references: References | None = None) -> None:
+        p = as_section(p)
         super().__init__(p, references)
-        self.sigma_u = np.asarray(p['gyro.sigma_u'], dtype=float)
-        s_st = np.asarray(p['star_tracker.sigma'], dtype=float)
+        self.sigma_u = np.asarray(p.gyro.sigma_u, dtype=float)
+        s_st = np.asarray(p.star_tracker.sigma, dtype=float)
         self.R_st = s_st[..., :, None] ** 2 * np.eye(3)
-        self.gate = float(p['gate.nis'])
-        q0 = np.asarray(p['initial.attitude'], dtype=float)
+        self.gate = float(p.gate.nis)
+        q0 = np.asarray(p.initial.attitude, dtype=float)
         self.q = q0 / quat_norm(q0)[..., None]
-        self.beta = np.asarray(p['initial.bias'], dtype=float)
-        var = np.concatenate(np.broadcast_arrays(np.asarray(p['initial.attitude_sigma'], dtype=float),
-                                                 np.asarray(p['initial.bias_sigma'], dtype=float)), axis=-1) ** 2
+        self.beta = np.asarray(p.initial.bias, dtype=float)
+        var = np.concatenate(np.broadcast_arrays(np.asarray(p.initial.attitude_sigma, dtype=float),
+                                                 np.asarray(p.initial.bias_sigma, dtype=float)), axis=-1) ** 2
         self.P = var[..., :, None] * np.eye(6)
 
     def _start(self, shape) -> None:
@@ -474,13 +479,14 @@ class SingleFrameEstimator(_Base):
     minus its known bias (see the module doc). ``cov``: the QUEST covariance in its attitude block,
     zeros elsewhere (no bias state)."""
 
-    def __init__(self, p: dict, references: References | None = None) -> None:
+    def __init__(self, p: Section, references: References | None = None) -> None:
+        p = as_section(p)
         super().__init__(p, references)
-        self.method = p['method']
-        self.bias = np.asarray(p['gyro.bias'], dtype=float)
-        q0 = np.asarray(p['initial.attitude'], dtype=float)
+        self.method = p.method
+        self.bias = np.asarray(p.gyro.bias, dtype=float)
+        q0 = np.asarray(p.initial.attitude, dtype=float)
         self.q = q0 / quat_norm(q0)[..., None]
-        self.P = np.asarray(p['initial.attitude_sigma'], dtype=float)[..., :, None] ** 2 * np.eye(3)
+        self.P = np.asarray(p.initial.attitude_sigma, dtype=float)[..., :, None] ** 2 * np.eye(3)
 
     def _solve(self, b: np.ndarray, r: np.ndarray, w: np.ndarray) -> np.ndarray:
         if self.method == 'triad':
@@ -549,9 +555,14 @@ class EstimatorFamily:
     def module(self) -> str:
         return f'adcs_controllers.nodes.{self.schema.node}'
 
-    def build(self, p: dict, references: References | None = None):
-        """The estimator of a validated section: what the node and the batch engine run."""
-        return self.estimator(p, references)
+    def section(self, p: dict | Section) -> Section:
+        """A validated (or stacked) section as its typed section (:mod:`adcs_msgs_py.sections`)."""
+        return section(self.schema, p)
+
+    def build(self, p: dict | Section, references: References | None = None):
+        """The estimator of a validated (or stacked) section, read as its typed section: what the node
+        and the batch engine run."""
+        return self.estimator(self.section(p), references)
 
 
 MEKF = EstimatorFamily(MEKF_SCHEMA, MekfEstimator)

@@ -18,6 +18,7 @@ from adcs_core.faults import FAULT_UNUSABLE_MODES, NOMINAL
 from adcs_msgs_py.blocks import check_wheels
 from adcs_msgs_py.names import TORQUE_CMD, WHEELS_CMD
 from adcs_msgs_py.params import ParameterError
+from adcs_msgs_py.sections import Section, as_section
 
 
 def wheel_allocation_matrix(axes: np.ndarray, available: np.ndarray | None = None) -> np.ndarray:
@@ -75,6 +76,11 @@ class Actuation:
     wheel_names: list[str] = []
     #: the topics its commands go out on (:meth:`command_messages`)
     command_topics: tuple[str, ...] = ()
+
+    @staticmethod
+    def section(p: dict | Section) -> Section:
+        """``p`` as a typed section (a plain ``{dotted.name: value}`` dict: a section of its keys)."""
+        return as_section(p)
 
     @staticmethod
     def check_section(v: dict) -> None:
@@ -147,16 +153,20 @@ class WheelActuation(Actuation):
     plant_actuators = ('wheels',)
     command_topics = (WHEELS_CMD,)
 
-    def __init__(self, p: dict) -> None:
-        self.saturation = p['saturation']
-        names = p['wheels.names']
+    def __init__(self, p) -> None:
+        p = self.section(p)
+        self.saturation = p.saturation
+        wheels = p.wheels
+        names = wheels.names
         self.wheel_names = list(names)
-        self.axes = np.asarray(p['wheels.axes'], dtype=float).reshape(len(names), 3)
+        self.axes = np.asarray(wheels.axes, dtype=float).reshape(len(names), 3)
         self.axes = self.axes / np.linalg.norm(self.axes, axis=1, keepdims=True)
-        self.limit = np.asarray(p['wheels.max_torque'], dtype=float)
-        spin = p.get('wheels.spin_inertia', [])
+        self.limit = np.asarray(wheels.max_torque, dtype=float)
+        # Only the sections of laws that command momentum have the spin inertia and bias speed
+        # (their schemas: empty by default, as here: no spin inertia, no bias).
+        spin = wheels.spin_inertia if hasattr(wheels, 'spin_inertia') else ()
         self.spin_inertia = np.asarray(spin, dtype=float) if len(spin) else None
-        bias = p.get('wheels.bias_speed', [])
+        bias = wheels.bias_speed if hasattr(wheels, 'bias_speed') else ()
         self.bias_speed = np.asarray(bias, dtype=float) if len(bias) else np.zeros(len(names))
         self.set_available(np.ones(len(names), dtype=bool))
 
@@ -235,9 +245,10 @@ class TorquerActuation(Actuation):
     plant_actuators = ('torquers',)
     command_topics = (TORQUE_CMD,)
 
-    def __init__(self, p: dict) -> None:
-        self.saturation = p['saturation']
-        self.limit = np.asarray(p['torquers.max_torque'], dtype=float)[..., None] * np.ones(3)
+    def __init__(self, p) -> None:
+        p = self.section(p)
+        self.saturation = p.saturation
+        self.limit = np.asarray(p.torquers.max_torque, dtype=float)[..., None] * np.ones(3)
 
     def command(self, torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(torquer torques, the same body torque) for desired body torque ``torque`` (..., 3)."""

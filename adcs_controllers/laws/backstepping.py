@@ -64,7 +64,7 @@ import math
 import numpy as np
 
 from adcs_controllers.laws.allocation import Actuation
-from adcs_controllers.laws.base import SectionLaw
+from adcs_controllers.laws.base import TARGET_PARAMS, SectionLaw
 from adcs_core.attitude import (
     cross,
     dot,
@@ -78,6 +78,7 @@ from adcs_core.attitude import (
 )
 from adcs_core.orbit import CircularOrbit, orbit_frame_attitude, orbit_rate
 from adcs_msgs_py.names import THRUSTERS_CMD, WHEELS_CMD
+from adcs_msgs_py.params import Param, non_negative, positive
 
 __all__ = [
     'MODE_TRACKING', 'eseo_thruster_layout', 'eseo_actuator_matrix', 'actuator_matrix',
@@ -419,6 +420,20 @@ class ThrusterWheelAllocation:
         return on_time, tau_m, {'u': u, 'demand': demand, 'fire': fire, 'wheel_free': free}
 
 
+# The orbit and reference parameters of the law (its schema lists these very objects).
+ORBIT_REFERENCE_PARAMS = (
+    Param('orbit.altitude', 'double', check=positive, doc='circular orbit altitude (m), as the dynamics'),
+    Param('orbit.inclination_deg', 'double', default=0.0, doc='deg, as the dynamics'),
+    Param('orbit.raan_deg', 'double', default=0.0, doc='deg, as the dynamics'),
+    Param('orbit.arg_latitude_deg', 'double', default=0.0, doc='argument of latitude at t = 0 (deg)'),
+    Param('reference.hold_time', 'double', default=0.0, check=non_negative, finite=False,
+          doc='target.attitude is the desired frame relative to the orbit frame, tracked until this '
+              'time (s) and then held inertially (section 4.2: 0); .inf: tracked for ever'),
+    Param('gravity_gradient_compensation', 'bool', default=True,
+          doc='subtract the modelled gravity-gradient torque of eq. (19) in eq. (32)'),
+)
+
+
 # --- bound to a validated controller section ------------------------------------------------------
 
 class BacksteppingLaw(SectionLaw):
@@ -432,18 +447,21 @@ class BacksteppingLaw(SectionLaw):
     ``target.rate`` is not used (the reference gives ω_d)."""
 
     mode_names = {MODE_TRACKING: 'tracking'}
+    params = (*TARGET_PARAMS, *ORBIT_REFERENCE_PARAMS)
 
-    def __init__(self, p: dict) -> None:
+    def __init__(self, p) -> None:
+        p = self.section(p)
         super().__init__(p)
-        self.K1, self.K2 = p['K1'], p['K2']
-        self.orbit = CircularOrbit(altitude=float(p['orbit.altitude']),
-                                   inclination=math.radians(p.get('orbit.inclination_deg', 0.0)),
-                                   raan=math.radians(p.get('orbit.raan_deg', 0.0)),
-                                   arg_latitude0=math.radians(p.get('orbit.arg_latitude_deg', 0.0)))
-        hold = p.get('reference.hold_time', 0.0)
+        self.K1, self.K2 = p.K1, p.K2
+        orbit = p.orbit
+        self.orbit = CircularOrbit(altitude=float(orbit.altitude),
+                                   inclination=math.radians(orbit.inclination_deg),
+                                   raan=math.radians(orbit.raan_deg),
+                                   arg_latitude0=math.radians(orbit.arg_latitude_deg))
+        hold = p.reference.hold_time
         hold = None if hold is None or math.isinf(hold) else float(hold)
         self.reference = OrbitReference(self.orbit, self.q_ref, hold)
-        self.compensate_gg = bool(p.get('gravity_gradient_compensation', True))
+        self.compensate_gg = bool(p.gravity_gradient_compensation)
 
     def control(self, t, q, w):
         q_d, w_d, w_d_dot = self.reference(t)
@@ -484,25 +502,27 @@ class ThrusterActuation(Actuation):
     plant_actuators = ('thrusters', 'wheels')
     command_topics = (THRUSTERS_CMD, WHEELS_CMD)
 
-    def __init__(self, p: dict) -> None:
-        n = len(p['thrusters.names'])
-        self.thruster_names = list(p['thrusters.names'])
-        self.wheel_names = list(p['wheels.names'])
+    def __init__(self, p) -> None:
+        p = self.section(p)
+        thrusters, wheels = p.thrusters, p.wheels
+        n = len(thrusters.names)
+        self.thruster_names = list(thrusters.names)
+        self.wheel_names = list(wheels.names)
         self.firings = 0   # thruster-periods fired so far (the node's status: actuate)
-        axis = np.asarray(p['wheels.axes'], dtype=float)
-        on = np.asarray(p['firing.on_level'], dtype=float)
-        off = np.asarray(p['firing.off_level'], dtype=float)
+        axis = np.asarray(wheels.axes, dtype=float)
+        on = np.asarray(p.firing.on_level, dtype=float)
+        off = np.asarray(p.firing.off_level, dtype=float)
         same = bool(np.array_equal(on, off))
         # per run when either is (one dispersed, the other shared): against each run's (..., n) demands
         on, off = (on[..., None], off[..., None]) if on.ndim or off.ndim else (float(on), float(off))
         self.allocation = ThrusterWheelAllocation(
-            _geometry(p['thrusters.positions'], n), _geometry(p['thrusters.directions'], n),
-            np.asarray(p['thrusters.max_force'], dtype=float),
-            wheel_axis=axis / np.linalg.norm(axis), wheel_inertia=p['wheels.spin_inertia'][0],
-            wheel_max_torque=p['wheels.max_torque'][0], wheel_max_speed=p['wheels.max_speed'][0],
-            mapping=p['allocation.mapping'], on_level=on, off_level=None if same else off,
-            period=p['control_period'],
-            reallocate_saturated_wheel=p['allocation.reallocate_saturated_wheel'])
+            _geometry(thrusters.positions, n), _geometry(thrusters.directions, n),
+            np.asarray(thrusters.max_force, dtype=float),
+            wheel_axis=axis / np.linalg.norm(axis), wheel_inertia=wheels.spin_inertia[0],
+            wheel_max_torque=wheels.max_torque[0], wheel_max_speed=wheels.max_speed[0],
+            mapping=p.allocation.mapping, on_level=on, off_level=None if same else off,
+            period=p.control_period,
+            reallocate_saturated_wheel=p.allocation.reallocate_saturated_wheel)
 
     def command(self, tau, w, wheel_speed):
         """``(on_time (..., n), wheel motor torques (..., 1), info)`` (see

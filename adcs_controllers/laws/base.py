@@ -1,9 +1,36 @@
 """What every section-bound law object shares (pure; no rclpy)."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from adcs_core.inertia import inertia_matrix
+from adcs_msgs_py.blocks import check_unit_quaternion
+from adcs_msgs_py.params import Param
+from adcs_msgs_py.sections import Section, as_section
+
+
+def target_params() -> list[Param]:
+    """The regulation target (every law with a target attitude has them)."""
+    return [
+        Param('target.attitude', 'double_array', default=[0.0, 0.0, 0.0, 1.0], length=4,
+              check=check_unit_quaternion, batch=True, doc='commanded attitude [x, y, z, w]'),
+        Param('target.rate', 'double_array', default=[0.0, 0.0, 0.0], length=3, batch=True,
+              doc='commanded rate (rad/s)'),
+    ]
+
+
+TARGET_PARAMS = tuple(target_params())
+
+# The sign convention of the attitude error (the laws of seed 004 and seed 000 have it).
+SHORTEST_PATH = Param('shortest_path', 'bool', default=False,
+                      doc='flip q when q4 < 0 (not in seed 004, whose laws are applied as printed by default)')
+
+
+def shortest_path_param(doc: str) -> Param:
+    """:data:`SHORTEST_PATH` with another description (its default stays declared once)."""
+    return dataclasses.replace(SHORTEST_PATH, doc=doc)
 
 
 class SectionLaw:
@@ -19,13 +46,27 @@ class SectionLaw:
 
     mode_names: dict[int, str] = {}
     output: str = 'torque'
+    # The optional parameters the law reads: the very Param objects its schema lists, so that a law
+    # built from a plain dict (a test, a script) gets the schema's default (:meth:`section`).
+    params: tuple[Param, ...] = TARGET_PARAMS
+    targeted: bool = True   # the section has ``target.*`` (the pointing laws point an axis instead)
 
-    def __init__(self, p: dict) -> None:
-        self.inertia = inertia_matrix(p['inertia'])
-        q_ref = np.asarray(p['target.attitude'], dtype=float)
+    @classmethod
+    def section(cls, p: dict | Section) -> Section:
+        """``p`` as a typed section: as it is when the family built it from the schema
+        (:func:`adcs_msgs_py.sections.section`), or a plain ``{dotted.name: value}`` dict with the
+        schema defaults of :attr:`params` it lacks."""
+        return as_section(p, cls.params)
+
+    def __init__(self, p: dict | Section) -> None:
+        p = self.section(p)
+        self.inertia = inertia_matrix(p.inertia)
+        if not self.targeted:   # no target attitude: the identity, at rest
+            self.q_ref, self.w_ref = np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3)
+            return
+        q_ref = np.asarray(p.target.attitude, dtype=float)
         self.q_ref = q_ref / np.linalg.norm(q_ref, axis=-1, keepdims=True)
-        self.w_ref = np.asarray(p['target.rate'], dtype=float)
-        self.shortest_path = bool(p.get('shortest_path', False))
+        self.w_ref = np.asarray(p.target.rate, dtype=float)
 
     def control(self, t: float, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, dict]:
         raise NotImplementedError

@@ -83,9 +83,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from adcs_controllers.laws.base import SectionLaw
+from adcs_controllers.laws.base import SHORTEST_PATH, TARGET_PARAMS, SectionLaw
 from adcs_controllers.laws.pd import pd_torque
 from adcs_core.attitude import cross, dot, error_quaternion, gain_vector, matvec, transpose
+from adcs_msgs_py.params import Param
 
 __all__ = [
     'MODE_LOW_GAIN', 'MODE_ZERO_TORQUE', 'MODE_HIGH_GAIN', 'MODE_MIN_NORM', 'MODE_CONTINUOUS', 'LGV_READINGS',
@@ -106,6 +107,14 @@ LGV_READINGS = ('printed', 'inertia_weighted')
 # The section laws' default (the node schemas' too): the reading Table I's numbers support. The pure
 # functions below keep lgv='printed' as their default, the paper's text.
 DEFAULT_LGV = 'inertia_weighted'
+
+# The default is the reading the paper's own Table I numbers support (peaks to 4 digits, integrated torque
+# within 0.4 %); the printed text is (a) (docs/seed004_readings.md, "Eq. 14/17: the projection direction LgV").
+LGV = Param('lgv', 'string', default=DEFAULT_LGV, choices=LGV_READINGS,
+            doc="projection direction of the min-norm torque: 'inertia_weighted' (default: Table I's numbers) "
+                "LgV = (w + gamma q)^T, the exact LgV of V_I = c(1 - q4) + 1/2 w^T I w + gamma q^T I w; "
+                "'printed' LgV = (w + gamma q)^T I^-1 with V of eq. (15), as the text prints it "
+                "(docs/seed004_readings.md, eq. 17)")
 
 
 # --- helpers -------------------------------------------------------------------------------------
@@ -359,6 +368,7 @@ class _BoundLaw(SectionLaw):
     """The section-bound laws of this module publish their mode codes by name."""
 
     mode_names = MODE_NAMES
+    params = (*TARGET_PARAMS, SHORTEST_PATH, LGV)
 
 
 class MinNormLaw(_BoundLaw):
@@ -366,8 +376,10 @@ class MinNormLaw(_BoundLaw):
 
     def __init__(self, p: dict) -> None:
         super().__init__(p)
-        self.kp, self.kd, self.gamma = p['kp'], p['kd'], p['gamma']
-        self.lgv = p.get('lgv', DEFAULT_LGV)
+        p = self.section(p)
+        self.kp, self.kd, self.gamma = p.kp, p.kd, p.gamma
+        self.lgv = p.lgv
+        self.shortest_path = p.shortest_path
 
     def control(self, t: float, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, dict]:
         return min_norm_torque(q, w, self.inertia, self.kp, self.kd, self.gamma, q_ref=self.q_ref,
@@ -379,9 +391,11 @@ class GsmnLaw(_BoundLaw):
 
     def __init__(self, p: dict) -> None:
         super().__init__(p)
-        self.gains = tuple(p[k] for k in ('kp1', 'kd1', 'kp2', 'kd2', 'gamma'))
-        self.epsilon = p['epsilon']
-        self.lgv = p.get('lgv', DEFAULT_LGV)
+        p = self.section(p)
+        self.gains = (p.kp1, p.kd1, p.kp2, p.kd2, p.gamma)
+        self.epsilon = p.epsilon
+        self.lgv = p.lgv
+        self.shortest_path = p.shortest_path
 
     def control(self, t: float, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, dict]:
         return gsmn_torque(q, w, self.inertia, *self.gains, epsilon=self.epsilon, q_ref=self.q_ref,
@@ -393,7 +407,8 @@ class KtLaw(_BoundLaw):
 
     def __init__(self, p: dict) -> None:
         super().__init__(p)
-        self.k1, self.k2 = p['k1'], p['k2']
+        p = self.section(p)
+        self.k1, self.k2 = p.k1, p.k2
 
     def control(self, t: float, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, dict]:
         return kt_torque(q, w, self.inertia, self.k1, self.k2, q_ref=self.q_ref, w_ref=self.w_ref)

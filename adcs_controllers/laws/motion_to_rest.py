@@ -205,20 +205,19 @@ def check_m2r_gains(alpha, beta, u_max, B=None, proposition: int = 1) -> None:
 
 # --- the section keys shared by M2R and M2S ------------------------------------------------------
 
-def given(p, key):
-    """``p[key]``, or None when it is empty (a params file's ``[]``: the meaning the schema gives an
-    empty value, e.g. B = I). A validated section has every key: a missing one is a KeyError (the
-    schema, :mod:`adcs_controllers.families`, is the one source of defaults)."""
-    v = p[key]
+def given(v):
+    """A parameter's value ``v``, or None when it is empty (a params file's ``[]``: the meaning the
+    schema gives an empty value, e.g. B = I). A typed section has every parameter (the schema,
+    :mod:`adcs_controllers.families`, is the one source of defaults)."""
     return None if v is None or np.size(v) == 0 else v
 
 
-def matrix_param(p, key, default):
+def matrix_param(value, key, default):
     """An n x n gain from a section: empty -> ``default`` (n x n), a scalar (times ``default``),
     n diagonal values, or n² row-major values; the values on the last axis, any leading axes a
     batch (one gain per run, as :meth:`Schema.stack` gives a dispersed key): (..., n, n). A
     (3, 3) array is three runs' diagonals, not one matrix (a matrix is its 9 values)."""
-    v = given(p, key)
+    v = given(value)
     if v is None:
         return default
     v = np.asarray(v, dtype=float)
@@ -236,10 +235,10 @@ def matrix_param(p, key, default):
     raise ValueError(f'{key} must be a scalar, {n} diagonal or {n * n} row-major values, got shape {v.shape}')
 
 
-def actuation_matrix(p) -> np.ndarray | None:
-    """B of eq. (1) from a section's ``B`` (3 diagonal or 9 row-major values), None when empty
-    (B = I)."""
-    return None if given(p, 'B') is None else matrix_param(p, 'B', np.eye(3))
+def actuation_matrix(B) -> np.ndarray | None:
+    """B of eq. (1) from a section's ``B`` value (3 diagonal or 9 row-major values), None when
+    empty (B = I)."""
+    return None if given(B) is None else matrix_param(B, 'B', np.eye(3))
 
 
 class InertiaFreeLaw(SectionLaw):
@@ -254,21 +253,22 @@ class InertiaFreeLaw(SectionLaw):
 
     mode_names = MODE_NAMES
 
-    def __init__(self, p: dict) -> None:
+    def __init__(self, p) -> None:
+        p = self.section(p)
         super().__init__(p)
-        self.a = np.asarray(p['A'], dtype=float)
+        self.a = np.asarray(p.A, dtype=float)
         if self.a.shape[-1:] != (3,) or not np.all(self.a > 0) or np.any(
                 (self.a[..., 0] == self.a[..., 1]) | (self.a[..., 1] == self.a[..., 2])
                 | (self.a[..., 0] == self.a[..., 2])):
             raise ValueError(f'A must be 3 distinct positive diagonal entries (eq. 13), got {self.a.tolist()}')
-        self.alpha = np.asarray(p['alpha'], dtype=float)
-        self.beta = np.asarray(p['beta'], dtype=float)
-        self.B = actuation_matrix(p)
+        self.alpha = np.asarray(p.alpha, dtype=float)
+        self.beta = np.asarray(p.beta, dtype=float)
+        self.B = actuation_matrix(p.B)
         self.B_inv = None if self.B is None else np.linalg.inv(self.B)
-        if 'u_max' in p:
-            self.u_max = np.asarray(p['u_max'], dtype=float)
+        if hasattr(p, 'u_max'):   # a pure-law caller's own limit (not a schema parameter)
+            self.u_max = np.asarray(p.u_max, dtype=float)
         else:  # the section's scalar torquer limit (one per run in a batch): per axis, (..., 1)
-            self.u_max = np.asarray(p['torquers.max_torque'], dtype=float)[..., None]
+            self.u_max = np.asarray(p.torquers.max_torque, dtype=float)[..., None]
         self.R_d0 = rotation_from_quaternion(self.q_ref)
 
 
@@ -286,14 +286,15 @@ class M2rLaw(InertiaFreeLaw):
 
     Status: ``V`` (eq. 11), ``theta`` (eq. 10), ``S``, ``mode`` (saturated or not)."""
 
-    def __init__(self, p: dict) -> None:
+    def __init__(self, p) -> None:
+        p = self.section(p)
         super().__init__(p)
         if np.any(np.asarray(self.w_ref) != 0):
             raise ValueError('M2R regulates to rest: target.rate must be zero')
-        self.f = p['f']
-        self.omega_bar = p['omega_bar']
+        self.f = p.f
+        self.omega_bar = p.omega_bar
         if np.all(np.isfinite(self.u_max)):
-            check_m2r_gains(self.alpha, self.beta, self.u_max, self.B, int(p['proposition']))
+            check_m2r_gains(self.alpha, self.beta, self.u_max, self.B, int(p.proposition))
 
     def control(self, t, q, w):
         R = rotation_from_quaternion(q)

@@ -207,46 +207,47 @@ class M2sLaw(InertiaFreeLaw):
     ``q_vag`` (q), ``omega_bar`` (commanded spin rate), ``w_d``, ``u_cmd`` (u of eq. 41 before
     saturation), ``mode``."""
 
-    def __init__(self, p: dict) -> None:
+    def __init__(self, p) -> None:
+        p = self.section(p)
         super().__init__(p)
         self.w_d0 = np.asarray(self.w_ref, dtype=float)
         self.Kp = self.alpha / trace_a(self.a)
         self.Kv = gain_vector(self.beta)[..., None] * np.eye(3) if self.beta.ndim else self.beta * np.eye(3)
-        self.K1 = matrix_param(p, 'K1', np.eye(3))
-        self.Q0 = matrix_param(p, 'Q', np.eye(6))
+        self.K1 = matrix_param(p.K1, 'K1', np.eye(3))
+        self.Q0 = matrix_param(p.Q, 'Q', np.eye(6))
         self.Q0_inv = np.linalg.inv(self.Q0)
-        Jh = np.asarray(p['J_hat0'], dtype=float)
+        Jh = np.asarray(p.J_hat0, dtype=float)
         self.gamma0 = gamma_from_inertia(Jh[..., :, None] * np.eye(3) if Jh.shape[-1] == 3
                                          else Jh.reshape(Jh.shape[:-1] + (3, 3)))
-        C_d = given(p, 'C_d')
+        C_d = given(p.C_d)
         self.C_d = None if C_d is None else np.asarray(C_d, dtype=float).reshape(3, -1)
         if self.C_d is not None and not np.any(self.C_d):
             self.C_d = None  # the paper's "C_d = 0": disturbance not estimated
         nd = 0 if self.C_d is None else self.C_d.shape[-1]
-        self.A_d = None if given(p, 'A_d') is None else np.asarray(p['A_d'], dtype=float).reshape(nd, nd)
-        self.D = matrix_param(p, 'D', np.eye(max(nd, 1)))
+        self.A_d = None if given(p.A_d) is None else np.asarray(p.A_d, dtype=float).reshape(nd, nd)
+        self.D = matrix_param(p.D, 'D', np.eye(max(nd, 1)))
         self.D_inv = np.linalg.inv(self.D) if nd else None
-        d0 = given(p, 'd_hat0')
+        d0 = given(p.d_hat0)
         self.d_hat0 = np.broadcast_to(np.asarray(0.0 if d0 is None else d0, dtype=float), (nd,))
-        self.d_true = None if given(p, 'd_true') is None else np.asarray(p['d_true'], dtype=float)
-        sat = p['saturation']
+        self.d_true = None if given(p.d_true) is None else np.asarray(p.d_true, dtype=float)
+        sat = p.saturation
         self.saturation = np.vectorize(SAT_CODES.__getitem__, otypes=[int])(sat) \
             if np.all(np.isin(sat, list(SAT_CODES))) else saturate(np.zeros(3), 1.0, str(sat))
-        self.vag = np.asarray(p['vag'], dtype=bool)
-        self.q_max = float(p['q_max'])
-        self.K_Q = float(p['K_Q'])
-        self.vag_excess = p['vag_excess']
-        self.vag_disturbance = bool(p['vag_disturbance'])
-        self.extremum = bool(p['extremum'])
-        self.t_max = float(p['t_max'])
-        self.phi_max = float(p['phi_max'])
-        self.K_omega = float(p['K_omega'])
+        self.vag = np.asarray(p.vag, dtype=bool)
+        self.q_max = float(p.q_max)
+        self.K_Q = float(p.K_Q)
+        self.vag_excess = p.vag_excess
+        self.vag_disturbance = bool(p.vag_disturbance)
+        self.extremum = bool(p.extremum)
+        self.t_max = float(p.t_max)
+        self.phi_max = float(p.phi_max)
+        self.K_omega = float(p.K_omega)
         n0 = np.sqrt(dot(self.w_d0, self.w_d0))
         self.omega_bar0 = n0
         self.axis = self.w_d0 / np.where(n0 > 0, n0, 1.0)[..., None]
-        delta0 = p['delta0']
+        delta0 = p.delta0
         self.delta0 = np.asarray(n0 if np.all(delta0 == 0) else delta0, dtype=float)
-        self.max_step = float(p['max_step'])
+        self.max_step = float(p.max_step)
         if not self.max_step > 0:
             raise ValueError(f'max_step must be positive, got {self.max_step}')
         self.reset()

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from adcs_controllers.laws.base import SectionLaw
+from adcs_controllers.laws.base import TARGET_PARAMS, SectionLaw, shortest_path_param
 from adcs_core.attitude import error_quaternion, matvec
 
 
@@ -34,15 +34,23 @@ def pd_torque(q: np.ndarray, w: np.ndarray, inertia: np.ndarray, kp, kd,
     return -matvec(inertia, kp * qv + kd * we)
 
 
+PD_SHORTEST_PATH = shortest_path_param(
+    'flip q when q4 < 0 (not in seed 004 eq. 13, which is applied as printed by default)')
+
+
 class PdLaw(SectionLaw):
     """Eq. (13) bound to a validated ``pd_controller`` section (values may carry a batch axis).
 
     The object the node and the batch engine both call: ``control(t, q, w) -> (torque, status)``.
     """
 
-    def __init__(self, p: dict) -> None:
+    params = (*TARGET_PARAMS, PD_SHORTEST_PATH)
+
+    def __init__(self, p) -> None:
+        p = self.section(p)
         super().__init__(p)
-        self.kp, self.kd = p['kp'], p['kd']
+        self.kp, self.kd = p.kp, p.kd
+        self.shortest_path = p.shortest_path
 
     def control(self, t: float, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, dict]:
         u = pd_torque(q, w, self.inertia, self.kp, self.kd, self.q_ref, self.w_ref, self.shortest_path)

@@ -28,10 +28,12 @@ from adcs_controllers.laws.underactuated import unactuated_body_axis
 THREE_WHEEL, TWO_WHEEL, UNSUPPORTED = 'three_wheel', 'two_wheel', 'unsupported'
 
 
-def pd_section(p: dict) -> dict:
-    """The ``three_wheel.*`` parameters of a two-wheel controller section as a PD law's section."""
-    return {'inertia': p['inertia'], 'kp': p['three_wheel.kp'], 'kd': p['three_wheel.kd'],
-            'target.attitude': p['three_wheel.target.attitude'], 'target.rate': [0.0, 0.0, 0.0],
+def pd_section(p) -> dict:
+    """The ``three_wheel.*`` parameters of a two-wheel controller section (typed) as a PD law's
+    section: the phase holds its attitude at rest, flipping q the short way."""
+    phase = p.three_wheel
+    return {'inertia': p.inertia, 'kp': phase.kp, 'kd': phase.kd,
+            'target.attitude': phase.target.attitude, 'target.rate': [0.0, 0.0, 0.0],
             'shortest_path': True}
 
 
@@ -54,8 +56,9 @@ class TwoWheelReconfiguration:
     @classmethod
     def factory(cls, two_wheel_cls):
         """A law builder for the registry: section dict -> this law around ``two_wheel_cls``."""
-        def build(p: dict) -> 'TwoWheelReconfiguration':
-            nominal = PdLaw(pd_section(p)) if p['three_wheel.enabled'] else None
+        def build(p) -> 'TwoWheelReconfiguration':
+            p = two_wheel_cls.section(p)
+            nominal = PdLaw(pd_section(p)) if p.three_wheel.enabled else None
             return cls(nominal, two_wheel_cls(p))
         build.__name__ = f'{two_wheel_cls.__name__}WithReconfiguration'
         build.__doc__ = f'{two_wheel_cls.__name__}, after a three-wheel PD phase if configured.'

@@ -101,6 +101,7 @@ from adcs_core.attitude import (
     transpose,
     unit,
 )
+from adcs_msgs_py.params import Param, all_positive, positive
 
 __all__ = [
     'STAGE_MOMENTUM', 'STAGE_LQR', 'STAGE_B', 'MODE_NAMES', 'Q_PAPER', 'R_PAPER',
@@ -121,6 +122,25 @@ Q_PAPER = (0.1, 100.0, 100.0, 100.0, 1.0)   # section 5.3
 R_PAPER = (100.0, 100.0)
 EPS_OMEGA = 0.01                # rad/s, section 3.3
 EPS_PHI = np.deg2rad(1.0)       # rad, section 3.3
+
+
+# The parameters of the pointing laws that have defaults (their schemas list these very objects).
+SOLUTION = Param('solution', 'int', default=0, check=lambda s: None if s in (0, 1, 2) else
+                 f'must be 0 (the final attitude of eq. 16 nearer to the initial one), 1 or 2, got {s!r}',
+                 doc='which final attitude of eq. (16): 1 (Psi*), 2 (pi - Psi*), 0 the nearer to q(0)')
+POINTING_A_PARAMS = (
+    Param('Q', 'double_array', default=list(Q_PAPER), length=5, check=all_positive,
+          doc='LQR state weights on (e_Psi, w1, w2, w3, e_h) (section 5.3)'),
+    Param('R', 'double_array', default=list(R_PAPER), length=2, check=all_positive,
+          doc='LQR control weights (section 5.3)'),
+    Param('eps_omega', 'double', default=EPS_OMEGA, check=positive,
+          doc='stage switch threshold on |w| (rad/s, section 3.3)'),
+    Param('eps_Phi', 'double', default=float(EPS_PHI), check=positive,
+          doc='stage switch threshold on |e_Phi| (rad; 1 deg, section 3.3)'),
+    Param('momentum_state', 'string', default='auto', choices=('auto', 'h1', 'h2'),
+          doc="fifth LQR state e_h1 or e_h2 (dual state of section 3.1); auto: e_h1 iff "
+              "|cos Phi_f| >= |sin Phi_f|"),
+)
 
 _XY = np.array([1.0, 1.0, 0.0])
 
@@ -384,17 +404,22 @@ class _PointingLaw(SectionLaw):
     mode_names = MODE_NAMES
     needs_wheel_momentum = True   # control() takes the wheels' momentum h (callers dispatch on it)
 
-    def __init__(self, p: dict) -> None:
-        p = {'target.attitude': [0.0, 0.0, 0.0, 1.0], 'target.rate': [0.0, 0.0, 0.0], **p}
+    params = (SOLUTION,)
+    targeted = False   # no target attitude: one body axis is pointed
+
+    def __init__(self, p, H=None) -> None:
+        p = self.section(p)
         super().__init__(p)
-        self.sigma = unit(np.asarray(p['sigma'], dtype=float))
-        self.tau = unit(np.asarray(p['tau'], dtype=float))
-        self.H = None if p.get('H') is None else np.asarray(p['H'], dtype=float)
-        self.solution = int(p.get('solution', 0))
+        self.sigma = unit(np.asarray(p.sigma, dtype=float))
+        self.tau = unit(np.asarray(p.tau, dtype=float))
+        if H is None and hasattr(p, 'H'):   # a pure-law caller's dict may give H (not a schema parameter)
+            H = p.H
+        self.H = None if H is None else np.asarray(H, dtype=float)
+        self.solution = int(p.solution)
         if self.solution not in (0, 1, 2):
             raise ValueError(f'solution must be 0 (nearest), 1 or 2, got {self.solution!r}')
-        self.K_p = p['K_p']
-        self.K_h = p['K_h']
+        self.K_p = p.K_p
+        self.K_h = p.K_h
         if self.H is not None:
             final_attitudes(self.sigma, self.tau, self.H)   # feasibility check now
         self._geo = None
@@ -445,13 +470,16 @@ class PointingALaw(_PointingLaw):
     2 = A2_lqr), ``psi``, ``theta``, ``phi``, ``e_psi``, ``e_theta``, ``e_phi``, ``pointing_error``
     (rad)."""
 
-    def __init__(self, p: dict) -> None:
-        super().__init__(p)
-        self.Q = tuple(p.get('Q', Q_PAPER))
-        self.R = tuple(p.get('R', R_PAPER))
-        self.eps_omega = float(p.get('eps_omega', EPS_OMEGA))
-        self.eps_phi = float(p.get('eps_Phi', EPS_PHI))
-        self.momentum_state = p.get('momentum_state', 'auto')
+    params = (SOLUTION, *POINTING_A_PARAMS)
+
+    def __init__(self, p, H=None) -> None:
+        p = self.section(p)
+        super().__init__(p, H)
+        self.Q = tuple(p.Q)
+        self.R = tuple(p.R)
+        self.eps_omega = float(p.eps_omega)
+        self.eps_phi = float(p.eps_Phi)
+        self.momentum_state = p.momentum_state
         momentum_state_choice(0.0, self.momentum_state)   # validate
         self.stage = None
 
@@ -481,9 +509,10 @@ class PointingBLaw(_PointingLaw):
     """Controller B (section 4). Extra key: ``K_Psi`` (1/s, eq. 24). Status: ``mode``/``stage``
     (3 = B), the angles and errors as :class:`PointingALaw`, and ``w_des`` (eq. 24)."""
 
-    def __init__(self, p: dict) -> None:
-        super().__init__(p)
-        self.K_Psi = p['K_Psi']
+    def __init__(self, p, H=None) -> None:
+        p = self.section(p)
+        super().__init__(p, H)
+        self.K_Psi = p.K_Psi
 
     def control(self, t, q, w, wheel_momentum):
         q, w, h = self._inputs(q, w, wheel_momentum)

@@ -69,9 +69,10 @@ from __future__ import annotations
 import numpy as np
 
 from adcs_controllers.laws import underactuated_scalar as scalar
-from adcs_controllers.laws.base import SectionLaw
+from adcs_controllers.laws.base import SHORTEST_PATH, TARGET_PARAMS, SectionLaw
 from adcs_controllers.laws.inverse_optimal import error_state, inertia_inverse
 from adcs_core.attitude import cross, dot, gain_vector, matvec, quat_kinematics, transpose
+from adcs_msgs_py.params import Param, non_negative, positive
 
 __all__ = [
     'MODE_LOW_GAIN', 'MODE_ZERO_TORQUE', 'MODE_HIGH_GAIN', 'MODE_MIN_NORM', 'MODE_SNLC',
@@ -316,6 +317,23 @@ AXIS_ORDER = {'z': (0, 1, 2), 'x': (1, 2, 0), 'y': (2, 0, 1)}
 _VECTOR_STATUS = ('wd', 'wd_dot', 'w_gs')  # status 3-vectors (rotated back to body axes)
 
 
+# The parameters of every seed 000 law (their schemas list these very objects).
+TWO_WHEEL_PARAMS = (
+    Param('a1', 'double', default=float('inf'), check=positive, finite=False, batch=True,
+          doc='saturation of the singular term of eq. (8) on axis 1 (.inf: eq. 7)'),
+    Param('a2', 'double', default=float('inf'), check=positive, finite=False, batch=True,
+          doc='saturation of the singular term of eq. (8) on axis 2 (.inf: eq. 7)'),
+    Param('eps_den', 'double', default=0.0, check=non_negative, batch=True,
+          doc='the small constant added to q1^2 + q2^2 in eq. (7)/(8) (section IV.B.2; 0: none)'),
+    Param('scale_by_inertia', 'bool', default=False,
+          doc='eq. (14) as printed, I_i (-K_i (w_i - wd_i) + dwd_i/dt), instead of the eq. (31) '
+              'form -K_i (w_i - wd_i) + I_i dwd_i/dt (docs/seed000_readings.md R3)'),
+    Param('unactuated_axis', 'string', default='z', choices=('x', 'y', 'z'),
+          doc="the body axis without a wheel, the law's axis 3 (UK-DMC: 'x'); follows the "
+              'faults when two wheels are left'),
+)
+
+
 class _BoundLaw(SectionLaw):
     """Common parameters (paper symbols): ``a1``, ``a2`` saturation limits of eq. (8) (default
     inf = eq. 7), ``eps_den`` the denominator constant ε of section IV.B.2 (default 0),
@@ -328,15 +346,18 @@ class _BoundLaw(SectionLaw):
     """
 
     mode_names = MODE_NAMES
+    params = (*TARGET_PARAMS, SHORTEST_PATH, *TWO_WHEEL_PARAMS)
 
-    def __init__(self, p: dict) -> None:
+    def __init__(self, p) -> None:
+        p = self.section(p)
         super().__init__(p)
-        self.a1 = p.get('a1', np.inf)
-        self.a2 = p.get('a2', np.inf)
-        self.eps_den = p.get('eps_den', 0.0)
-        self.scale_by_inertia = bool(p.get('scale_by_inertia', False))
+        self.shortest_path = p.shortest_path
+        self.a1 = p.a1
+        self.a2 = p.a2
+        self.eps_den = p.eps_den
+        self.scale_by_inertia = p.scale_by_inertia
         self.body_inertia, self.body_q_ref, self.body_w_ref = self.inertia, self.q_ref, self.w_ref
-        self.set_unactuated_axis(p.get('unactuated_axis', 'z'))
+        self.set_unactuated_axis(p.unactuated_axis)
 
     def set_unactuated_axis(self, axis: str) -> None:
         """Run the law with body axis ``axis`` ('x', 'y', 'z') as its unactuated axis 3."""
@@ -408,7 +429,8 @@ class ZeroMomentumLaw(_BoundLaw):
 
     def __init__(self, p: dict) -> None:
         super().__init__(p)
-        self.k, self.g = p['k'], p['g']
+        p = self.section(p)
+        self.k, self.g = p.k, p.g
 
     def _control(self, t, q, w):
         qe, we = error_state(q, w, self.law_q_ref, self.law_w_ref, self.shortest_path)
@@ -424,7 +446,8 @@ class SnlcLaw(_BoundLaw):
 
     def __init__(self, p: dict) -> None:
         super().__init__(p)
-        self.k, self.g, self.K = p['k'], p['g'], p['K']
+        p = self.section(p)
+        self.k, self.g, self.K = p.k, p.g, p.K
 
     def _control(self, t, q, w):
         return snlc_torque(q, w, self.law_inertia, self.k, self.g, self.K, self.a1, self.a2,
@@ -436,7 +459,8 @@ class SnlcMinNormLaw(_BoundLaw):
 
     def __init__(self, p: dict) -> None:
         super().__init__(p)
-        self.gains = tuple(p[n] for n in ('k', 'g', 'K', 'gamma', 'sigma'))
+        p = self.section(p)
+        self.gains = (p.k, p.g, p.K, p.gamma, p.sigma)
 
     def _control(self, t, q, w):
         return min_norm_torque(q, w, self.law_inertia, *self.gains, a1=self.a1, a2=self.a2,
@@ -450,8 +474,9 @@ class SnlcGsmnLaw(_BoundLaw):
 
     def __init__(self, p: dict) -> None:
         super().__init__(p)
-        self.gains = tuple(p[n] for n in ('k1', 'g1', 'K1', 'k2', 'g2', 'K2', 'gamma', 'sigma'))
-        self.epsilon = p['epsilon']
+        p = self.section(p)
+        self.gains = (p.k1, p.g1, p.K1, p.k2, p.g2, p.K2, p.gamma, p.sigma)
+        self.epsilon = p.epsilon
         self._scalar = None   # (axis, underactuated_scalar.GsmnConstants or None): the one-state path
 
     def _control(self, t, q, w):

@@ -32,19 +32,21 @@ from adcs_msgs_py.blocks import (
     wheel_params,
 )
 from adcs_msgs_py.params import Param, ParameterError, Schema, all_positive, non_negative, positive
+from adcs_msgs_py.sections import Section, as_section, flat
 from adcs_sim.truth.plant import Disturbance, Plant, ReactionWheels, Torquers
 from adcs_sim.truth.sensor_schema import check_sensors, sensor_params
 from adcs_sim.truth.thrusters import Thrusters
 
 
-def step_timing(v: dict) -> tuple[int, np.ndarray | int]:
+def step_timing(v: dict | Section) -> tuple[int, np.ndarray | int]:
     """(control period in integer ns, number of control steps) of a ``dynamics`` section.
 
     The one definition of the simulated time grid: step ``k`` starts at ``k * period_ns`` ns, on
     the graph and in the batch engine alike. A batched ``duration`` gives one count per run.
     """
-    period_ns = int(round(float(v['control_period']) * 1e9))
-    duration_ns = np.round(np.asarray(v['duration'], dtype=float) * 1e9)
+    v = as_section(v)
+    period_ns = int(round(float(v.control_period) * 1e9))
+    duration_ns = np.round(np.asarray(v.duration, dtype=float) * 1e9)
     n_steps = np.floor(duration_ns / period_ns + 1e-9).astype(np.int64)
     return period_ns, (int(n_steps) if n_steps.ndim == 0 else n_steps)
 
@@ -253,67 +255,71 @@ DYNAMICS_SCHEMA = Schema('dynamics', [
     doc='plant, simulated clock and lockstep loop')
 
 
-def build_truth_environment(v: dict) -> Environment | None:
+def build_truth_environment(v: dict | Section) -> Environment | None:
     """The truth model's environment of a validated dynamics section (None unless
     ``environment.enabled``): what its sensors measure."""
-    return build_environment(v) if v['environment.enabled'] else None
+    v = as_section(v)
+    return build_environment(flat(v.environment, 'environment.')) if v.environment.enabled else None
 
 
-def build_plant(v: dict, warm: bool = True) -> Plant:
+def build_plant(v: dict | Section, warm: bool = True) -> Plant:
     """Plant from validated ``dynamics`` parameters (``warm``: as :class:`Plant`'s)."""
+    v = as_section(v)
     actuators = []
-    names = v['wheels.names']
+    wheels, thrusters = v.wheels, v.thrusters
+    names = wheels.names
     if names:
         n = len(names)
-        opt = lambda key, default: v[key] if np.size(v[key]) else [default] * n  # noqa: E731
+        # an empty per-wheel list is the model's neutral value on every wheel (the schema's doc)
+        opt = lambda value, neutral: value if np.size(value) else [neutral] * n  # noqa: E731
         actuators.append(ReactionWheels(
-            names=list(names), axes=np.asarray(v['wheels.axes']).reshape(n, 3),
-            spin_inertia=v['wheels.spin_inertia'], max_torque=v['wheels.max_torque'],
-            max_speed=v['wheels.max_speed'], viscous=opt('wheels.viscous_friction', 0.0),
-            coulomb=opt('wheels.coulomb_friction', 0.0), speed_gain=opt('wheels.speed_loop_gain', 1.0),
-            initial_speed=opt('wheels.initial_speed', 0.0)))
-    if v['torquers.enabled']:
-        actuators.append(Torquers(max_torque=v['torquers.max_torque']))
-    if v['thrusters.names']:
-        n = len(v['thrusters.names'])
+            names=list(names), axes=np.asarray(wheels.axes).reshape(n, 3),
+            spin_inertia=wheels.spin_inertia, max_torque=wheels.max_torque,
+            max_speed=wheels.max_speed, viscous=opt(wheels.viscous_friction, 0.0),
+            coulomb=opt(wheels.coulomb_friction, 0.0), speed_gain=opt(wheels.speed_loop_gain, 1.0),
+            initial_speed=opt(wheels.initial_speed, 0.0)))
+    if v.torquers.enabled:
+        actuators.append(Torquers(max_torque=v.torquers.max_torque))
+    if thrusters.names:
         actuators.append(Thrusters(
-            names=list(v['thrusters.names']), positions=v['thrusters.positions'],
-            directions=v['thrusters.directions'],  # (3 n,) or a batch (N, 3 n) of geometries
-            max_force=v['thrusters.max_force'], min_on_time=v['thrusters.min_on_time'],
-            min_on_rule=v['thrusters.min_on_rule']))
-    disturbance = Disturbance(v['disturbance.constant'], v['disturbance.amplitude'],
-                              v['disturbance.frequency'], v['disturbance.phase'])
-    return Plant(inertia_matrix(v['inertia']), actuators, disturbance, plant_orbit(v), v['gravity_gradient'],
-                 warm=warm)
+            names=list(thrusters.names), positions=thrusters.positions,
+            directions=thrusters.directions,  # (3 n,) or a batch (N, 3 n) of geometries
+            max_force=thrusters.max_force, min_on_time=thrusters.min_on_time,
+            min_on_rule=thrusters.min_on_rule))
+    d = v.disturbance
+    disturbance = Disturbance(d.constant, d.amplitude, d.frequency, d.phase)
+    return Plant(inertia_matrix(v.inertia), actuators, disturbance, plant_orbit(v), v.gravity_gradient, warm=warm)
 
 
-def plant_orbit(v: dict) -> CircularOrbit | SourceOrbit | None:
+def plant_orbit(v: dict | Section) -> CircularOrbit | SourceOrbit | None:
     """The truth model's one orbit (the gravity gradient's; the viewers' orbit frame when circular):
     with ``environment.enabled`` the environment's, the very elements its circular orbit samples
     (:func:`adcs_core.environment.environment.orbit_source`) or the SGP4 of its TLE
     (:class:`~adcs_core.environment.environment.SourceOrbit`); else ``orbit.*`` (None at altitude 0).
     :func:`_check_one_orbit` refuses a scenario giving both, different."""
-    if v['environment.enabled']:
-        source = orbit_source(v)
+    v = as_section(v)
+    if v.environment.enabled:
+        source = orbit_source(flat(v.environment, 'environment.'))
         if isinstance(source, CircularOrbitSource):
             return source.orbit
-        return SourceOrbit(source, parse_epoch(v['environment.epoch']))
-    if v['orbit.altitude'] <= 0:
+        return SourceOrbit(source, parse_epoch(v.environment.epoch))
+    if v.orbit.altitude <= 0:
         return None
-    return CircularOrbit(altitude=v['orbit.altitude'], inclination=math.radians(v['orbit.inclination_deg']),
-                         raan=math.radians(v['orbit.raan_deg']),
-                         arg_latitude0=math.radians(v['orbit.arg_latitude_deg']))
+    return CircularOrbit(altitude=v.orbit.altitude, inclination=math.radians(v.orbit.inclination_deg),
+                         raan=math.radians(v.orbit.raan_deg),
+                         arg_latitude0=math.radians(v.orbit.arg_latitude_deg))
 
 
-def initial_state(plant: Plant, v: dict) -> np.ndarray:
+def initial_state(plant: Plant, v: dict | Section) -> np.ndarray:
     """The plant's state at t = 0. With ``initial.momentum`` (H, inertial axes) the wheels start at
     their ``initial_speed`` and the body carries the rest: ``J w0 = R(q0)^T H - sum_i a_i Js_i
     Omega0_i`` (total J, the plant's convention ``H = J w + sum_i a_i Js_i Omega_i``)."""
-    q = np.asarray(v['initial.attitude'], dtype=float)
+    v = as_section(v)
+    q = np.asarray(v.initial.attitude, dtype=float)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    H = np.asarray(v.get('initial.momentum', []), dtype=float)
+    H = np.asarray(v.initial.momentum, dtype=float)
     if H.shape[-1:] != (3,):
-        return plant.initial_state(q, v['initial.rate'])
+        return plant.initial_state(q, v.initial.rate)
     from adcs_core.attitude import matvec, rotate_to_body
     x0 = plant.initial_state(q, np.zeros(3))
     h_wheels = plant.angular_momentum(x0)          # the wheels' part alone (w = 0)

@@ -17,6 +17,7 @@ from typing import Any, Callable
 import numpy as np
 
 from adcs_msgs_py.params import Param, ParameterError, non_negative, positive
+from adcs_msgs_py.sections import Section, as_section
 from adcs_msgs_py.sensor_interfaces import BY_NAME, SENSORS
 from adcs_sim.truth.sensor_models import CoarseSunSensors, FineSunSensor, Gyro, Magnetometer, StarTracker, SunSensor
 from adcs_sim.truth.sensor_suite import SensorSuite
@@ -182,21 +183,21 @@ def _half_cone_below_90(v) -> str | None:
 _half_cone_below_90.description = 'in (0, 90) deg'   # for docs/parameters.md
 
 
-def _fine_sun(v: dict, seed, period_ns: int) -> FineSunSensor:
-    f = 'sensors.fine_sun_sensor.'
-    return FineSunSensor(seed, v[f + 'std'], v[f + 'boresight'], math.radians(v[f + 'fov_deg']),
-                         v[f + 'min_illumination'])
+def _fine_sun(v: Section, seed, period_ns: int) -> FineSunSensor:
+    f = v.sensors.fine_sun_sensor
+    return FineSunSensor(seed, f.std, f.boresight, math.radians(f.fov_deg), f.min_illumination)
 
 
-def _steps(v: dict, key: str) -> int:
-    """A duration parameter as a whole number of control periods (ParameterError naming it if not)."""
-    period_ns = int(round(float(v['control_period']) * 1e9))
-    if float(v[key]) > v['duration'] + v['control_period'] and float(v[key]) > 1e9:
-        raise ParameterError(key, f'{v[key]} s is beyond any run (duration {v["duration"]} s)')
-    value_ns = int(round(float(v[key]) * 1e9))
+def _steps(period: float, duration, value: float, key: str) -> int:
+    """Duration parameter ``key`` = ``value`` (s) as a whole number of control periods ``period``
+    (ParameterError naming it if not)."""
+    period_ns = int(round(float(period) * 1e9))
+    if float(value) > duration + period and float(value) > 1e9:
+        raise ParameterError(key, f'{value} s is beyond any run (duration {duration} s)')
+    value_ns = int(round(float(value) * 1e9))
     if value_ns % period_ns:
-        raise ParameterError(key, f'must be a whole multiple of control_period ({v["control_period"]} s), '
-                             f'got {v[key]}')
+        raise ParameterError(key, f'must be a whole multiple of control_period ({period} s), '
+                             f'got {value}')
     return value_ns // period_ns
 
 
@@ -219,35 +220,37 @@ def _check_coarse(v: dict) -> None:
 
 
 def _star_tracker_check(v: dict) -> None:
-    _steps(v, 'sensors.star_tracker.period')
-    if _steps(v, 'sensors.star_tracker.latency') > MAX_LATENCY_STEPS:
+    period, latency = 'sensors.star_tracker.period', 'sensors.star_tracker.latency'
+    _steps(v['control_period'], v['duration'], v[period], period)
+    if _steps(v['control_period'], v['duration'], v[latency], latency) > MAX_LATENCY_STEPS:
         raise ParameterError('sensors.star_tracker.latency', f'at most {MAX_LATENCY_STEPS} control periods, '
                              f'got {v["sensors.star_tracker.latency"]} s')
 
 
-def _gyro(v: dict, seed, period_ns: int) -> Gyro:
-    g = 'sensors.gyro.'
-    return Gyro(seed, period_ns / 1e9, v[g + 'arw'], v[g + 'rrw'], v[g + 'bias'], v[g + 'scale_factor'],
-                v[g + 'max_rate'], v[g + 'markov_std'], v[g + 'markov_time'])
+def _gyro(v: Section, seed, period_ns: int) -> Gyro:
+    g = v.sensors.gyro
+    return Gyro(seed, period_ns / 1e9, g.arw, g.rrw, g.bias, g.scale_factor, g.max_rate, g.markov_std,
+                g.markov_time)
 
 
-def _star_tracker(v: dict, seed, period_ns: int) -> StarTracker:
-    st = 'sensors.star_tracker.'
-    return StarTracker(seed, v[st + 'boresight'], v[st + 'cross_std'], v[st + 'about_std'],
-                       max(1, _steps(v, st + 'period')), _steps(v, st + 'latency'),
-                       math.radians(v[st + 'sun_exclusion_deg']), math.radians(v[st + 'earth_exclusion_deg']))
+def _star_tracker(v: Section, seed, period_ns: int) -> StarTracker:
+    st = v.sensors.star_tracker
+    steps = lambda value, key: _steps(v.control_period, v.duration, value, key)  # noqa: E731
+    return StarTracker(seed, st.boresight, st.cross_std, st.about_std,
+                       max(1, steps(st.period, 'sensors.star_tracker.period')),
+                       steps(st.latency, 'sensors.star_tracker.latency'),
+                       math.radians(st.sun_exclusion_deg), math.radians(st.earth_exclusion_deg))
 
 
-def _sun(v: dict, seed, period_ns: int) -> SunSensor | CoarseSunSensors:
-    if v['sensors.sun.type'] == 'coarse':
-        return CoarseSunSensors(seed, v['sensors.sun.normals'], v['sensors.sun.std'],
-                                math.radians(v['sensors.sun.fov_deg']), v['sensors.sun.min_illumination'])
-    return SunSensor(seed, v['sensors.sun.std'], v['sensors.sun.boresight'],
-                     math.radians(v['sensors.sun.fov_deg']), v['sensors.sun.min_illumination'])
+def _sun(v: Section, seed, period_ns: int) -> SunSensor | CoarseSunSensors:
+    sun = v.sensors.sun
+    if sun.type == 'coarse':
+        return CoarseSunSensors(seed, sun.normals, sun.std, math.radians(sun.fov_deg), sun.min_illumination)
+    return SunSensor(seed, sun.std, sun.boresight, math.radians(sun.fov_deg), sun.min_illumination)
 
 
-def _magnetometer(v: dict, seed, period_ns: int) -> Magnetometer:
-    return Magnetometer(seed, v['sensors.magnetometer.std'], v['sensors.magnetometer.bias'])
+def _magnetometer(v: Section, seed, period_ns: int) -> Magnetometer:
+    return Magnetometer(seed, v.sensors.magnetometer.std, v.sensors.magnetometer.bias)
 
 
 def _no_check(v: dict) -> None:
@@ -263,7 +266,7 @@ class SensorModel:
 
     name: str
     params: Callable[[], list[Param]]
-    build: Callable[[dict, Any, int], Any]
+    build: Callable[[Section, Any, int], Any]
     models: tuple[type, ...]
     check: Callable[[dict], None] = _no_check
 
@@ -303,12 +306,14 @@ def check_sensors(v: dict) -> None:
                                      'direction, eclipse and geomagnetic field at the orbit: environment.*)')
 
 
-def build_sensors(v: dict, seed=None) -> SensorSuite | None:
+def build_sensors(v: dict | Section, seed=None) -> SensorSuite | None:
     """The suite of a validated dynamics section (None when no sensor is fitted); ``seed`` one per run
     for a batch (default ``sensors.seed``)."""
-    seed = v['sensors.seed'] if seed is None else seed
-    period_ns = int(round(float(v['control_period']) * 1e9))
-    parts = {s.name: s.build(v, seed, period_ns) for s in SENSOR_MODELS if v[f'sensors.{s.name}.enabled']}
+    v = as_section(v)
+    seed = v.sensors.seed if seed is None else seed
+    period_ns = int(round(float(v.control_period) * 1e9))
+    parts = {s.name: s.build(v, seed, period_ns) for s in SENSOR_MODELS
+             if getattr(v.sensors, s.name).enabled}
     return SensorSuite(period_ns, **parts) if parts else None
 
 
