@@ -9,8 +9,8 @@ $(VENV)/.installed: requirements.txt requirements-dev.txt setup.py setup.cfg pyp
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-dev.txt
 	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps -e . && test -x $(VENV)/bin/dynamics
-	# compile every numba kernel into its cache beside its module (adcs_sim/app/kernels.py; minutes once, then ~1 s)
-	$(PY) -m adcs_sim.app.kernels
+	# compile every numba kernel into its cache beside its module (adcs_sim/app/batch/kernels.py; minutes once, then ~1 s)
+	$(PY) -m adcs_sim.app.batch.kernels
 	touch $@
 
 .PHONY: install run test bench

@@ -38,11 +38,11 @@ NODES = {
     'quest_estimator': 'adcs_controllers.nodes.quest_estimator:main',
 }
 TOOLS = {
-    'adcs-run': 'adcs_sim.app.runner:main',
-    'adcs-analyze': 'adcs_sim.app.analyze:main',
-    'adcs-bag-repair': 'adcs_sim.app.repair:main',
-    'adcs-montecarlo': 'adcs_sim.app.montecarlo:main',
-    'adcs-tune-gsmn': 'adcs_sim.app.tuning:main',
+    'adcs-run': 'adcs_sim.app.graph.runner:main',
+    'adcs-analyze': 'adcs_sim.app.analysis.analyze:main',
+    'adcs-bag-repair': 'adcs_sim.app.analysis.repair:main',
+    'adcs-montecarlo': 'adcs_sim.app.campaign.montecarlo:main',
+    'adcs-tune-gsmn': 'adcs_sim.app.campaign.tuning:main',
 }
 
 setup(

@@ -3,9 +3,9 @@ actuation, declared once (pure; no rclpy).
 
 A family (:class:`ControllerFamily`) is what a controller node executable is: the node
 (:mod:`adcs_controllers.nodes`) builds ``family.build(section)`` (its law, and its actuation: one
-class per kind of actuator) from its validated section, and the batch engine (:mod:`adcs_sim.app.batch`) builds the very same
+class per kind of actuator) from its validated section, and the batch engine (:mod:`adcs_sim.app.batch.engine`) builds the very same
 objects, so a graph run and its batch run execute the same code. The application's registry
-(:mod:`adcs_sim.app.registry`) lists :data:`FAMILIES` beside the simulator's own nodes.
+(:mod:`adcs_sim.app.scenario.registry`) lists :data:`FAMILIES` beside the simulator's own nodes.
 
 A new control law: its module in :mod:`adcs_controllers.laws`, its schema and family here, a
 three-line node module in :mod:`adcs_controllers.nodes` and its executable in ``setup.py``.

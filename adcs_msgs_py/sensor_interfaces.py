@@ -7,7 +7,7 @@ and ``PUBLISHER_ROLES``, the ``TopicSpec`` of each sensor topic (``topics.TOPICS
 reason), the message conversions (``conversions_determination.CODECS``), the dynamics node's
 publishers, the estimator node's decoders, the fault schedule's targets and modes
 (:data:`SENSOR_FAULT_MODES`), the batch engine's ``as_received``, the estimators' vector sensors and
-the analysis' NIS dimensions (``adcs_sim.app.estimation.NIS_DOF``). The truth half (the model, its
+the analysis' NIS dimensions (``adcs_sim.app.analysis.estimation.NIS_DOF``). The truth half (the model, its
 ``sensors.<name>.*`` parameters, its environment inputs) is declared once in
 :mod:`adcs_sim.truth.sensor_schema` (``SENSOR_MODELS``), in this order.
 

@@ -21,7 +21,7 @@ What Foxglove's 3D panel and RViz draw, and what a plot panel plots without comp
   2-1-3 Euler angles of the error, deg, stored by axis: x, y, z = the rotations about body x, y,
   z), of ``q_e = q_ref* (x) q``: :func:`adcs_core.attitude.error_quaternion`,
   :func:`~adcs_core.attitude.eigenaxis_angle` and :func:`~adcs_core.attitude.euler_213`, the
-  functions the offline analysis uses (``adcs_sim.app.analysis.attitude_errors``).
+  functions the offline analysis uses (``adcs_sim.app.analysis.metrics.attitude_errors``).
 
 The per-step ones (``frames/*``, ``markers``, ``error/*``) go out only to live subscribers: the
 recorder builds them itself, from :attr:`VisualMessages.config` (published once on

@@ -2,7 +2,7 @@
 """Regenerate the reference recordings in ``bags/``: one ``adcs-run`` per scenario in ``config/``.
 
 ``bags/<scenario>/`` gets the run's ``bag/`` (rosbag2 MCAP), ``metrics.json``, ``scenario.yaml``
-and ``layouts/`` (Foxglove and PlotJuggler, :mod:`adcs_sim.app.layouts`); the run's ``logs/`` are
+and ``layouts/`` (Foxglove and PlotJuggler, :mod:`adcs_sim.app.graph.layouts`); the run's ``logs/`` are
 not kept. Each run goes to ``bags/<scenario>.tmp/``
 first (ignored by git) and replaces the old recording only when it succeeded.
 
@@ -13,7 +13,7 @@ first (ignored by git) and replaces the old recording only when it succeeded.
     .venv/bin/python bags/regenerate.py --metrics       # no run: rewrite every metrics.json from its bag
 
 ``adcs-run`` leases its own ROS_DOMAIN_ID and keeps discovery on localhost. ``--check`` recomputes
-every recording's metrics from its bag with the current :mod:`adcs_sim.app.analysis` and compares
+every recording's metrics from its bag with the current :mod:`adcs_sim.app.analysis.metrics` and compares
 them with its ``metrics.json`` (what tests/test_any_bag.py also checks). ``--reports`` rewrites
 each kept ``report/`` (``adcs-analyze``'s report, named after the scenario) from the bag beside it,
 without running anything: after a change to the reports, or after a merge. ``--metrics`` rewrites
@@ -65,7 +65,7 @@ NOT_RECORDED = {
 
 def runner_command() -> list[str]:
     exe = Path(sys.executable).parent / 'adcs-run'
-    return [str(exe)] if exe.exists() else [sys.executable, '-m', 'adcs_sim.app.runner']
+    return [str(exe)] if exe.exists() else [sys.executable, '-m', 'adcs_sim.app.graph.runner']
 
 
 def regenerate(name: str) -> Path:
@@ -85,7 +85,7 @@ def regenerate(name: str) -> Path:
         write_report(tmp, name)
     # Its viewer layouts (adcs-analyze --foxglove-layout / --plotjuggler-layout; a recording made
     # now carries the viewer topics: /tf, markers, error/*).
-    from adcs_sim.app.analyze import main as analyze
+    from adcs_sim.app.analysis.analyze import main as analyze
     layouts = tmp / 'layouts'
     layouts.mkdir()
     if analyze([str(tmp / 'bag'), '--foxglove-layout', str(layouts / 'foxglove.json'),
@@ -121,7 +121,7 @@ def write_report(folder: Path, name: str) -> Path:
 def check(folder: Path) -> list[str]:
     """Differences between a recording's metrics.json and its bag's metrics computed now."""
     sys.path.insert(0, str(ROOT))
-    from adcs_sim.app.analysis import RunData, jsonable_metrics, run_metrics
+    from adcs_sim.app.analysis.metrics import RunData, jsonable_metrics, run_metrics
     kept = json.loads((folder / 'metrics.json').read_text())
     now = json.loads(json.dumps(jsonable_metrics(run_metrics(RunData.from_bag(folder / 'bag')))))
     return [f'{folder.name}: {k}: kept {kept[k]!r}, now {now.get(k)!r}'
@@ -132,8 +132,8 @@ def rewrite_metrics(folder: Path) -> list[str]:
     """Write ``folder/metrics.json`` from its bag (adcs-run's streamed metrics) unless a kept value
     would change; returns those changes (then nothing is written)."""
     sys.path.insert(0, str(ROOT))
-    from adcs_sim.app.analysis import jsonable_metrics
-    from adcs_sim.app.stream_metrics import analyse_bag
+    from adcs_sim.app.analysis.metrics import jsonable_metrics
+    from adcs_sim.app.analysis.stream_metrics import analyse_bag
     path = folder / 'metrics.json'
     kept = json.loads(path.read_text())
     text = json.dumps(jsonable_metrics(analyse_bag(folder / 'bag').metrics), indent=2)

@@ -22,7 +22,7 @@ and prints both, their ratio (analysis / raw; the target is <= 2) and the analys
 With ``--memory``, instead: the peak memory of ``adcs-run``'s end-of-run analysis on that bag,
 each path in a fresh process that first imports what ``adcs-run`` imports (its resident set then is
 the baseline): **in-memory** (``RunData.from_bag`` + ``run_metrics``, the path before issue #18
-item 5, kept as the reference) and **streamed** (:func:`adcs_sim.app.stream_metrics.analyse_bag`,
+item 5, kept as the reference) and **streamed** (:func:`adcs_sim.app.analysis.stream_metrics.analyse_bag`,
 what ``adcs-run`` does now), alternated ``--repeat`` times; peak RSS (``ru_maxrss``), its growth
 over the baseline, wall time, and whether the two gave the same metrics (bit for bit).
 
@@ -47,7 +47,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from adcs_sim.app.analysis import RunData, run_metrics  # noqa: E402
+from adcs_sim.app.analysis.metrics import RunData, run_metrics  # noqa: E402
 from adcs_sim.bag.storage import typestore  # noqa: E402
 from adcs_sim.bag.writer import BagWriter  # noqa: E402
 
@@ -197,9 +197,9 @@ def _maxrss_mib() -> float:
 
 def measure_one(kind: str, bag: Path) -> None:
     """(In a fresh process) one end-of-run analysis of ``bag``: prints a JSON line."""
-    import adcs_sim.app.runner  # noqa: F401  (what adcs-run has imported when it analyses)
-    from adcs_sim.app.analysis import jsonable_metrics
-    from adcs_sim.app.stream_metrics import analyse_bag
+    import adcs_sim.app.graph.runner  # noqa: F401  (what adcs-run has imported when it analyses)
+    from adcs_sim.app.analysis.metrics import jsonable_metrics
+    from adcs_sim.app.analysis.stream_metrics import analyse_bag
     base = _maxrss_mib()
     t0 = time.perf_counter()
     if kind == 'in-memory':

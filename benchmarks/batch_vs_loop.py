@@ -4,7 +4,7 @@
 Issue #4's benchmark: the PD slew of seed 004 III.F (``config/microsat_pd_slew.yaml``) for
 600 s at a 1 s control period with 0.1 s RK4 steps, over ``--runs`` runs (default 1000) with the
 attitude dispersed as in ``config/campaigns/pd_slew_30deg.yaml``. Both paths run the very same
-code (:class:`adcs_sim.app.batch.BatchSimulation`: plant, law, actuation, metrics):
+code (:class:`adcs_sim.app.batch.engine.BatchSimulation`: plant, law, actuation, metrics):
 
 (a) **vectorised**: all runs in one batch, arrays of shape (N, ...);
 (b) **loop**: the same runs one at a time (batches of one). A full loop of 1000 runs takes
@@ -30,8 +30,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from adcs_sim.app.batch import BatchSimulation  # noqa: E402
-from adcs_sim.app.campaign import Campaign  # noqa: E402
+from adcs_sim.app.batch.engine import BatchSimulation  # noqa: E402
+from adcs_sim.app.campaign.plan import Campaign  # noqa: E402
 
 
 def runs_for(campaign: Campaign, indices: list[int]) -> list[dict]:

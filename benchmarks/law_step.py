@@ -3,7 +3,7 @@
 
 Issue 18, item 2 ("laws fast enough for a 1 kHz loop"): for each scenario of ``config/`` with a
 controller section (one per law family and configuration), the law object its node builds
-(:data:`adcs_sim.app.registry.NODES` ``[section].family.build``) is called as the controller node
+(:data:`adcs_sim.app.scenario.registry.NODES` ``[section].family.build``) is called as the controller node
 calls it, ``control(t, q, w)`` (plus the wheel momentum for the laws that need it), on one run at the
 scenario's initial state; and the same scenario's plant is stepped over one control period
 (``Plant.step``, the compiled kernel) as the dynamics node does. Prints µs per call of each and the
@@ -24,8 +24,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from adcs_sim.app.registry import NODES  # noqa: E402
-from adcs_sim.app.scenario_files import validate_scenario  # noqa: E402
+from adcs_sim.app.scenario.registry import NODES  # noqa: E402
+from adcs_sim.app.scenario.files import validate_scenario  # noqa: E402
 from adcs_sim.truth.fault_schedule import fault_schedule  # noqa: E402
 from adcs_sim.truth.schema import build_plant, initial_state  # noqa: E402
 

@@ -426,7 +426,7 @@ def main() -> int:
     if args.role == 'observer':
         return role_status_observer()
 
-    from adcs_sim.app.domains import DomainLease
+    from adcs_sim.app.graph.domains import DomainLease
 
     signal.signal(signal.SIGINT, signal.default_int_handler)  # even if started with SIGINT ignored
     signal.signal(signal.SIGTERM, _on_sigterm)

@@ -77,7 +77,7 @@ def main(argv=None) -> int:
     steps = int(round(args.hours * 3600.0 / period))
     print(f'{args.scenario.name}: {args.hours:g} h at {args.rate_hz:g} Hz = {steps} steps -> {out}', flush=True)
     wall0 = time.monotonic()
-    runner = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
+    runner = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.graph.runner', str(scenario), '--out', str(out),
                                '--no-progress'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
     samples: dict[str, list[tuple[float, float, float]]] = {}   # node -> [(wall s, rss, hwm)]
     names: dict[int, str] = {}

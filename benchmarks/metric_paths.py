@@ -3,11 +3,11 @@
 
 Times (process CPU time), best of ``--repeat`` in one process each:
 
-* **in-memory**: :func:`adcs_sim.app.analysis.run_metrics` of a committed bag's
-  :class:`~adcs_sim.app.run_data.RunData` (read once, not timed), what ``adcs-analyze`` prints;
-* **streamed**: :func:`adcs_sim.app.stream_metrics.analyse_bag` of that bag (what ``adcs-run`` does);
-* **campaign**: :func:`adcs_sim.app.batch_metrics.batch_metric_columns` (a campaign chunk's rows) and
-  :func:`~adcs_sim.app.batch_metrics.batch_run_metrics` of a batch of ``--runs`` runs of
+* **in-memory**: :func:`adcs_sim.app.analysis.metrics.run_metrics` of a committed bag's
+  :class:`~adcs_sim.app.analysis.run_data.RunData` (read once, not timed), what ``adcs-analyze`` prints;
+* **streamed**: :func:`adcs_sim.app.analysis.stream_metrics.analyse_bag` of that bag (what ``adcs-run`` does);
+* **campaign**: :func:`adcs_sim.app.analysis.batch_metrics.batch_metric_columns` (a campaign chunk's rows) and
+  :func:`~adcs_sim.app.analysis.batch_metrics.batch_run_metrics` of a batch of ``--runs`` runs of
   ``config/campaigns/pd_slew_30deg.yaml`` (simulated once, not timed);
 * **long report**: :func:`adcs_sim.app.report.long_run.load_long` of the bag (the 24 h report's two
   streamed passes, ``envelope.MAX_POINTS`` lowered so that it streams).
@@ -48,12 +48,14 @@ def measure(bag: str, runs: int, repeat: int) -> dict[str, float]:
     """Seconds per path (best of ``repeat``) in this process' tree."""
     import numpy as np
 
-    from adcs_sim.app import batch_metrics, stream_metrics
-    from adcs_sim.app.analysis import run_metrics
-    from adcs_sim.app.batch import BatchSimulation
-    from adcs_sim.app.campaign import Campaign
+    from adcs_sim.app.analysis import batch_metrics
+
+    from adcs_sim.app.analysis import stream_metrics
+    from adcs_sim.app.analysis.metrics import run_metrics
+    from adcs_sim.app.batch.engine import BatchSimulation
+    from adcs_sim.app.campaign.plan import Campaign
     from adcs_sim.app.report import envelope, long_run
-    from adcs_sim.app.run_data import RunData
+    from adcs_sim.app.analysis.run_data import RunData
 
     bag = str(ROOT / bag)
     run = RunData.from_bag(bag)

@@ -4,11 +4,11 @@
 Issue 18's Monte Carlo benchmark, on ``config/campaigns/pd_slew_30deg.yaml`` (1000 PD slews of
 600 s, 1 s control period, the scenario's RK4 step) unless ``--campaign`` names another (the seed
 003 Table 1 campaign: ``config/campaigns/pointing_table1.yaml``). The campaign is run as
-``adcs-montecarlo`` runs it, chunk by chunk (:func:`adcs_sim.app.campaign.run_chunk`: dispersions,
+``adcs-montecarlo`` runs it, chunk by chunk (:func:`adcs_sim.app.campaign.plan.run_chunk`: dispersions,
 batch simulation, metrics), in this process without Dask:
 
 (a) **fused**: the batch engine's fused compiled closed loop where it applies (PD family on wheels:
-    :mod:`adcs_sim.app.fused`, whole runs per compiled call), else as (b);
+    :mod:`adcs_sim.app.batch.fused`, whole runs per compiled call), else as (b);
 (b) **kernel**: step by step in Python, plants on the compiled kernel (:mod:`adcs_sim.truth.kernel`),
     ``ADCS_FUSED_LOOP=0`` semantics (``fused.ENABLED = False``);
 (c) **numpy**: the same campaign with ``ADCS_PLANT_KERNEL=0`` semantics as well (``kernel.ENABLED =
@@ -51,8 +51,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bsk_support import basilisk_python, run_child  # noqa: E402
 
-from adcs_sim.app import fused as fused_loop  # noqa: E402
-from adcs_sim.app.campaign import Campaign, run_chunk  # noqa: E402
+from adcs_sim.app.batch import fused as fused_loop  # noqa: E402
+from adcs_sim.app.campaign.plan import Campaign, run_chunk  # noqa: E402
 from adcs_sim.truth import kernel  # noqa: E402
 
 DEFAULT = ROOT / 'config' / 'campaigns' / 'pd_slew_30deg.yaml'
@@ -74,7 +74,7 @@ def timed_campaign(campaign: Campaign, compiled: bool, fused: bool = True) -> tu
 
 CHILD = r"""
 import hashlib, json, sys, time
-from adcs_sim.app.campaign import Campaign, run_chunk
+from adcs_sim.app.campaign.plan import Campaign, run_chunk
 path, runs = sys.argv[1], None if sys.argv[2] == 'all' else int(sys.argv[2])
 warm = Campaign.load(path, runs=2)
 [run_chunk(warm, chunk) for chunk in warm.chunks()]

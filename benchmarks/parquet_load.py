@@ -3,12 +3,12 @@
 
 Builds ``--runs`` (default 100 000) synthetic result rows shaped like a real campaign's (the PD
 slew's dispersions: 4 attitude + 3 inertia + 1 gain inputs, and every metric column of
-:func:`adcs_sim.app.campaign.metric_names`, with some failed runs carrying ``inf``/NaN metrics
+:func:`adcs_sim.app.campaign.plan.metric_names`, with some failed runs carrying ``inf``/NaN metrics
 and a reason), writes them with the campaign's own writers (``results.csv`` and
-``results.parquet``, :mod:`adcs_sim.app.montecarlo`) into a temporary folder, checks that both
+``results.parquet``, :mod:`adcs_sim.app.campaign.montecarlo`) into a temporary folder, checks that both
 files hold the same values, then times, best of ``--repeat`` (default 3):
 
-* **parquet**: ``pyarrow.parquet.read_table`` (what :func:`adcs_sim.app.montecarlo.read_results`
+* **parquet**: ``pyarrow.parquet.read_table`` (what :func:`adcs_sim.app.campaign.montecarlo.read_results`
   does), and ``.to_pandas()`` where pandas is installed;
 * **csv (pyarrow)**: ``pyarrow.csv.read_csv`` of the CSV;
 * **csv (python)**: ``csv.DictReader`` + ``float()`` of every cell (what a script without pyarrow does).
@@ -28,8 +28,8 @@ import numpy as np
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
-from adcs_sim.app.campaign import metric_names
-from adcs_sim.app.montecarlo import write_results_csv, write_results_parquet
+from adcs_sim.app.campaign.plan import metric_names
+from adcs_sim.app.campaign.montecarlo import write_results_csv, write_results_parquet
 
 
 def synthetic_rows(n: int, seed: int = 0) -> list[dict]:

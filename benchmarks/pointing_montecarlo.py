@@ -4,7 +4,7 @@
 Issue #9's benchmark: ``config/campaigns/pointing_table1.yaml`` (controller B; ``--campaign`` for
 another, e.g. ``pointing_table1_a.yaml``): ``--runs`` runs (default 1000) of 1500 simulated s at
 a 1 s control period, the paper's 20 mN m torque limit, random initial attitudes. Both paths run
-the very same code (:func:`adcs_sim.app.campaign.run_chunk`: batch engine, law, actuation, metrics):
+the very same code (:func:`adcs_sim.app.campaign.plan.run_chunk`: batch engine, law, actuation, metrics):
 
 (a) **vectorised**: the campaign's chunks (``chunk_size`` runs per batch), all runs;
 (b) **one at a time**: batches of one. The whole serial campaign would take tens of minutes, so
@@ -26,7 +26,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from adcs_sim.app.campaign import Campaign, run_chunk  # noqa: E402
+from adcs_sim.app.campaign.plan import Campaign, run_chunk  # noqa: E402
 
 
 def main(argv=None) -> int:

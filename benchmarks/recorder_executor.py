@@ -102,7 +102,7 @@ def main() -> int:
     if args.role == 'subscribe':
         subscribe(args.messages, args.executor)
         return 0
-    from adcs_sim.app.domains import DomainLease
+    from adcs_sim.app.graph.domains import DomainLease
     lease = DomainLease()
     try:
         env = lease.env()

@@ -237,7 +237,7 @@ def main() -> int:
         writer_only()
         return 0
     from adcs_msgs_py.node import network_hygiene_defaults
-    from adcs_sim.app.domains import DomainLease
+    from adcs_sim.app.graph.domains import DomainLease
     network_hygiene_defaults()   # our Fast DDS profile: 10 ms heartbeats (the acknowledgement waits)
     lease = DomainLease(*args.domains)
     env = {**lease.env(), **dict(kv.split('=', 1) for kv in args.recorder_env)}

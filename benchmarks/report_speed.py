@@ -39,7 +39,7 @@ import json, resource, runpy, sys, time
 t0 = time.perf_counter()
 sys.argv = ['adcs-analyze'] + sys.argv[1:]
 try:
-    runpy.run_module('adcs_sim.app.analyze', run_name='__main__')
+    runpy.run_module('adcs_sim.app.analysis.analyze', run_name='__main__')
 except SystemExit as exc:
     assert not exc.code, exc.code
 usage = resource.getrusage(resource.RUSAGE_SELF)

@@ -17,7 +17,7 @@ import yaml
 
 from adcs_msgs_py.params import Param, Schema, flatten
 from adcs_msgs_py.sections import _PLANS, section, section_type
-from adcs_sim.app.registry import NODES
+from adcs_sim.app.scenario.registry import NODES
 
 
 def _sections() -> dict[str, dict]:

@@ -11,7 +11,7 @@ repeat's own and the next one's, a last one after the last repeat) and its ratio
 their mean: this machine's speed drifts by tens of per cent within a minute, and a ping-pong of
 a second measured only before a ten-second run often samples another phase of it.
 
-Each showcase run is ``python -m adcs_sim.app.runner <scenario> --out <tmp> --no-progress`` (its own
+Each showcase run is ``python -m adcs_sim.app.graph.runner <scenario> --out <tmp> --no-progress`` (its own
 leased domain). Timed without touching the loop: the dynamics node's own figure in its log
 (``done at ...; stepping loop X s``: monotonic clock from right before the step-0 state to right
 after the last step's publications, so without start-up and without the final acknowledgement
@@ -22,7 +22,7 @@ and the whole ``adcs-run`` wall time (start-up, loop, shutdown, metrics; no repo
 observer-timed) in each repeat, for the same-run ratio of both graphs.
 
 ``--profile DIR`` runs the showcase once more with every node under cProfile
-(:data:`adcs_sim.app.graph.PROFILE_ENV`) and prints each process's top functions by own time.
+(:data:`adcs_sim.app.graph.processes.PROFILE_ENV`) and prints each process's top functions by own time.
 
 ``ratio = showcase steps/s / ping-pong round trips/s``: 1.0 would be a step that costs one round
 trip and nothing else (issue 18 asks >= 0.7 of the raw rclpy ping-pong, rclpy's
@@ -58,7 +58,7 @@ DONE_LINE = re.compile(r'missed steps: (?P<missed>\d+); stepping loop (?P<loop>[
 def run_showcase(out: Path, duration: float | None, env: dict, tree: Path = ROOT) -> dict:
     """One ``adcs-run`` of the showcase into ``out`` with the code of ``tree`` (default this
     checkout); its timings from the dynamics log."""
-    cmd = [sys.executable, '-m', 'adcs_sim.app.runner', str(tree / 'config' / SHOWCASE.name), '--out', str(out),
+    cmd = [sys.executable, '-m', 'adcs_sim.app.graph.runner', str(tree / 'config' / SHOWCASE.name), '--out', str(out),
            '--no-progress']
     if tree != ROOT:   # the nodes, started with `python -m`, import from the same tree
         env = {**env, 'PYTHONPATH': str(tree)}
@@ -186,7 +186,7 @@ def _parse_args():
 
 def main() -> int:
     args = _parse_args()
-    from adcs_sim.app.domains import DomainLease
+    from adcs_sim.app.graph.domains import DomainLease
     lease = DomainLease()
     env = lease.env()
     env.pop('FASTDDS_BUILTIN_TRANSPORTS', None)
@@ -199,7 +199,7 @@ def main() -> int:
         with tempfile.TemporaryDirectory(prefix='showcase_graph_') as tmp:
             _summary(_repeats(args, env, run_env, Path(tmp)), args.compare)
             if args.profile:
-                from adcs_sim.app.graph import PROFILE_ENV
+                from adcs_sim.app.graph.processes import PROFILE_ENV
                 args.profile.mkdir(parents=True, exist_ok=True)
                 sh = run_showcase(Path(tmp) / 'profiled', args.duration,
                                   {**run_env, PROFILE_ENV: str(args.profile.resolve())})

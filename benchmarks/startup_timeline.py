@@ -17,7 +17,7 @@ runner, validation, the domain lease, each ``Graph.start``, the wait for the rec
 supervision, the shutdown, the streamed metrics) and appends ``(wall time, pid, event)`` lines to
 one file. Process start (exec) comes from ``/proc/<pid>/stat`` (10 ms ticks). The wrappers cost a
 few microseconds per call. "interpreter exit" is the last ``atexit`` handler: a node started through
-:mod:`adcs_sim.app.launch` ends with ``os._exit`` once its ``main`` has returned and has none.
+:mod:`adcs_sim.app.graph.launch` ends with ``os._exit`` once its ``main`` has returned and has none.
 
 Also printed, measured apart (``python -X importtime``, one process each, warm file cache): the
 import time of the runner and of each node module, with the largest top-level packages.
@@ -162,8 +162,8 @@ def _on_analysis(mod):
 
 
 _HOOKED = {'adcs_msgs_py.node': _on_node_module, 'adcs_sim.truth.plant': _on_plant,
-           'adcs_sim.app.runner': _on_runner, 'adcs_sim.app.stream_metrics': _on_stream_metrics,
-           'adcs_sim.app.analysis': _on_analysis}
+           'adcs_sim.app.graph.runner': _on_runner, 'adcs_sim.app.analysis.stream_metrics': _on_stream_metrics,
+           'adcs_sim.app.analysis.metrics': _on_analysis}
 
 
 class _Finder:
@@ -196,7 +196,7 @@ DRIVER = r'''
 import sys, time
 from sitecustomize import mark
 t = time.time()
-from adcs_sim.app import runner
+from adcs_sim.app.graph import runner
 mark('name adcs-run')
 mark('runner imports done')
 code = runner.main(sys.argv[1:])
@@ -289,7 +289,7 @@ def import_times(tree: Path) -> list[str]:
     """``python -X importtime`` of the runner and each node module: total, and the largest
     top-level packages (cumulative, as the interpreter reports them)."""
     lines = []
-    for module in ('adcs_sim.app.runner', 'adcs_sim.nodes.recorder', 'adcs_sim.nodes.dynamics',
+    for module in ('adcs_sim.app.graph.runner', 'adcs_sim.nodes.recorder', 'adcs_sim.nodes.dynamics',
                    'adcs_controllers.nodes.pd_controller'):
         env = {**os.environ, 'PYTHONPATH': str(tree)}
         err = subprocess.run([sys.executable, '-X', 'importtime', '-c', f'import {module}'], env=env,

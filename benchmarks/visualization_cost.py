@@ -56,7 +56,7 @@ def run_once(scenario: Path, enabled: bool | None, duration: float | None, work:
         copy.write_text(yaml.safe_dump(doc, sort_keys=False))
     out = Path(tempfile.mkdtemp(dir=work))
     out.rmdir()
-    cmd = [sys.executable, '-m', 'adcs_sim.app.runner', str(copy), '--out', str(out), '--no-progress']
+    cmd = [sys.executable, '-m', 'adcs_sim.app.graph.runner', str(copy), '--out', str(out), '--no-progress']
     if duration is not None:
         cmd += ['--duration', repr(duration)]
     done = subprocess.run(cmd, capture_output=True, text=True)

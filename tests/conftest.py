@@ -65,7 +65,7 @@ def ros_domain(monkeypatch):
 
     Yields the lease; ``lease.env()`` is the environment for subprocesses of the test.
     """
-    from adcs_sim.app.domains import DomainLease  # ros-domain-coordinator: a ROS wheel
+    from adcs_sim.app.graph.domains import DomainLease  # ros-domain-coordinator: a ROS wheel
     # Each lease of this process starts from another id (a step coprime with the 133 ids): a test
     # never meets in its domain a participant an earlier test of this process left alive (one still
     # waiting to be collected). With the default start every lease of a process began at the same
@@ -123,14 +123,14 @@ def pytest_pycollect_makemodule(module_path, parent):
 
 
 def pytest_sessionstart(session):
-    """Compile every numba kernel (``adcs_sim.app.kernels.compile_all``: loads them on a warm cache)
+    """Compile every numba kernel (``adcs_sim.app.batch.kernels.compile_all``: loads them on a warm cache)
     once, before any test, in this process only: an xdist worker, or a node the tests start, then
     loads the machine code from numba's cache instead of compiling it (twice in parallel, and inside
     a test's time). Not for ``--collect-only``, nor in the workers (``workerinput``)."""
     config = session.config
     if hasattr(config, 'workerinput') or config.option.collectonly:
         return
-    from adcs_sim.app.kernels import compile_all, summary
+    from adcs_sim.app.batch.kernels import compile_all, summary
     reporter = config.pluginmanager.get_plugin('terminalreporter')
     verbose = config.option.verbose > 0
     write = reporter.write_line if reporter is not None else print

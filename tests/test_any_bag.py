@@ -40,7 +40,7 @@ from support.bags import (
 )
 from support.paths import BAGS, ROOT
 
-from adcs_sim.app.analysis import REPORTED_TOPICS, RunData, jsonable_metrics, run_metrics
+from adcs_sim.app.analysis.metrics import REPORTED_TOPICS, RunData, jsonable_metrics, run_metrics
 from adcs_sim.bag import columns
 from adcs_sim.bag.batches import TopicBatch
 from adcs_sim.bag.columns import _diagnostic_array, decode_batch, decode_diagnostics
@@ -124,7 +124,7 @@ def test_reference_recording_metrics_unchanged(folder):
     """The metrics computed now from each kept bag are the ones adcs-run printed when it was made,
     and the bag holds every step of the run (state, applied torque, controller status): nothing
     was lost on the way to the recorder."""
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.scenario.files import validate_scenario
     from adcs_sim.truth.schema import step_timing
     kept = json.loads((folder / 'metrics.json').read_text())
     run = RunData.from_bag(folder / 'bag')

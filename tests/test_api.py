@@ -22,9 +22,9 @@ from support.paths import ROOT
 
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app import api
-from adcs_sim.app.analysis import run_metrics
+from adcs_sim.app.analysis.metrics import run_metrics
 from adcs_sim.app.api import BatchRuns, RunResult, Scenario
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.scenario.files import validate_scenario
 
 PD = 'microsat_pd_slew.yaml'
 

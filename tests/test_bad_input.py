@@ -22,8 +22,8 @@ from support.scenarios import make_scenario
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app.runner import main as runner_main
-from adcs_sim.app.runner import run_scenario
+from adcs_sim.app.graph.runner import main as runner_main
+from adcs_sim.app.graph.runner import run_scenario
 
 
 def _bad_wheel_commands(t_ns: int) -> list[JointState]:
@@ -159,7 +159,7 @@ def test_runner_refuses_non_physical_inertia(tmp_path):
 def test_runner_node_failing_at_start_stops_graph(tmp_path, monkeypatch, capsys):
     """A node that dies at start: the runner stops the other processes, exits non-zero naming
     the node and its error, and leaves no output folder claiming to be a run."""
-    from adcs_sim.app import registry
+    from adcs_sim.app.scenario import registry
 
     info = registry.NODES['pd_controller']
     monkeypatch.setitem(registry.NODES, 'pd_controller',

@@ -18,8 +18,8 @@ from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 from support.paths import ROOT, SCRIPTS
 
-from adcs_sim.app.analyze import main as analyze_main
-from adcs_sim.app.repair import main as repair_main
+from adcs_sim.app.analysis.analyze import main as analyze_main
+from adcs_sim.app.analysis.repair import main as repair_main
 from adcs_sim.bag.reader import is_complete, read_metadata, read_raw
 from adcs_sim.bag.storage import typestore
 

@@ -1,4 +1,4 @@
-"""The batch engine (adcs_sim/app/batch.py): the graph's plant, sensor, law and actuation code with a
+"""The batch engine (adcs_sim/app/batch/engine.py): the graph's plant, sensor, law and actuation code with a
 leading batch axis.
 
 * one run of the batch equals the same run through the ROS graph (recorded bag) to round-off;
@@ -17,10 +17,10 @@ from support.ros_graph import record_pd_loop
 from support.scenarios import make_scenario
 
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app.analysis import RunData, run_metrics
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.registry import NODES
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.analysis.metrics import RunData, run_metrics
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.registry import NODES
+from adcs_sim.app.scenario.files import validate_scenario
 
 NOISE = {'noise.seed': 7, 'noise.attitude_std': 1e-4, 'noise.rate_std': 1e-6}
 # Q0 of the paper's slew and two other attitudes to share its batch.

@@ -1,4 +1,4 @@
-"""The batch-axis metrics (adcs_sim/app/batch_metrics.py) equal run_metrics run by run, bit for bit.
+"""The batch-axis metrics (adcs_sim/app/analysis/batch_metrics.py) equal run_metrics run by run, bit for bit.
 
 * the vectorised settling / first-entry times equal analysis.settling_time / first_entry_time on
   the edge cases (always inside, last sample outside, a non-finite sample, never inside);
@@ -13,8 +13,8 @@ import math
 import numpy as np
 from support.scenarios import batch_of, make_scenario
 
-from adcs_sim.app.analysis import first_entry_time, settling_time
-from adcs_sim.app.batch_metrics import (
+from adcs_sim.app.analysis.metrics import first_entry_time, settling_time
+from adcs_sim.app.analysis.batch_metrics import (
     batch_metric_columns,
     batch_run_metrics,
     first_entry_times,
@@ -79,7 +79,7 @@ def test_the_compiled_error_quaternions_are_numpys():
     its vector part (numpy) on (runs, samples) arrays: one target or one per run, random and
     awkward values (NaN, inf, signed zeros), the same bits."""
     from adcs_core.attitude import error_quaternion, quat_normalize
-    from adcs_sim.app.metrics_kernel import error_quaternions
+    from adcs_sim.app.analysis.metrics_kernel import error_quaternions
     rng = np.random.default_rng(11)
     q = rng.normal(size=(7, 301, 4)) * np.array([1.0, 1e-3, 1e3, 1.0])
     q[1, 5] = [np.nan, 0.0, 0.0, 1.0]

@@ -1,4 +1,4 @@
-"""Monte Carlo campaigns (adcs_sim/app/campaign.py, adcs_sim/app/montecarlo.py).
+"""Monte Carlo campaigns (adcs_sim/app/campaign/plan.py, adcs_sim/app/campaign/montecarlo.py).
 
 * reproducible: the same seed gives the same rows bit for bit however the campaign is split, in
   this process or on a Dask LocalCluster (loopback);
@@ -19,10 +19,10 @@ import yaml
 from support.paths import CONFIG
 from support.scenarios import make_scenario
 
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.campaign import Campaign, CampaignError, run_chunk
-from adcs_sim.app.montecarlo import execute, main
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.campaign.plan import Campaign, CampaignError, run_chunk
+from adcs_sim.app.campaign.montecarlo import execute, main
+from adcs_sim.app.scenario.files import validate_scenario
 
 BASE_DISPERSIONS = {
     'dynamics.initial.attitude': {'distribution': 'euler213_uniform', 'max_deg': 30},
@@ -88,8 +88,8 @@ def test_dask_gives_the_same_rows_locally_and_by_scheduler_address(tmp_path):
 def test_an_exported_run_replays_through_the_ros_graph(tmp_path):
     """adcs-run of a run's exported scenario: the graph's recording is that run (batch engine, to
     round-off)."""
-    from adcs_sim.app.analysis import RunData
-    from adcs_sim.app.runner import run_scenario
+    from adcs_sim.app.analysis.metrics import RunData
+    from adcs_sim.app.graph.runner import run_scenario
     campaign = Campaign.load(write_campaign(tmp_path, scenario=make_scenario(tmp_path, {
         'dynamics': {'duration': 60.0}})))
     replay = tmp_path / 'run_5.yaml'
@@ -108,7 +108,7 @@ def test_a_run_replays_alone_from_its_exported_scenario(tmp_path):
     replay = tmp_path / 'run_4.yaml'
     assert main([str(campaign.path), '--export-run', '4', '--out', str(replay)]) == 0
     alone = BatchSimulation.from_runs([validate_scenario(replay)]).run()  # what adcs-run validates
-    from adcs_sim.app.campaign import metric_columns
+    from adcs_sim.app.campaign.plan import metric_columns
     assert {m: v for m, v in metric_columns(alone.metrics(0)).items() if m in row['metrics']} == row['metrics']
 
 
@@ -201,7 +201,7 @@ def test_negative_inertia_draw_names_run_and_key(tmp_path):
 
 
 def test_summary_statistics_are_those_of_the_rows(tmp_path):
-    from adcs_sim.app.montecarlo import summarize
+    from adcs_sim.app.campaign.montecarlo import summarize
     campaign = Campaign.load(write_campaign(tmp_path))
     rows = rows_of(campaign, 7)
     summary = summarize(campaign, rows)

@@ -6,7 +6,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from support.scenarios import write_campaign
 
-from adcs_sim.app.campaign import Campaign, run_chunk
+from adcs_sim.app.campaign.plan import Campaign, run_chunk
 
 DISPERSIONS = {
     'dynamics.initial.attitude': {'distribution': 'euler213_uniform', 'max_deg': [30, 10, 60]},

@@ -1,4 +1,4 @@
-"""Campaign results in Parquet (adcs_sim/app/montecarlo.py: results.parquet beside results.csv).
+"""Campaign results in Parquet (adcs_sim/app/campaign/montecarlo.py: results.parquet beside results.csv).
 
 * the Parquet table is the CSV, row for row and bit for bit (columns, order, values; failed runs
   with their reason and non-finite metrics included);
@@ -19,7 +19,7 @@ import yaml
 from support.scenarios import make_scenario
 
 from adcs_sim.app.api import campaign_results
-from adcs_sim.app.montecarlo import main, read_results, results_table
+from adcs_sim.app.campaign.montecarlo import main, read_results, results_table
 
 
 def _same(csv_text: str, value) -> bool:

@@ -20,9 +20,9 @@ from support.paths import CONFIG
 from support.scenarios import write_campaign
 
 from adcs_msgs_py.params import ParameterError, Schema
-from adcs_sim.app.campaign import Campaign, CampaignError
-from adcs_sim.app.registry import NODES
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.campaign.plan import Campaign, CampaignError
+from adcs_sim.app.scenario.registry import NODES
+from adcs_sim.app.scenario.files import validate_scenario
 
 
 def error_of(path) -> str:

@@ -15,7 +15,7 @@ from rclpy.executors import SingleThreadedExecutor
 
 from adcs_msgs_py import cdr, topics
 from adcs_msgs_py import conversions as cv
-from adcs_sim.app.domains import DomainLease
+from adcs_sim.app.graph.domains import DomainLease
 
 Q = np.array([0.1, -0.2, 0.3, np.sqrt(1 - 0.14)])
 W = np.array([1e-3, -0.0, 5e-324])

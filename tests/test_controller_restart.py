@@ -21,7 +21,7 @@ from support.paths import CONFIG, ROOT
 from support.processes import children
 from support.scenarios import make_scenario
 
-from adcs_sim.app.analysis import RunData, run_metrics
+from adcs_sim.app.analysis.metrics import RunData, run_metrics
 from adcs_sim.bag.reader import read_raw
 
 DEADLINE = 180.0
@@ -64,7 +64,7 @@ def _assert_whole_run_with_gap(bag, killed_after: int):
 def test_runner_restarts_a_killed_controller_which_rejoins(tmp_path, spawn):
     scenario = make_scenario(tmp_path, {'dynamics': {'duration': DURATION, 'lockstep.timeout': TIMEOUT}})
     out = tmp_path / 'run'
-    proc = spawn([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
+    proc = spawn([sys.executable, '-m', 'adcs_sim.app.graph.runner', str(scenario), '--out', str(out),
                   '--no-progress', '--restart', '1'], stdout=subprocess.PIPE,
                  stderr=subprocess.PIPE, text=True, cwd=ROOT)
     try:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from adcs_sim.app.campaign import Campaign, run_chunk
+from adcs_sim.app.campaign.plan import Campaign, run_chunk
 
 CAMPAIGN = Path(__file__).resolve().parents[1] / 'config' / 'campaigns' / 'mekf_consistency.yaml'
 

@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 from support.comparison import assert_recorded_run_equal
 
-from adcs_sim.app import estimation
-from adcs_sim.app.analysis import RunData, run_metrics
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.analysis import estimation
+from adcs_sim.app.analysis.metrics import RunData, run_metrics
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.files import validate_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 BAGS, CONFIG = ROOT / 'bags', ROOT / 'config'

@@ -18,8 +18,8 @@ from hypothesis import strategies as st
 from support.paths import ROOT
 from support.scenarios import make_scenario
 
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.files import validate_scenario
 from adcs_sim.bag.reader import read_raw
 from adcs_sim.truth.divergence import nonfinite_cause
 from adcs_sim.truth.schema import build_plant
@@ -53,7 +53,7 @@ def test_dynamics_node_stops_the_run_naming_the_time_and_the_cause(tmp_path):
     scenario = _diverging(tmp_path)
     _, k_fail = _batch_failure(scenario)
     out = tmp_path / 'run'
-    proc = subprocess.run([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
+    proc = subprocess.run([sys.executable, '-m', 'adcs_sim.app.graph.runner', str(scenario), '--out', str(out),
                            '--no-progress'], capture_output=True, text=True, timeout=DEADLINE, cwd=ROOT)
     assert proc.returncode == 1, proc.stderr
     assert 'dynamics exited with status 5' in proc.stderr, proc.stderr

@@ -1,6 +1,6 @@
 """Domain leases that cooperate with ros-domain-coordinator (issue #21 item 6).
 
-Ours (:class:`adcs_sim.app.domains.DomainLease`) and theirs (``domain_coordinator.domain_id()``,
+Ours (:class:`adcs_sim.app.graph.domains.DomainLease`) and theirs (``domain_coordinator.domain_id()``,
 what launch_testing and ament's isolated tests use), each held by a process of its own, never
 get the same id, and a holder killed with SIGKILL frees its id. The lock files of these tests
 live in a private temp directory (``TMPDIR``), so only the coordinator's ports, the machine-wide
@@ -16,12 +16,12 @@ import sys
 import pytest
 from domain_coordinator import domain_id
 
-from adcs_sim.app import domains
-from adcs_sim.app.domains import DomainLease, coordinator_socket
+from adcs_sim.app.graph import domains
+from adcs_sim.app.graph.domains import DomainLease, coordinator_socket
 
 THEIRS = ('import sys\nfrom domain_coordinator import domain_id\n'
           'with domain_id() as d:\n    print(d, flush=True)\n    sys.stdin.read()\n')
-OURS = ('import sys\nfrom adcs_sim.app.domains import DomainLease\n'
+OURS = ('import sys\nfrom adcs_sim.app.graph.domains import DomainLease\n'
         'lease = DomainLease(1, 100)\nprint(lease.domain_id, flush=True)\nsys.stdin.read()\n')
 
 

@@ -8,8 +8,8 @@ from support.ros_graph import InProcessGraph
 from support.scenarios import make_scenario
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion
-from adcs_sim.app.analysis import RunData
-from adcs_sim.app.domains import DomainLease
+from adcs_sim.app.analysis.metrics import RunData
+from adcs_sim.app.graph.domains import DomainLease
 from adcs_sim.bag.reader import read_messages
 
 

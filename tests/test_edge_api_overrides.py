@@ -14,9 +14,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app import runner
+from adcs_sim.app.graph import runner
 from adcs_sim.app.api import Scenario
-from adcs_sim.app.scenario_files import RunError, validate_scenario
+from adcs_sim.app.scenario.files import RunError, validate_scenario
 
 PD = 'microsat_pd_slew.yaml'
 

@@ -24,11 +24,11 @@ from hypothesis import strategies as st
 from support.paths import CONFIG
 from support.scenarios import make_scenario
 
-import adcs_sim.app.campaign as campaign_module
-import adcs_sim.app.montecarlo as montecarlo
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.campaign import Campaign, CampaignError
-from adcs_sim.app.registry import NODES
+import adcs_sim.app.campaign.plan as campaign_module
+import adcs_sim.app.campaign.montecarlo as montecarlo
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.campaign.plan import Campaign, CampaignError
+from adcs_sim.app.scenario.registry import NODES
 
 STEPS = 5   # control steps of every tiny campaign's runs
 
@@ -436,7 +436,7 @@ def test_runs_on_the_command_line_are_bounded_as_the_files(tmp_path, monkeypatch
 def test_a_chunk_that_does_not_fit_in_memory_is_refused(tmp_path, monkeypatch, capsys):
     """1000 runs of 600 steps a batch (~120 MB) on a machine of 128 MiB: refused naming chunk_size and
     the most runs a chunk can take; the same campaign in chunks of 100 loads."""
-    monkeypatch.setattr('adcs_sim.app.campaign_checks.physical_memory_bytes', lambda: 128 * 2**20)
+    monkeypatch.setattr('adcs_sim.app.campaign.checks.physical_memory_bytes', lambda: 128 * 2**20)
     err = _refused(tmp_path, monkeypatch, capsys, runs=1000, chunk_size=1000, dispersions=SEED)
     assert re.search(r'campaign\.chunk_size: 1000 runs a batch need .* GiB .*at most \d+ runs a chunk', err), err
     assert Campaign.load(_campaign_file(tmp_path, CONFIG / 'microsat_pd_slew.yaml', runs=1000, chunk_size=100,

@@ -26,8 +26,8 @@ from support.paths import ROOT, SCRIPTS
 from support.processes import alive, children
 from support.scenarios import make_scenario
 
-from adcs_sim.app.analyze import main as analyze_main
-from adcs_sim.app.repair import main as repair_main
+from adcs_sim.app.analysis.analyze import main as analyze_main
+from adcs_sim.app.analysis.repair import main as repair_main
 from adcs_sim.bag.lock import bag_writer
 from adcs_sim.bag.reader import is_complete, read_metadata, read_raw
 from adcs_sim.bag.writer import BagWriter
@@ -116,7 +116,7 @@ class TestDestroyedOrHiddenData:
                                             'recorder': {'flush_period': 0.1}})
         out = tmp_path / 'run'
         bag = out / 'bag'
-        proc = spawn([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
+        proc = spawn([sys.executable, '-m', 'adcs_sim.app.graph.runner', str(scenario), '--out', str(out),
                       '--no-progress'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
         deadline = time.monotonic() + 120
         dynamics = None   # stopped as soon as it exists: the run cannot have ended, however fast the machine

@@ -12,8 +12,8 @@ import pytest
 from support.edge_paths import one_line
 from support.paths import ROOT
 
-from adcs_sim.app import layouts
-from adcs_sim.app.analyze import main as analyze
+from adcs_sim.app.graph import layouts
+from adcs_sim.app.analysis.analyze import main as analyze
 
 BAG = ROOT / 'bags' / 'microsat_pd_slew' / 'bag'
 OPTIONS = {'foxglove': '--foxglove-layout', 'plotjuggler': '--plotjuggler-layout'}

@@ -39,8 +39,8 @@ import adcs_sim.bag.writer as bag_writer
 from adcs_msgs_py import topics
 from adcs_msgs_py.conversions import clock_msg, state_to_msg
 from adcs_msgs_py.node import EXIT_DISK_FULL, main_for
-from adcs_sim.app.analyze import main as analyze_main
-from adcs_sim.app.repair import main as repair_main
+from adcs_sim.app.analysis.analyze import main as analyze_main
+from adcs_sim.app.analysis.repair import main as repair_main
 from adcs_sim.bag.lock import bag_writer as writer_of
 from adcs_sim.bag.reader import is_complete, read_metadata, read_raw
 from adcs_sim.bag.writer import BagWriteError, BagWriter
@@ -238,7 +238,7 @@ def test_adcs_run_on_a_full_disk_stops_the_graph_and_says_where_the_bag_is(tmp_p
     scenario = make_scenario(tmp_path, {'dynamics': {'duration': 20000.0}})   # ~30 MB by adcs-run's estimate
     with tmpfs(tmp_path / 'disk', '64m') as disk:
         out, bag = disk / 'run', disk / 'run' / 'bag'
-        proc = spawn([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
+        proc = spawn([sys.executable, '-m', 'adcs_sim.app.graph.runner', str(scenario), '--out', str(out),
                       '--no-progress'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
         nodes, filled = {}, False
         while proc.poll() is None:     # note the nodes while the run goes, to check none is left

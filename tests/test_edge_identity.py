@@ -22,9 +22,9 @@ from support.rogue import FakeGraph, FakeSub, first_unclean_step, has_messages, 
 
 from adcs_msgs_py import names, topics
 from adcs_msgs_py.guard import PublisherVetting
-from adcs_sim.app.analysis import RunData, bag_intrusions
-from adcs_sim.app.run_data import intrusion_lines, unmatchable_lines
-from adcs_sim.app.runner import allowed_publishers
+from adcs_sim.app.analysis.metrics import RunData, bag_intrusions
+from adcs_sim.app.analysis.run_data import intrusion_lines, unmatchable_lines
+from adcs_sim.app.graph.runner import allowed_publishers
 from adcs_sim.bag.reader import read_raw
 
 RUN = {'wheels/cmd': ['pd_controller'], 'state': ['dynamics'],

@@ -17,12 +17,13 @@ import pytest
 from support.paths import ROOT
 
 from adcs_msgs_py.params_file import RepeatedKeyWarning, load_params_file
-from adcs_sim.app import analyze, runner
-from adcs_sim.app.analysis import RunData, run_metrics
+from adcs_sim.app.analysis import analyze
+from adcs_sim.app.graph import runner
+from adcs_sim.app.analysis.metrics import RunData, run_metrics
 from adcs_sim.app.api import Scenario
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.run_data import _scenario, target_attitude
-from adcs_sim.app.scenario_files import RunError, validate_scenario
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.analysis.run_data import _scenario, target_attitude
+from adcs_sim.app.scenario.files import RunError, validate_scenario
 from adcs_sim.bag.reader import mcap_contents, read_metadata
 from adcs_sim.bag.storage import mcap_file
 from adcs_sim.bag.writer import BagWriter

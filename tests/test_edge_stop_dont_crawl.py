@@ -27,9 +27,9 @@ from support.scenarios import make_scenario
 
 from adcs_controllers.laws.failure import FlightSoftwareError
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app import runner
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.graph import runner
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.files import validate_scenario
 from adcs_sim.bag.reader import read_raw
 
 DEADLINE = 300.0   # a hang guard only (the lockstep timeout below is 600 s: a crawl never ends in it)
@@ -116,7 +116,7 @@ def test_an_estimator_that_cannot_answer_stops_the_run_with_its_reason(tmp_path)
     is 600 s: one waited would hold the test past its deadline)."""
     scenario = _quest_scenario(tmp_path)
     out = tmp_path / 'run'
-    proc = subprocess.run([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
+    proc = subprocess.run([sys.executable, '-m', 'adcs_sim.app.graph.runner', str(scenario), '--out', str(out),
                            '--no-progress'], capture_output=True, text=True, timeout=DEADLINE, cwd=ROOT)
     assert proc.returncode == 1, proc.stderr
     errors = [line for line in proc.stderr.splitlines() if line.startswith('adcs-run: error:')]
@@ -128,7 +128,7 @@ def test_an_estimator_that_cannot_answer_stops_the_run_with_its_reason(tmp_path)
     assert '[quest_estimator] error: flight software failed' in (out / 'logs' / 'quest_estimator.log').read_text()
     states = [topic for topic, *_ in read_raw(out / 'bag') if topic == '/state']
     assert len(states) == FAIL_T + 1   # t = 0 .. 24 s: every state up to the step that could not be answered
-    from adcs_sim.app.stream_metrics import analyse_bag
+    from adcs_sim.app.analysis.stream_metrics import analyse_bag
     assert analyse_bag(out / 'bag', 0.5).metrics['missed_steps'] == 0
 
 

@@ -18,7 +18,15 @@ from support.edge_paths import fifo, one_line, read_only, tiny_campaign
 from support.paths import ROOT
 from support.scenarios import make_scenario
 
-from adcs_sim.app import analyze, montecarlo, repair, runner, tuning
+from adcs_sim.app.analysis import analyze
+
+from adcs_sim.app.campaign import montecarlo
+
+from adcs_sim.app.analysis import repair
+
+from adcs_sim.app.graph import runner
+
+from adcs_sim.app.campaign import tuning
 
 BAG = ROOT / 'bags' / 'microsat_pd_slew' / 'bag'
 
@@ -87,7 +95,7 @@ def test_adcs_run_refuses_an_unusable_out_before_anything_starts(tmp_path, kind,
 def test_adcs_analyze_refuses_an_unusable_output_before_reading(tmp_path, kind, mode, monkeypatch, capsys):
     loaded = []
     monkeypatch.setattr(analyze, 'load_run', lambda *a, **k: loaded.append(a) or _reached())
-    monkeypatch.setattr('adcs_sim.app.layouts.load_run', lambda *a, **k: loaded.append(a) or _reached())
+    monkeypatch.setattr('adcs_sim.app.graph.layouts.load_run', lambda *a, **k: loaded.append(a) or _reached())
     bag = tmp_path / 'run' / 'bag'
     bag.mkdir(parents=True)
     for f in BAG.iterdir():
@@ -196,7 +204,7 @@ def test_execute_names_an_unusable_scheduler_in_one_error(tmp_path, server, monk
     """The connection itself (a scheduler gone between main's check and the run, or the API's
     execute): one CampaignError naming the address, whatever answered (a garbage answer made the
     Dask client allocate 3 EiB)."""
-    from adcs_sim.app.campaign import Campaign, CampaignError
+    from adcs_sim.app.campaign.plan import Campaign, CampaignError
     monkeypatch.setattr(montecarlo, 'CONNECT_TIMEOUT_S', 0.5, raising=False)
     campaign = Campaign.load(_campaign(tmp_path))
     with (_foreign_server(b'\xff' * 64) if server == 'garbage'

@@ -3,7 +3,7 @@
 Validation looked at the run's first instant: a TLE that decays inside the run, a span that leaves
 the field model's years, negative seeds, a control period below a nanosecond, thousands of wheels
 and a bag larger than the disk all passed, then failed mid-run (or took seconds per step). Now the
-whole run is checked before anything starts (adcs_sim/app/scenario_checks.py): ``adcs-run`` exits 2
+whole run is checked before anything starts (adcs_sim/app/scenario/checks.py): ``adcs-run`` exits 2
 with one line naming the section and key (or the resource), no domain leased, no output folder.
 The estimator's parameters are bounded to what its filter's arithmetic can take: fuzzed, each
 draw is either refused at validation or the batch engine runs it finite.
@@ -22,9 +22,10 @@ from support.scenarios import make_scenario
 
 from adcs_msgs_py.params import ParameterError
 from adcs_msgs_py.params_file import load_params_file
-from adcs_sim.app import runner, scenario_checks
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.scenario_files import validate_scenario, validate_sections
+from adcs_sim.app.graph import runner
+from adcs_sim.app.scenario import checks as scenario_checks
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.files import validate_scenario, validate_sections
 
 LEO = 'leo_tle_sun_magnetometer_mekf.yaml'
 # A 200 km TLE with a large drag term (B* = 0.05): SGP4 reports it decayed 240 min after its epoch.

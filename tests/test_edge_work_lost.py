@@ -10,9 +10,9 @@ import copy
 import pytest
 from support.edge_paths import fifo, one_line, read_only, tiny_campaign
 
-from adcs_sim.app import montecarlo
+from adcs_sim.app.campaign import montecarlo
 from adcs_sim.app.api import Scenario
-from adcs_sim.app.batch import BatchSimulation
+from adcs_sim.app.batch.engine import BatchSimulation
 
 
 def _campaign(tmp_path, runs: int = 3):

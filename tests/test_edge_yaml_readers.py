@@ -20,10 +20,10 @@ from hypothesis import strategies as st
 
 from adcs_msgs_py import params_file
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app.campaign import Campaign, CampaignError
+from adcs_sim.app.campaign.plan import Campaign, CampaignError
 from adcs_sim.app.report.comparison import load_reference
 from adcs_sim.app.report.lead import paper_values
-from adcs_sim.app.run_data import _scenario
+from adcs_sim.app.analysis.run_data import _scenario
 from adcs_sim.bag import repair, storage
 from adcs_sim.bag.reader import read_raw
 

@@ -1,4 +1,4 @@
-"""Estimation analysis (adcs_sim/app/estimation.py) and its figures (adcs_sim/app/report/estimation.py):
+"""Estimation analysis (adcs_sim/app/analysis/estimation.py) and its figures (adcs_sim/app/report/estimation.py):
 from a bag (the estimate, status and truth messages an estimator run records) and from a batch."""
 from __future__ import annotations
 
@@ -10,11 +10,11 @@ from support.estimator_runs import SECTION, write_run_bag
 from support.scenarios import make_scenario
 
 from adcs_controllers.estimators import mekf
-from adcs_sim.app import estimation
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.registry import NODES
+from adcs_sim.app.analysis import estimation
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.registry import NODES
 from adcs_sim.app.report import estimation as figures
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.scenario.files import validate_scenario
 
 def test_series_from_a_bag_is_the_estimators_output(tmp_path):
     """(Figure: estimation_figure of this bag, docs/determination.md.) What the analysis reads back from the bag is what the estimator computed: attitude, rate and
@@ -86,7 +86,7 @@ def test_the_run_analysis_of_a_bag_with_an_estimate_reads_the_state_not_the_esti
     from rclpy.serialization import serialize_message
 
     from adcs_msgs_py import conversions as cv
-    from adcs_sim.app.analysis import RunData
+    from adcs_sim.app.analysis.metrics import RunData
     from adcs_sim.bag.writer import BagWriter
     bag = BagWriter(tmp_path / 'bag')
     for name in ('/estimate/state', '/state'):

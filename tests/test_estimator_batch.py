@@ -1,4 +1,4 @@
-"""The batch engine with an estimator section (adcs_sim/app/batch.py): the sensors' readings of each
+"""The batch engine with an estimator section (adcs_sim/app/batch/engine.py): the sensors' readings of each
 step go through the estimator family's step (the node's object) and a controller with ``feedback:
 estimate`` flies on the estimate. The sensors here are a test source on the plant's true state
 (tests/support/estimation_truth.py StateSensors) until the truth model's SensorSuite is plugged in."""
@@ -14,9 +14,9 @@ from adcs_controllers.estimators import mekf
 from adcs_msgs_py import conversions_determination as cd
 from adcs_msgs_py.measurements import Measurements, Reading
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app.batch import BatchSimulation, as_received
-from adcs_sim.app.registry import NODES
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.batch.engine import BatchSimulation, as_received
+from adcs_sim.app.scenario.registry import NODES
+from adcs_sim.app.scenario.files import validate_scenario
 
 def test_the_pd_slew_flown_on_the_mekf_estimate_settles_as_on_the_truth(tmp_path):
     """Figure: the microsat PD slew (seed 004 benchmark law) on the truth and on the MEKF estimate

@@ -74,7 +74,7 @@ def fields(draw):
 @pytest.fixture(scope='module')
 def estimator(tmp_path_factory):
     from adcs_controllers.nodes.mekf_estimator import MekfEstimator
-    from adcs_sim.app.domains import DomainLease
+    from adcs_sim.app.graph.domains import DomainLease
     tmp = tmp_path_factory.mktemp('fuzz')
     scenario = make_scenario(tmp, {'mekf_estimator': {'sensors': ['gyro', 'star_tracker', 'sun', 'magnetometer'],
                                                       'startup.estimate_subscribers': 0}}, drop=('recorder',))

@@ -7,8 +7,8 @@ import pytest
 from support.scenarios import make_scenario
 
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app.runner import allowed_publishers, startup_counts
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.graph.runner import allowed_publishers, startup_counts
+from adcs_sim.app.scenario.files import validate_scenario
 
 MEKF = {'sensors': ['gyro', 'star_tracker']}
 FITTED = {'sensors.gyro.enabled': True, 'sensors.star_tracker.enabled': True}   # in the dynamics section

@@ -204,7 +204,7 @@ def test_fault_tracker_applies_at_stamp_and_counts_late():
 
 
 def test_runner_cross_checks_fault_actuators(tmp_path):
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.scenario.files import validate_scenario
     fault = {'wheels.names': WHEELS + ['rw_w'], 'schedule.time': [10.0], 'schedule.actuator': ['rw_w'],
              'schedule.mode': ['failed'], 'schedule.value': [0.0]}
     with pytest.raises(ParameterError, match='rw_w') as err:
@@ -223,8 +223,8 @@ def test_batch_applies_the_fault_schedule(tmp_path):
     """The batch engine applies the schedule as the graph does: rw_z fails at 100 s and recovers
     at 200 s; the body gets no z torque over [100, 200) (the only wheel on z is gone and the
     allocation knows it), z torque before and after, and the faults are in the run's data."""
-    from adcs_sim.app.batch import BatchSimulation
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.batch.engine import BatchSimulation
+    from adcs_sim.app.scenario.files import validate_scenario
     sections = validate_scenario(make_scenario(tmp_path, {'fault_injector': section(),
                                                           'dynamics': {'duration': 300.0}}))
     sim = BatchSimulation.from_runs([sections])
@@ -247,7 +247,7 @@ def test_wheel_failure_in_lockstep_graph(ros_domain, tmp_path):
     commanded none (the controller re-allocates), the body gets no z torque over [100, 101] but
     did over [99, 100], and the fault is in the bag."""
     from adcs_controllers.nodes.pd_controller import PdController
-    from adcs_sim.app.analysis import RunData
+    from adcs_sim.app.analysis.metrics import RunData
     from adcs_sim.bag.reader import read_messages
 
     n, t_fault = 300, 100.0
@@ -335,8 +335,8 @@ def test_runner_with_fault_injector_is_deterministic(ros_domain, tmp_path):
     """The runner starts the fault injector as its own process and tells the dynamics and the
     controller to collect the schedule first: two runs of a scenario with a fault at t = 20 s
     record identical wheel torques, and rw_z is commanded nothing from t = 20 s on."""
-    from adcs_sim.app.analysis import RunData
-    from adcs_sim.app.runner import run_scenario
+    from adcs_sim.app.analysis.metrics import RunData
+    from adcs_sim.app.graph.runner import run_scenario
     scenario = make_scenario(tmp_path, {
         'dynamics': {'duration': 40.0},
         'fault_injector': {'wheels.names': WHEELS, 'schedule.time': [20.0],
@@ -355,8 +355,8 @@ def test_runner_with_fault_injector_is_deterministic(ros_domain, tmp_path):
     assert r.wheel_torque[r.t_wheels == 19.0, z][0] != 0.0
     assert (20.0, 2, 'rw_z', 'failed') in r.faults
     # the batch engine applies the same schedule at the same step: the same run
-    from adcs_sim.app.batch import BatchSimulation
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.batch.engine import BatchSimulation
+    from adcs_sim.app.scenario.files import validate_scenario
     batch = BatchSimulation.from_runs([validate_scenario(scenario)]).run().run_data(0)
     assert_allclose(batch.q, r.q, rtol=0, atol=1e-13)
     assert_allclose(batch.u, r.u, rtol=0, atol=1e-16)

@@ -19,8 +19,8 @@ from adcs_msgs_py import names, topics
 from adcs_msgs_py.measurements import SENSORS, Measurements
 from adcs_msgs_py.params import ParameterError
 from adcs_msgs_py.sensor_interfaces import NIS_DOF, SENSOR_FAULT_MODES
-from adcs_sim.app.batch import as_received
-from adcs_sim.app.estimation import NIS_DOF as ANALYSIS_NIS_DOF
+from adcs_sim.app.batch.engine import as_received
+from adcs_sim.app.analysis.estimation import NIS_DOF as ANALYSIS_NIS_DOF
 from adcs_sim.truth.fault_schedule import FAULT_SCHEMA, fault_schedule
 from adcs_sim.truth.schema import DYNAMICS_SCHEMA
 from adcs_sim.truth.sensor_models import FineSunSensor, rotation_quaternion, sensor_frame

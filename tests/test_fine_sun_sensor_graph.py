@@ -12,8 +12,8 @@ from support.scenarios import make_scenario
 
 from adcs_msgs_py import conversions_determination as cd
 from adcs_msgs_py.measurements import Reading
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.files import validate_scenario
 from adcs_sim.bag.reader import read_messages
 from adcs_sim.nodes.dynamics import DynamicsNode
 from adcs_sim.nodes.fault_injector import FaultInjectorNode
@@ -81,7 +81,7 @@ def test_estimator_chain_on_the_fine_sun_sensor_in_lockstep_equals_the_batch(ros
     truth and every estimate (attitude, rate) are the batch engine's, bit for bit."""
     from adcs_controllers.nodes.mekf_estimator import MekfEstimator
     from adcs_controllers.nodes.pd_controller import PdController
-    from adcs_sim.app import estimation
+    from adcs_sim.app.analysis import estimation
     n = 30
     bag_dir = tmp_path / 'bag'
     recorder = {'startup.expect_recorder': True}

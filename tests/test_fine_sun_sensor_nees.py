@@ -8,7 +8,7 @@ filter's initial attitude error from its attitude prior, so the filter's initial
 truth's. Consistency bounds as tests/test_estimator_families.py and
 tests/test_estimation_analysis.py (Bar-Shalom, Li & Kirubarajan, *Estimation with Applications to
 Tracking and Navigation*, Wiley 2001, §5.4): the run-averaged 6-dof NEES at each step against the
-two-sided 95 % bounds of the mean of 100 (adcs_sim.app.estimation.chi2_bounds), and each sensor's
+two-sided 95 % bounds of the mean of 100 (adcs_sim.app.analysis.estimation.chi2_bounds), and each sensor's
 2-dof NIS likewise (batch_consistency)."""
 from __future__ import annotations
 
@@ -19,9 +19,9 @@ import pytest
 from support.estimation_truth import perturbed
 from support.scenarios import make_scenario
 
-from adcs_sim.app import estimation
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.analysis import estimation
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.files import validate_scenario
 
 pytestmark = pytest.mark.slow
 

@@ -1,4 +1,4 @@
-"""The batch engine's fused compiled loop (adcs_sim.app.fused) gives the general path's rows bit for bit.
+"""The batch engine's fused compiled loop (adcs_sim.app.batch.fused) gives the general path's rows bit for bit.
 
 The fused loop runs the PD law, the wheels' minimum-norm allocation and saturation and the plant's
 RK4 for every control step of every run in one compiled call; the general path
@@ -19,10 +19,10 @@ from adcs_controllers.laws import pd_kernel
 from adcs_controllers.laws.allocation import saturate, wheel_allocation_matrix
 from adcs_controllers.laws.pd import pd_torque
 from adcs_core.attitude import matvec, quat_normalize
-from adcs_sim.app import fused
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.registry import NODES
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.batch import fused
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.registry import NODES
+from adcs_sim.app.scenario.files import validate_scenario
 
 SERIES = ('q', 'w', 'u', 'wheel_speed', 'n_steps')
 

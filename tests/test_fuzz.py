@@ -7,7 +7,7 @@ output is finite or the input is rejected with a reason:
 
 * message validation (``adcs_msgs_py.conversions``) either returns finite values (a unit
   quaternion) or raises ``InvalidMessage`` with a non-empty reason;
-* every law on the graph (all of ``adcs_sim.app.registry``), given what validation lets through (a
+* every law on the graph (all of ``adcs_sim.app.scenario.registry``), given what validation lets through (a
   unit quaternion, finite rates of any size), returns a finite torque / wheel momentum, and the
   actuation turns it into finite commands inside the limits, whatever wheels are left;
 * the pure laws not yet on the graph (inertia-free M2R / M2S, backstepping, single-axis pointing)
@@ -39,7 +39,7 @@ from adcs_controllers.laws.motion_to_spin import M2sLaw
 from adcs_core.attitude import error_quaternion
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py.params import REQUIRED, flatten
-from adcs_sim.app.registry import NODES
+from adcs_sim.app.scenario.registry import NODES
 
 settings.register_profile('adcs-fuzz', derandomize=True, max_examples=60, deadline=None,
                           suppress_health_check=[HealthCheck.too_slow], database=None)

@@ -10,7 +10,7 @@ import pytest
 from support.packaging import NODES, TOOLS
 
 from adcs_msgs_py.node import wants_help
-from adcs_sim.app.registry import NODES as REGISTRY
+from adcs_sim.app.scenario.registry import NODES as REGISTRY
 
 VENV_BIN = Path(sys.prefix) / 'bin'
 TIMEOUT = 120.0   # a hang guard only

@@ -31,8 +31,8 @@ from mcap.stream_reader import CRCValidationError, StreamReader
 from mcap.writer import CompressionType, Writer
 from support.paths import ROOT
 
-from adcs_sim.app.analyze import main as analyze_main
-from adcs_sim.app.repair import main as repair_main
+from adcs_sim.app.analysis.analyze import main as analyze_main
+from adcs_sim.app.analysis.repair import main as repair_main
 from adcs_sim.bag.reader import is_complete, read_metadata, read_raw
 from adcs_sim.bag.records import MAX_CHUNK_BYTES
 from adcs_sim.bag.writer import BagWriter

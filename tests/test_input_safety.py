@@ -17,7 +17,7 @@ from support.paths import ROOT
 
 from adcs_msgs_py.params import ParameterError
 from adcs_msgs_py.params_file import load_params_file
-from adcs_sim.app import runner
+from adcs_sim.app.graph import runner
 
 SOURCE_DIRS = ['adcs_sim', 'adcs_controllers', 'adcs_msgs_py', 'benchmarks', 'tests']
 SOURCES = sorted(p for d in SOURCE_DIRS for p in (ROOT / d).rglob('*.py')) + [ROOT / 'setup.py']
@@ -83,7 +83,7 @@ def test_sources_use_safe_yaml_and_never_evaluate_code():
 def test_yaml_code_tags_in_a_scenario_are_refused_not_run(tmp_path):
     """rcl's parser ignores tags: the tagged value is data (a string array), which the schema
     refuses where a number is due; nothing is constructed or run."""
-    from adcs_sim.app.registry import NODES
+    from adcs_sim.app.scenario.registry import NODES
     marker = tmp_path / 'pwned'
     path = tmp_path / 'evil.yaml'
     path.write_text('dynamics:\n  ros__parameters:\n'
@@ -99,7 +99,7 @@ def test_yaml_code_tags_in_a_scenario_are_refused_not_run(tmp_path):
 def test_parameter_strings_are_data_not_code(tmp_path):
     """A string where a number is due is a type error naming the key, never evaluated; a string
     parameter keeps the text verbatim."""
-    from adcs_sim.app.registry import NODES
+    from adcs_sim.app.scenario.registry import NODES
     marker = tmp_path / 'pwned'
     code = f"__import__('os').system('touch {marker}')"
     section = load_params_file(str(ROOT / 'config' / 'microsat_pd_slew.yaml'))['pd_controller']

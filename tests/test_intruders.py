@@ -22,8 +22,8 @@ from support.rogue import FakeGraph, FakeSub, first_unclean_step, has_messages, 
 
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import UNKNOWN_NODE, PublisherVetting
-from adcs_sim.app.analysis import RunData, bag_intrusions
-from adcs_sim.app.runner import allowed_publishers
+from adcs_sim.app.analysis.metrics import RunData, bag_intrusions
+from adcs_sim.app.graph.runner import allowed_publishers
 from adcs_sim.bag.reader import read_messages
 
 
@@ -87,7 +87,7 @@ def test_rogue_publisher_is_detected_not_applied_and_named(tmp_path, monkeypatch
         assert run.intrusions == found   # the analysis' one pass reads what the intrusions reader reads
         u = run.u
     else:   # a recorder that lagged (a loaded machine) took every state after it had seen the rogue:
-        # all under quarantine/state, none analysed as the run's (adcs_sim.app.run_data._namespace)
+        # all under quarantine/state, none analysed as the run's (adcs_sim.app.analysis.run_data._namespace)
         assert has_messages(bag, '/quarantine/state')
         with pytest.raises(ValueError, match=r'no /state .* under /quarantine/state, not analysed\): nothing to '
                                              r'analyse; run compromised: intruder node /rogue'):
@@ -101,7 +101,7 @@ def test_rogue_publisher_is_detected_not_applied_and_named(tmp_path, monkeypatch
     if first is not None:
         assert first >= 2 and topic != topics.WHEELS_CMD   # the dynamics node stops at once on wheels/cmd
     assert (bag / 'metadata.yaml').exists() and 'recorder.intrusions' in (bag / 'metadata.yaml').read_text()
-    analyzed = subprocess.run([sys.executable, '-m', 'adcs_sim.app.analyze', str(bag), '--no-report'],
+    analyzed = subprocess.run([sys.executable, '-m', 'adcs_sim.app.analysis.analyze', str(bag), '--no-report'],
                               capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert analyzed.returncode != 0 and 'run compromised' in analyzed.stderr and '/rogue' in analyzed.stderr
 

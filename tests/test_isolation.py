@@ -21,7 +21,7 @@ from support.comparison import plain_message
 from support.paths import ROOT
 from support.scenarios import make_scenario
 
-from adcs_sim.app.analysis import RunData
+from adcs_sim.app.analysis.metrics import RunData
 from adcs_sim.bag.reader import read_messages
 
 N_RUNS = 8
@@ -37,7 +37,7 @@ def _scenarios(tmp_path):
 
 
 def _launch(spawn, scenario, out):
-    return spawn([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
+    return spawn([sys.executable, '-m', 'adcs_sim.app.graph.runner', str(scenario), '--out', str(out),
                   '--no-progress'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
 
 

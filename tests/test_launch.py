@@ -1,4 +1,4 @@
-"""``python -m adcs_sim.app.launch <module>`` (how adcs-run starts its nodes) ends as
+"""``python -m adcs_sim.app.graph.launch <module>`` (how adcs-run starts its nodes) ends as
 ``python -m <module>`` would: same arguments seen, same exit status, output flushed, a traceback
 and status 1 for an uncaught exception, death by SIGINT for an uncaught KeyboardInterrupt; only
 the interpreter's teardown after ``main`` is skipped. And a node so started leaves no DDS
@@ -50,7 +50,7 @@ def modules(tmp_path_factory) -> Path:
 
 def launch(folder: Path, *args: str) -> subprocess.CompletedProcess:
     env = {**os.environ, 'PYTHONPATH': os.pathsep.join([str(folder), str(ROOT)])}
-    return subprocess.run([sys.executable, '-m', 'adcs_sim.app.launch', *args], env=env, capture_output=True,
+    return subprocess.run([sys.executable, '-m', 'adcs_sim.app.graph.launch', *args], env=env, capture_output=True,
                           text=True, timeout=60)
 
 
@@ -83,7 +83,7 @@ def test_a_launched_node_leaves_no_shared_memory_behind(tmp_path, ros_domain):
     """A recorder started through launch, stopped by SIGINT: its bag is closed and no Fast DDS
     segment of its own is left in /dev/shm (the participant was deleted before the fast exit)."""
     env = ros_domain.env()
-    proc = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.launch', 'adcs_sim.nodes.recorder', '--ros-args',
+    proc = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.graph.launch', 'adcs_sim.nodes.recorder', '--ros-args',
                              '-p', f'output:={tmp_path / "bag"}'], env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, cwd=ROOT)
     try:

@@ -300,7 +300,7 @@ def test_actuation_takes_one_off_level_per_run_with_a_shared_on_level():
     """firing.off_level dispersed, on_level shared (as a campaign's batch stacks them): each run keeps
     its own Schmitt trigger, fires as it does alone, and the off levels give different firings."""
     from adcs_controllers.families import BACKSTEPPING
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.scenario.files import validate_scenario
     section = validate_scenario(Path(__file__).parents[1] / 'config' / 'eseo_backstepping_slew.yaml')
     p = section[BACKSTEPPING.schema.node]
     offs = [0.002, 0.006, 0.012]

@@ -1,5 +1,5 @@
 """Seed 001's inertia-free laws (adcs_controllers.laws: motion_to_rest, motion_to_spin, saturation;
-the rotation kernel of adcs_core.attitude; the settling index k0 of adcs_sim.app.analysis): M2R (eq. 11-25) with the
+the rotation kernel of adcs_core.attitude; the settling index k0 of adcs_sim.app.analysis.metrics): M2R (eq. 11-25) with the
 torque bounds of Propositions 1 and 2, the adaptive M2S compensator (Theorem 2, eq. 31-46), cutoff
 and scaling saturation (eq. 47-51), VAG (eq. 55-58) and extremum tracking (eq. 60-67); closed
 loops on the pure plant (adcs_sim.truth.plant.Plant with ideal external Torquers, no momentum storage).
@@ -24,7 +24,7 @@ from adcs_controllers.laws import motion_to_spin as m2s
 from adcs_controllers.laws import saturation as sat
 from adcs_core import attitude as rot
 from adcs_msgs_py.params import REQUIRED
-from adcs_sim.app import analysis
+from adcs_sim.app.analysis import metrics as analysis
 from adcs_sim.truth.plant import Plant, Torquers
 
 # Eq. (26): M2R example inertia; eq. (52): M2S example inertia (kg m²).

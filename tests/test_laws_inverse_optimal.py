@@ -333,7 +333,7 @@ def closed_loop(law, inertia, q0, t_end, dt, limit):
 
 def test_section_3f_gsmn_beats_the_pd_benchmark_within_the_torque_limit():
     from adcs_core.attitude import euler_213
-    from adcs_sim.app.analysis import settling_time
+    from adcs_sim.app.analysis.metrics import settling_time
     q0 = np.array([0.3062, 0.1768, 0.1768, 0.9186])
     q0 = q0 / np.linalg.norm(q0)
     dt, t_end, limit = 1.0, 300.0, 0.01

@@ -49,7 +49,7 @@ ROS_ROOTS = {'rclpy', 'rosgraph_msgs', 'nav_msgs', 'sensor_msgs', 'geometry_msgs
 ROS_ALLOWED = {'adcs_msgs_py.topics', 'adcs_msgs_py.node', 'adcs_msgs_py.executor', 'adcs_msgs_py.conversions',
                'adcs_msgs_py.cdr',
                'adcs_msgs_py.conversions_determination',
-               'adcs_msgs_py.rcl_params', 'adcs_msgs_py.visual', 'adcs_msgs_py.recorded_topics', 'adcs_sim.app.graph', 'adcs_sim.app.runner'}
+               'adcs_msgs_py.rcl_params', 'adcs_msgs_py.visual', 'adcs_msgs_py.recorded_topics', 'adcs_sim.app.graph.processes', 'adcs_sim.app.graph.runner'}
 # rcl's own params-file parser (through rclpy's C extension: no participant, no DDS). Scenario files
 # are read with it so that the runner sees what the nodes get; the pure modules reach it only
 # when they read a file (a function-level import, which the run-time check below confirms).
@@ -276,7 +276,7 @@ PURE = sorted(m for m in MODULES if m not in PACKAGE_DOCS and layer_of(m)[0] != 
 
 def test_the_pure_modules_are_most_of_the_code():
     for must in ('adcs_core.attitude', 'adcs_sim.truth.plant', 'adcs_controllers.families',
-                 'adcs_sim.app.batch', 'adcs_sim.app.campaign', 'adcs_sim.app.analysis',
+                 'adcs_sim.app.batch.engine', 'adcs_sim.app.campaign.plan', 'adcs_sim.app.analysis.metrics',
                  'adcs_msgs_py.params', 'adcs_sim.bag'):
         assert must in PURE, f'{must} reaches a ROS module: {sorted(_closure(must) & ROS_ALLOWED)}'
 
@@ -297,7 +297,7 @@ def test_node_processes_do_not_import_what_they_only_need_at_first_use():
     """Every node module, imported as its process starts: scipy.spatial (0.4-1.1 s), scipy.linalg and
     pandas/ppigrf (0.5-1.3 s) are imported where they are used (Euler angles, the pseudo-inverse and
     ARE at law construction, an IGRF model), not by every node at start (issue #18)."""
-    from adcs_sim.app.registry import NODES
+    from adcs_sim.app.scenario.registry import NODES
     modules = sorted({n.module for n in NODES.values()})
     code = (f'import sys, importlib; [importlib.import_module(m) for m in {modules!r}]; '
             f'print(sorted(m for m in sys.modules if m in {HEAVY_AT_FIRST_USE!r}))')
@@ -309,7 +309,7 @@ def test_validating_a_scenario_does_not_import_numba():
     """``adcs-run`` validates the scenario before it starts any node: that needs the schemas, not the
     compiled plant kernel, so numba (0.4-0.7 s) is imported by the first plant built, not by the runner
     (issue #18, start-up: adcs_sim/truth/kernel_kinds.py)."""
-    code = ('import sys; import adcs_sim.app.runner; from adcs_sim.app.scenario_files import validate_scenario; '
+    code = ('import sys; import adcs_sim.app.graph.runner; from adcs_sim.app.scenario.files import validate_scenario; '
             'validate_scenario("config/uosat12_gsmn.yaml"); print("numba" in sys.modules); '
             'from adcs_sim.truth.plant import Plant; import numpy; Plant(numpy.eye(3)); print("numba" in sys.modules)')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, cwd=ROOT, check=True)

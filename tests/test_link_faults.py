@@ -14,7 +14,7 @@ from support.paths import ROOT
 from support.scenarios import make_scenario
 
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app.registry import NODES
+from adcs_sim.app.scenario.registry import NODES
 from adcs_sim.bag.reader import read_messages
 from adcs_sim.truth.link_faults import DELAY, DROP, LinkFaults
 
@@ -49,7 +49,7 @@ def test_pd_slew_with_10_percent_lost_commands_converges(tmp_path):
     scenario = make_scenario(tmp_path, {'dynamics': {'link_faults.seed': seed, 'link_faults.drop': drop,
                                                      'link_faults.delay': delay}})
     out = tmp_path / 'run'
-    result = subprocess.run([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
+    result = subprocess.run([sys.executable, '-m', 'adcs_sim.app.graph.runner', str(scenario), '--out', str(out),
                              '--no-progress'], capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert result.returncode == 0, result.stderr
     fates = LinkFaults(seed, drop, delay, 600).fates

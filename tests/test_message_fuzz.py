@@ -29,7 +29,7 @@ from support.ros_graph import InProcessGraph, refused
 from support.scenarios import make_scenario
 
 from adcs_msgs_py import conversions as cv
-from adcs_sim.app.domains import DomainLease
+from adcs_sim.app.graph.domains import DomainLease
 from adcs_sim.bag.tf import tf_message_cdr
 
 FUZZ = settings(derandomize=True, max_examples=40, deadline=None, database=None,
@@ -268,7 +268,7 @@ def test_the_fuzzed_graph_runs_to_the_end(graphs):
     """After all of the above, the lockstep loop of the fuzzed nodes completes and the recorder
     closes a readable bag (its rejections in the bag's metadata). Selected alone, the nodes are
     first given one message each that they refuse, so that they too have rejected something."""
-    from adcs_sim.app.analysis import RunData
+    from adcs_sim.app.analysis.metrics import RunData
     graph, nodes, steps, bag_dir = graphs
     dyn, pd, rec = nodes['dynamics'], nodes['pd_controller'], nodes['recorder']
     state, cmd = _stamp(Odometry(), -1, 0), _stamp(JointState(name=WHEELS, effort=[0.0] * 3), -1, 0)

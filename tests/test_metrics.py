@@ -1,4 +1,4 @@
-"""The run metrics (adcs_sim.app.analysis) against signals whose answers are known in closed form.
+"""The run metrics (adcs_sim.app.analysis.metrics) against signals whose answers are known in closed form.
 
 No ROS, no bags: numpy arrays in, numbers out. Tolerances are tied to the sampling (linear
 interpolation of a smooth crossing is off by at most max|e''| dt^2 / (8 |e'|) to leading order).
@@ -12,7 +12,7 @@ import pytest
 from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation
 
-from adcs_sim.app.analysis import (
+from adcs_sim.app.analysis.metrics import (
     RunData,
     first_entry_time,
     integrated_norm,

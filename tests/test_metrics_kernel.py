@@ -1,4 +1,4 @@
-"""The compiled campaign metrics (adcs_sim/app/metrics_kernel.py) are the numpy batch metrics bit for bit.
+"""The compiled campaign metrics (adcs_sim/app/analysis/metrics_kernel.py) are the numpy batch metrics bit for bit.
 
 * :func:`pairwise_sum` is numpy's ``np.sum`` of a row (pairwise summation) for every length up to
   300 and a few long ones, values of mixed magnitude and sign;
@@ -17,9 +17,9 @@ import math
 import numpy as np
 import pytest
 
-from adcs_sim.app.batch import BatchResult
-from adcs_sim.app.batch_metrics import _full_run_columns, batch_run_metrics, full_run_columns_numpy
-from adcs_sim.app.metrics_kernel import pairwise_sum
+from adcs_sim.app.batch.engine import BatchResult
+from adcs_sim.app.analysis.batch_metrics import _full_run_columns, batch_run_metrics, full_run_columns_numpy
+from adcs_sim.app.analysis.metrics_kernel import pairwise_sum
 
 
 @pytest.mark.parametrize('seed', [0, 1])
@@ -115,8 +115,8 @@ def test_no_wheels_and_per_run_targets():
 def test_a_real_fused_chunk_and_pointing_runs(tmp_path):
     """The PD campaign's first 60 runs (fused loop) and seed 003's pointing runs: the compiled
     columns are the numpy ones, and batch_run_metrics is still run_metrics run by run."""
-    from adcs_sim.app.batch import BatchSimulation
-    from adcs_sim.app.campaign import Campaign
+    from adcs_sim.app.batch.engine import BatchSimulation
+    from adcs_sim.app.campaign.plan import Campaign
     c = Campaign.load('config/campaigns/pd_slew_30deg.yaml', runs=60)
     indices = list(range(60))
     result = BatchSimulation(c.batch_sections(indices, c.draws(indices)), 60).run()

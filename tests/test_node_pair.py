@@ -18,8 +18,8 @@ from support.reference_pd import pd_slew_reference
 from support.ros_graph import InProcessGraph, record_pd_loop
 from support.scenarios import make_scenario
 
-from adcs_sim.app.analysis import RunData, run_metrics
-from adcs_sim.app.runner import run_scenario
+from adcs_sim.app.analysis.metrics import RunData, run_metrics
+from adcs_sim.app.graph.runner import run_scenario
 from adcs_sim.bag.reader import read_messages
 
 J = np.diag([12.0, 14.0, 10.0])

@@ -18,7 +18,7 @@ from support.processes import alive, children
 from support.scenarios import make_scenario
 
 from adcs_msgs_py.node import RUNNER_PID_ENV
-from adcs_sim.app.domains import DomainLease
+from adcs_sim.app.graph.domains import DomainLease
 from adcs_sim.bag.reader import is_complete
 
 START_DEADLINE = 120.0   # a hang guard for the run to get under way
@@ -37,7 +37,7 @@ def _lease_granted(domain_id: int) -> bool:
 def test_sigkill_of_the_runner_leaves_no_node_and_holds_the_lease_until_the_last_is_gone(tmp_path, spawn):
     scenario = make_scenario(tmp_path, {'dynamics': {'duration': 1.0e6}})
     out = tmp_path / 'run'
-    runner = spawn([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out), '--no-progress'],
+    runner = spawn([sys.executable, '-m', 'adcs_sim.app.graph.runner', str(scenario), '--out', str(out), '--no-progress'],
                    stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, cwd=ROOT)
     domain = int(re.search(r'ROS_DOMAIN_ID=(\d+)', runner.stdout.readline() + runner.stdout.readline())[1])
     deadline = time.monotonic() + START_DEADLINE

@@ -383,7 +383,7 @@ def test_setup_nodes_match_colcon_and_wheel_executables(colcon_build, wheel, mon
 
 def test_runner_registry_matches_setup_py():
     """The runner starts a section's node by the module setup.py installs for that executable."""
-    from adcs_sim.app.registry import NODES as REGISTRY
+    from adcs_sim.app.scenario.registry import NODES as REGISTRY
     assert set(REGISTRY) == set(NODES)
     for name, info in REGISTRY.items():
         assert NODES[name].split(':')[0] == info.module, name

@@ -27,7 +27,7 @@ from adcs_msgs_py.sections import (
     section_type,
     validated,
 )
-from adcs_sim.app.registry import NODES
+from adcs_sim.app.scenario.registry import NODES
 
 ROOT = Path(__file__).resolve().parents[1]
 SCHEMAS = {name: info.schema for name, info in NODES.items()}

@@ -1,7 +1,7 @@
-"""The parameter reference (docs/parameters.md, adcs_sim/app/parameters.py) and ``adcs-run --explain``.
+"""The parameter reference (docs/parameters.md, adcs_sim/app/scenario/parameters.py) and ``adcs-run --explain``.
 
 * docs/parameters.md is what the schemas generate today (regenerate: ``python -m
-  adcs_sim.app.parameters --write``), and it has a row for every key of every section;
+  adcs_sim.app.scenario.parameters --write``), and it has a row for every key of every section;
 * units are read from the schemas' doc text; every check has a description;
 * ``--explain`` prints the validated values (defaults included) with units, exits 0 and starts
   nothing; a bad scenario stops it with the key named.
@@ -15,15 +15,16 @@ from support.paths import CONFIG, ROOT
 from support.scenarios import make_scenario
 
 from adcs_msgs_py.params import REQUIRED
-from adcs_sim.app import parameters, runner
-from adcs_sim.app.registry import NODES
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.scenario import parameters
+from adcs_sim.app.graph import runner
+from adcs_sim.app.scenario.registry import NODES
+from adcs_sim.app.scenario.files import validate_scenario
 
 
 def test_reference_is_up_to_date():
     text = (ROOT / 'docs' / 'parameters.md').read_text(encoding='utf-8')
     assert text == parameters.reference_markdown(), (
-        'docs/parameters.md is out of date: run `python -m adcs_sim.app.parameters --write`')
+        'docs/parameters.md is out of date: run `python -m adcs_sim.app.scenario.parameters --write`')
 
 
 def test_reference_has_every_section_and_key():

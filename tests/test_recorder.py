@@ -342,7 +342,7 @@ def test_sigkill_keeps_everything_flushed(recorders, tmp_path, seed):
 
     # adcs-bag-repair makes it a complete rosbag2 bag (summary, index, metadata.yaml) holding
     # exactly what was readable, which rosbags' AnyReader opens
-    from adcs_sim.app.repair import main as repair_main
+    from adcs_sim.app.analysis.repair import main as repair_main
     assert repair_main([str(out)]) == 0
     assert (out / 'metadata.yaml').is_file() and is_complete(out)
     with AnyReader([out], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:

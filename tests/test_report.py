@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from support.report_runs import RUNS, THETA0, U_ON, N, write_bag
 
-from adcs_sim.app.analyze import main as analyze_main
+from adcs_sim.app.analysis.analyze import main as analyze_main
 
 FIGURES = ['attitude_error', 'quaternion', 'euler_213', 'body_rates', 'torque', 'wheels',
            'phase_portrait', 'controller_status']

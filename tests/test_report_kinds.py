@@ -13,8 +13,8 @@ from support.papers import SEED000_LAWS, SEED000_PAPER, SEED002_PAPER_SETTLING
 from support.paths import ROOT
 from support.report_runs import SCENARIO, write_bag
 
-from adcs_sim.app.analysis import RunData
-from adcs_sim.app.analyze import main as analyze_main
+from adcs_sim.app.analysis.metrics import RunData
+from adcs_sim.app.analysis.analyze import main as analyze_main
 from adcs_sim.app.report.kinds import UNKNOWN, phases, reference_attitude, run_kind
 from adcs_sim.app.report.lead import lead_metrics, paper_values
 

@@ -24,11 +24,11 @@ from hypothesis import strategies as st
 from support.report_runs import RUNS
 from support.report_runs import write_bag as write_synthetic
 
-from adcs_sim.app.analysis import attitude_errors
+from adcs_sim.app.analysis.metrics import attitude_errors
 from adcs_sim.app.report import envelope, long_run, single_run
 from adcs_sim.app.report.envelope import EnvelopeStream, kept_indices, log_positive
 from adcs_sim.app.report.loading import BagError, load_run
-from adcs_sim.app.run_data import RunData, TooLong
+from adcs_sim.app.analysis.run_data import RunData, TooLong
 
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 

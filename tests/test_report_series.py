@@ -1,5 +1,5 @@
 """The report's controller-status series, read column by column
-(:func:`adcs_sim.app.status_records.key_texts`), equal what the record-by-record reading gave
+(:func:`adcs_sim.app.analysis.status_records.key_texts`), equal what the record-by-record reading gave
 (the references below are the report's code before issue #18's report work): ``status_series``,
 ``held_text`` and ``status_array``, for any mix of status names, layouts, batches and texts
 (hostile ones included), and on committed bags of every kind."""
@@ -15,8 +15,8 @@ from hypothesis import strategies as st
 from adcs_sim.app.report.kinds import held_text
 from adcs_sim.app.report.lead import status_array
 from adcs_sim.app.report.loading import load_run, status_series
-from adcs_sim.app.run_data import RunData
-from adcs_sim.app.status_records import WIDE, StatusRecords, status_column, status_keys
+from adcs_sim.app.analysis.run_data import RunData
+from adcs_sim.app.analysis.status_records import WIDE, StatusRecords, status_column, status_keys
 
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 

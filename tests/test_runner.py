@@ -13,8 +13,8 @@ from support.paths import ROOT
 from support.processes import alive, children
 from support.scenarios import make_scenario
 
-from adcs_sim.app.analysis import RunData, run_metrics
-from adcs_sim.app.analyze import main as analyze_main
+from adcs_sim.app.analysis.metrics import RunData, run_metrics
+from adcs_sim.app.analysis.analyze import main as analyze_main
 from adcs_sim.bag.reader import read_metadata
 
 
@@ -23,7 +23,7 @@ def test_runner_end_to_end_and_analyze_agree(tmp_path, capsys):
     """adcs-run prints the metrics and writes them; adcs-analyze on the bag gives the same."""
     scenario = make_scenario(tmp_path, {'dynamics': {'duration': 400.0}})
     out = tmp_path / 'run'
-    result = subprocess.run([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out)],
+    result = subprocess.run([sys.executable, '-m', 'adcs_sim.app.graph.runner', str(scenario), '--out', str(out)],
                             capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert result.returncode == 0, result.stderr
     assert 'settling_euler213_0.5deg_s' in result.stdout and 'missed_steps' in result.stdout
@@ -41,7 +41,7 @@ def test_runner_end_to_end_and_analyze_agree(tmp_path, capsys):
 def test_runner_interrupted_mid_run_leaves_readable_bag_and_no_orphans(tmp_path, sig, spawn):
     scenario = make_scenario(tmp_path, {'dynamics': {'duration': 1.0e6}})
     out = tmp_path / 'run'
-    proc = spawn([sys.executable, '-m', 'adcs_sim.app.runner', str(scenario), '--out', str(out),
+    proc = spawn([sys.executable, '-m', 'adcs_sim.app.graph.runner', str(scenario), '--out', str(out),
                   '--no-progress'], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
     try:
         bag = out / 'bag'

@@ -12,8 +12,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 
-from adcs_sim.app.domains import DomainLease
-from adcs_sim.app.graph import Progress, graph_env
+from adcs_sim.app.graph.domains import DomainLease
+from adcs_sim.app.graph.processes import Progress, graph_env
 
 pytestmark = pytest.mark.graph   # rclpy contexts of its own (no ros_domain)
 

@@ -20,7 +20,7 @@ from support.paths import ROOT
 from support.processes import alive, children
 from support.scenarios import make_scenario
 
-from adcs_sim.app.analysis import RunData
+from adcs_sim.app.analysis.metrics import RunData
 from adcs_sim.bag.reader import is_complete, read_raw
 
 DEADLINE = 120.0
@@ -33,7 +33,7 @@ class Run:
         self.scenario = make_scenario(tmp_path, {'dynamics': {'duration': duration}})
         self.out = tmp_path / 'run'
         self.bag = self.out / 'bag'
-        self.proc = spawn([sys.executable, '-m', 'adcs_sim.app.runner', str(self.scenario), '--out',
+        self.proc = spawn([sys.executable, '-m', 'adcs_sim.app.graph.runner', str(self.scenario), '--out',
                            str(self.out), '--no-progress'], stdout=subprocess.PIPE,
                           stderr=subprocess.PIPE, text=True, cwd=ROOT)
         self.seen: dict[int, str] = {}

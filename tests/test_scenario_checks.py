@@ -8,9 +8,9 @@ from support.paths import CONFIG
 from support.scenarios import make_scenario
 
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app import scenario_checks
-from adcs_sim.app.scenario_checks import check_resources
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.scenario import checks as scenario_checks
+from adcs_sim.app.scenario.checks import check_resources
+from adcs_sim.app.scenario.files import validate_scenario
 
 
 def refused(path, section: str, key: str, *words: str) -> str:

@@ -38,9 +38,9 @@ def test_zero_momentum_reconfiguration_in_lockstep(ros_domain, tmp_path):
     rw_x, rw_y only) from that step on; 1600 s later the attitude is inside the paper's fine band
     (q4 within 1 ± 0.01) on all axes, and the bag is the batch engine's run."""
     from adcs_controllers.nodes.zero_momentum_controller import ZeroMomentumController
-    from adcs_sim.app.analysis import RunData
-    from adcs_sim.app.batch import BatchSimulation
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.analysis.metrics import RunData
+    from adcs_sim.app.batch.engine import BatchSimulation
+    from adcs_sim.app.scenario.files import validate_scenario
     from adcs_sim.bag.reader import read_messages
 
     n = 1620
@@ -85,7 +85,7 @@ def test_two_wheel_law_from_the_start(ros_domain, tmp_path):
     rw_z failed at t = 0: the phase is two_wheel throughout, z gets no torque, V decreases (asserted as an
     ordering; was below half of V(0), a margin with no reason)."""
     from adcs_controllers.nodes.snlc_gsmn_controller import SnlcGsmnController
-    from adcs_sim.app.analysis import RunData
+    from adcs_sim.app.analysis.metrics import RunData
 
     n = 200
     scenario = reconfiguring_scenario(tmp_path, 'uosat12_gsmn.yaml', 'snlc_gsmn_controller', n,
@@ -119,7 +119,7 @@ def test_two_wheel_law_from_the_start(ros_domain, tmp_path):
      'actuator', 'wheel speeds'),
 ])
 def test_bad_seed000_parameters_are_named(tmp_path, base, section, overrides, key, text):
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.scenario.files import validate_scenario
     with pytest.raises(ParameterError, match=text) as err:
         validate_scenario(make_scenario(tmp_path, {section: overrides}, base=base))
     assert f'{section}.ros__parameters.{key}' in str(err.value)

@@ -23,7 +23,7 @@ from support.comparison import reference_comparison
 from support.papers import SEED000_LAWS, SEED000_PAPER
 from support.paths import ROOT
 
-from adcs_sim.app.analysis import RunData, attitude_errors, fault_metrics
+from adcs_sim.app.analysis.metrics import RunData, attitude_errors, fault_metrics
 
 pytestmark = pytest.mark.paper
 
@@ -199,8 +199,8 @@ def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path):
 def test_showcase_bag_is_what_the_code_computes():
     """bags/uosat12_gsmn is the batch engine's run of its scenario, bit for bit (same plant, law,
     allocation and fault schedule): the recording is current."""
-    from adcs_sim.app.batch import BatchSimulation
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.batch.engine import BatchSimulation
+    from adcs_sim.app.scenario.files import validate_scenario
     bag = load('uosat12_gsmn')
     batch = BatchSimulation.from_runs([validate_scenario(BAGS / 'uosat12_gsmn' / 'scenario.yaml')]).run()
     run = batch.run_data(0)

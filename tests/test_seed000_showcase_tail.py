@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 from support.paths import ROOT
 
-from adcs_sim.app.analysis import RunData, attitude_errors, attitude_errors_deg
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.registry import NODES
+from adcs_sim.app.analysis.metrics import RunData, attitude_errors, attitude_errors_deg
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.registry import NODES
 
 _spec = importlib.util.spec_from_file_location('limit_cycle', ROOT / 'docs' / 'seed000' / 'limit_cycle.py')
 study = importlib.util.module_from_spec(_spec)

@@ -28,9 +28,9 @@ def test_m2s_in_lockstep_is_the_batch_run_and_the_law(ros_domain, tmp_path):
     from adcs_controllers.nodes.m2s_controller import M2sController
     from adcs_core.attitude import quat_normalize
     from adcs_msgs_py import conversions as cv
-    from adcs_sim.app.analysis import RunData
-    from adcs_sim.app.batch import BatchSimulation
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.analysis.metrics import RunData
+    from adcs_sim.app.batch.engine import BatchSimulation
+    from adcs_sim.app.scenario.files import validate_scenario
     from adcs_sim.bag.reader import read_messages
 
     n = 150
@@ -87,7 +87,7 @@ def test_m2s_in_lockstep_is_the_batch_run_and_the_law(ros_domain, tmp_path):
 def test_seed001_parameters_are_checked(tmp_path, base, section, overrides, key, text):
     """A non-physical or inconsistent seed 001 section stops at start with the key named; M2R's
     gains are checked against the torque bound of Proposition 1 for the torquers' limit."""
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.scenario.files import validate_scenario
     with pytest.raises(ParameterError, match=text) as err:
         validate_scenario(make_scenario(tmp_path, {section: overrides}, base=base))
     assert f'{section}.ros__parameters.{key}' in str(err.value)
@@ -100,7 +100,7 @@ def test_m2s_section_with_empty_defaults_builds_the_paper_law():
 
     from adcs_controllers.families import M2S_SCHEMA
     from adcs_controllers.laws.motion_to_spin import M2sLaw
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.scenario.files import validate_scenario
     section = validate_scenario(CONFIG / 'm2s_intermediate_cutoff_10.yaml')['m2s_controller']
     law = M2sLaw(section)
     assert_array_equal(law.K1, np.eye(3)) and law.B is None and law.C_d is None

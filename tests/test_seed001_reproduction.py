@@ -18,7 +18,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from support.comparison import reference_comparison
 from support.paths import ROOT
 
-from adcs_sim.app.analysis import RunData, settling_time
+from adcs_sim.app.analysis.metrics import RunData, settling_time
 from adcs_sim.app.report.lead import paper_values
 
 pytestmark = pytest.mark.paper
@@ -73,8 +73,8 @@ def test_bag_is_what_the_code_computes(name):
     batch engine's run of the same scenario file bit for bit (the graph's own code,
     tests/test_seed001_graph.py), so a bag made by older code fails here. (That every step is in
     the bag: tests/test_any_bag.py.)"""
-    from adcs_sim.app.batch import BatchSimulation
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.batch.engine import BatchSimulation
+    from adcs_sim.app.scenario.files import validate_scenario
     run = RunData.from_bag(BAGS / name / 'bag')
     batch = BatchSimulation.from_runs([validate_scenario(BAGS / name / 'scenario.yaml', duration=10.0)]).run()
     b = batch.run_data(0)

@@ -31,9 +31,9 @@ def test_backstepping_pair_in_lockstep_equals_batch(ros_domain, tmp_path):
     missed step, nothing rejected, the thrusters fire, and the bag equals the batch engine's run
     of the same file (attitude, rate, applied torque, wheel speed, thruster on-times and impulses)."""
     from adcs_controllers.nodes.backstepping_controller import BacksteppingController
-    from adcs_sim.app.analysis import RunData
-    from adcs_sim.app.batch import BatchSimulation
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.analysis.metrics import RunData
+    from adcs_sim.app.batch.engine import BatchSimulation
+    from adcs_sim.app.scenario.files import validate_scenario
 
     n = 80
     bag = tmp_path / 'bag'
@@ -145,7 +145,7 @@ def test_dynamics_rejects_bad_thruster_commands_and_runs_on(ros_domain, tmp_path
     ('backstepping_controller', {'orbit.altitude': -1.0}, 'orbit.altitude', '> 0'),
 ])
 def test_bad_seed002_parameters_are_named(tmp_path, section, overrides, key, text):
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.scenario.files import validate_scenario
     with pytest.raises(ParameterError, match=text) as err:
         validate_scenario(make_scenario(tmp_path, {section: overrides}, base=SLEW))
     assert f'{section}.ros__parameters.{key}' in str(err.value)
@@ -171,7 +171,7 @@ def test_scenario_files_hold_the_papers_numbers():
     two-orbit file cut at 300 s."""
     from adcs_controllers.laws.backstepping import actuator_matrix, eseo_actuator_matrix
     from adcs_core.orbit import orbit_frame_attitude
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.scenario.files import validate_scenario
     from adcs_sim.truth.schema import build_plant
     full = validate_scenario(CONFIG / 'eseo_backstepping.yaml')
     slew = validate_scenario(CONFIG / SLEW)
@@ -205,8 +205,8 @@ def test_batched_geometries_and_gains_equal_single_runs():
     import copy
 
     from adcs_controllers.laws.backstepping import eseo_thruster_layout
-    from adcs_sim.app.batch import BatchSimulation
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.batch.engine import BatchSimulation
+    from adcs_sim.app.scenario.files import validate_scenario
     base = validate_scenario(CONFIG / SLEW)
     base.pop('recorder')
     base['dynamics']['duration'] = 5.0

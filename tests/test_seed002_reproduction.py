@@ -31,7 +31,7 @@ from support.comparison import assert_recorded_run_equal, reference_comparison
 from support.papers import SEED002_PAPER_SETTLING
 from support.paths import ROOT
 
-from adcs_sim.app.analysis import RunData, attitude_errors_deg, settling_time, thruster_metrics
+from adcs_sim.app.analysis.metrics import RunData, attitude_errors_deg, settling_time, thruster_metrics
 
 pytestmark = pytest.mark.paper
 
@@ -112,8 +112,8 @@ def test_thruster_impulse_and_firings(run):
 
 @pytest.mark.slow
 def test_bag_is_the_batch_run(run):
-    from adcs_sim.app.batch import BatchSimulation
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.batch.engine import BatchSimulation
+    from adcs_sim.app.scenario.files import validate_scenario
     sections = validate_scenario(BAG / 'scenario.yaml')
     batch = BatchSimulation.from_runs([sections]).run()
     b = batch.run_data(0)
@@ -123,8 +123,8 @@ def test_bag_is_the_batch_run(run):
 
 
 def _batch(duration: float, initial_attitude=None, initial_rate=None):
-    from adcs_sim.app.batch import BatchSimulation
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.batch.engine import BatchSimulation
+    from adcs_sim.app.scenario.files import validate_scenario
     sections = validate_scenario(ROOT / 'config' / 'eseo_backstepping.yaml')
     sections.pop('recorder', None)
     d = sections['dynamics']
@@ -198,8 +198,8 @@ def test_the_38s_agreement_to_the_papers_precision_holds_for_2_of_the_12_gain_pa
     available), so K1 = 0.1 with either K2 lands there; the other pairs miss it by 0.7-25.8 s. The count is robust
     to a moved thruster switch: the nearest pair to an edge of the band is 0.21 s (two control periods) away
     (38.71 s). (Was: 9 of 12 within ± 5 s and all in 25-70 s, bounds with no reason.)"""
-    from adcs_sim.app.batch import BatchSimulation
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.batch.engine import BatchSimulation
+    from adcs_sim.app.scenario.files import validate_scenario
     runs = []
     for k1 in GRID_K1:
         for k2 in GRID_K2:

@@ -17,10 +17,10 @@ from support.ros_graph import run_fault_graph
 from support.scenarios import make_scenario
 
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app.analysis import RunData
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.registry import NODES
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.analysis.metrics import RunData
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.registry import NODES
+from adcs_sim.app.scenario.files import validate_scenario
 
 N_STEPS = 60
 

@@ -20,9 +20,9 @@ import pytest
 import yaml
 from support.comparison import assert_recorded_run_equal
 
-from adcs_sim.app.analysis import RunData, pointing_error_deg, run_metrics
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.analysis.metrics import RunData, pointing_error_deg, run_metrics
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.files import validate_scenario
 
 pytestmark = pytest.mark.paper
 
@@ -186,7 +186,7 @@ def test_readings_r7_rows_are_the_committed_campaigns():
 def test_committed_table1_results_are_not_stale(name, campaign):
     """Four runs of each campaign recomputed now with the batch engine equal the committed rows
     (run i's inputs and results do not depend on the batch it was in)."""
-    from adcs_sim.app.campaign import Campaign, run_chunk
+    from adcs_sim.app.campaign.plan import Campaign, run_chunk
     c = Campaign.load(ROOT / 'config' / 'campaigns' / campaign)
     committed = results(name)
     indices = [0, 1, 500, 999]
@@ -201,7 +201,7 @@ def test_small_campaign_through_the_cli_equals_the_committed_rows(tmp_path):
     """adcs-montecarlo on the first 20 runs of the B campaign (one process): the pointing metrics,
     the series and the all-runs figure are written, and each row equals the committed 1000-run
     campaign's (a run does not depend on the campaign's size or split)."""
-    from adcs_sim.app.montecarlo import main
+    from adcs_sim.app.campaign.montecarlo import main
     out = tmp_path / 'mc'
     assert main([str(ROOT / 'config' / 'campaigns' / 'pointing_table1.yaml'), '--runs', '20',
                  '--out', str(out), '--scheduler', 'none', '--quiet', '--no-figures']) == 0

@@ -21,9 +21,9 @@ import pytest
 from support.comparison import assert_recorded_run_equal, reference_comparison
 from support.scenarios import batch_run_data
 
-from adcs_sim.app.analysis import RunData, run_metrics, settling_times
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.analysis.metrics import RunData, run_metrics, settling_times
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.files import validate_scenario
 
 pytestmark = pytest.mark.paper
 
@@ -260,7 +260,7 @@ def test_table1_control_period_is_converged():
 
 def test_paper_comparison_table_is_generated_by_adcs_analyze(tmp_path, capsys):
     """docs/seed004's published-vs-ours tables come from ``adcs-analyze --compare --reference``."""
-    from adcs_sim.app.analyze import main as analyze
+    from adcs_sim.app.analysis.analyze import main as analyze
     bags = [str(BAGS / n / 'bag') for n in ('microsat_pd_slew', 'microsat_gsmn_slew')]
     paper = ROOT / 'docs' / 'seed004' / 'paper.yaml'
     text = reference_comparison(bags, paper, tmp_path / 'cmp')

@@ -1,4 +1,4 @@
-"""adcs_sim/app/seeding.py gives each campaign run numpy's own generator state, bit for bit:
+"""adcs_sim/app/scenario/seeding.py gives each campaign run numpy's own generator state, bit for bit:
 ``PCG64(SeedSequence(seed, spawn_key=(i,))).state`` for seeds of one to five 32-bit words (and 0),
 indices up to 2**32 - 1, and the same draws as ``default_rng`` of each run."""
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from adcs_sim.app.seeding import pcg64_states, run_generators
+from adcs_sim.app.scenario.seeding import pcg64_states, run_generators
 
 SEEDS = [0, 1, 20261123, 2**32 - 1, 2**32, 2**64 + 12345, 2**127 + 3, 2**130 + 7,
          123456789012345678901234567890123456789012]

@@ -14,8 +14,8 @@ from adcs_controllers.nodes.pd_controller import PdController
 from adcs_msgs_py import conversions_determination as cd
 from adcs_msgs_py import topics
 from adcs_msgs_py.measurements import Reading
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.files import validate_scenario
 from adcs_sim.bag.reader import read_messages
 from adcs_sim.nodes.dynamics import DynamicsNode
 from adcs_sim.nodes.fault_injector import FaultInjectorNode

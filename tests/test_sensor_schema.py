@@ -18,8 +18,8 @@ from support.scenarios import make_scenario
 from adcs_core.faults import FaultState
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.files import validate_scenario
 from adcs_sim.truth.fault_schedule import FAULT_SCHEMA, fault_schedule
 from adcs_sim.truth.schema import DYNAMICS_SCHEMA
 from adcs_sim.truth.sensor_schema import build_sensors

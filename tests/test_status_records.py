@@ -1,4 +1,4 @@
-"""StatusRecords (adcs_sim.app.status_records): the controller status of a run, stored compactly,
+"""StatusRecords (adcs_sim.app.analysis.status_records): the controller status of a run, stored compactly,
 reads back as exactly the list of ``(t, name, {key: value})`` the analysis used to build: in
 stamp order, reading order on ties, every text as it was (hostile ones included), for any mix of
 layouts and batches. Memory: a fraction of the tuples-and-dicts form (issue #18)."""
@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from adcs_sim.app.status_records import WIDE, StatusRecords
+from adcs_sim.app.analysis.status_records import WIDE, StatusRecords
 
 
 def reference(batches) -> list:

@@ -13,7 +13,7 @@ from adcs_controllers.step import EstimationStep, FlightStep
 from adcs_core.faults import FaultState, FaultTracker
 from adcs_msgs_py.measurements import received_attitude
 from adcs_msgs_py.params_file import load_params_file
-from adcs_sim.app.registry import NODES
+from adcs_sim.app.scenario.registry import NODES
 from adcs_sim.truth.step import TruthStep
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'

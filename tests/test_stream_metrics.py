@@ -1,4 +1,4 @@
-"""adcs-run's streamed end-of-run analysis (adcs_sim.app.stream_metrics.analyse_bag) gives exactly
+"""adcs-run's streamed end-of-run analysis (adcs_sim.app.analysis.stream_metrics.analyse_bag) gives exactly
 run_metrics(RunData.from_bag(bag)): on every committed bag, on bags of other writers, truncated
 bags, bags with missing topics, namespaced and noisy runs, under any chunk boundaries; bags it
 cannot stream (stamps out of order, scenario after the data) go through the in-memory path. And
@@ -34,7 +34,7 @@ from support.bags import (
 )
 from support.paths import ROOT
 
-from adcs_sim.app.analysis import (
+from adcs_sim.app.analysis.metrics import (
     RunData,
     first_entry_time,
     integrated_norm,
@@ -43,7 +43,7 @@ from adcs_sim.app.analysis import (
     run_metrics,
     settling_time,
 )
-from adcs_sim.app.stream_metrics import AttitudeStream, BandTrack, TorqueStream, analyse_bag
+from adcs_sim.app.analysis.stream_metrics import AttitudeStream, BandTrack, TorqueStream, analyse_bag
 from adcs_sim.bag.reader import read_metadata, read_raw
 from adcs_sim.bag.writer import BagWriter
 

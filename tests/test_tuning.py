@@ -1,4 +1,4 @@
-"""Seed 004 section IV (adcs_sim.app.tuning): single-axis switching model, settling-time limit
+"""Seed 004 section IV (adcs_sim.app.campaign.tuning): single-axis switching model, settling-time limit
 (eq. 31) and the highest high gains under a peak-torque limit, checked against simulation."""
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from adcs_sim.app import tuning as tn
+from adcs_sim.app.campaign import tuning as tn
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
@@ -111,11 +111,11 @@ def test_cli_prints_the_tuning(capsys):
 
 
 def test_module_runs_as_a_script_without_rclpy():
-    """``python -m adcs_sim.app.tuning ...`` (run as __main__ through runpy) pulls in no rclpy."""
+    """``python -m adcs_sim.app.campaign.tuning ...`` (run as __main__ through runpy) pulls in no rclpy."""
     code = ('import runpy, sys\n'
             'sys.argv = ["tuning", "--inertia", "10", "--angle-deg", "30", "--kp1", "0.02", '
             '"--kd1", "0.5", "--gamma", "0.02"]\n'
-            'try:\n    runpy.run_module("adcs_sim.app.tuning", run_name="__main__")\n'
+            'try:\n    runpy.run_module("adcs_sim.app.campaign.tuning", run_name="__main__")\n'
             'except SystemExit as e:\n    assert e.code == 0\n'
             'print("rclpy" in sys.modules)')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, cwd=ROOT, check=True)

@@ -26,9 +26,9 @@ from support.paths import ROOT
 
 from adcs_core.orbit import CircularOrbit, orbit_frame_attitude
 from adcs_msgs_py.topics import QOS_CLOCK
-from adcs_sim.app.analysis import RunData, attitude_errors
-from adcs_sim.app.analyze import main as analyze
-from adcs_sim.app.layouts import (
+from adcs_sim.app.analysis.metrics import RunData, attitude_errors
+from adcs_sim.app.analysis.analyze import main as analyze
+from adcs_sim.app.graph.layouts import (
     DIAGNOSTIC_ARRAY,
     JOINT_STATE,
     foxglove_layout,
@@ -274,7 +274,7 @@ def test_a_hostile_status_name_stays_out_of_the_layouts_paths():
     """A foreign bag's status names go into Foxglove path filters: only ROS node names are used."""
     from types import SimpleNamespace
 
-    from adcs_sim.app.layouts import layout_for
+    from adcs_sim.app.graph.layouts import layout_for
     data = RunData(t=np.zeros(1), q=np.array([[0.0, 0.0, 0.0, 1.0]]), w=np.zeros((1, 3)))
     data.topic_counts = {'state': 1, 'controller/status': 2}
     data.controller_status = [(0.0, 'x"}.evil{key=="', {'mode': 'a'}), (0.0, 'pd_controller', {'mode': 'b'})]

@@ -1,4 +1,4 @@
-"""The time each wheel spends at its speed limit: one definition (adcs_sim/app/metric_defs.py), the
+"""The time each wheel spends at its speed limit: one definition (adcs_sim/app/analysis/metric_defs.py), the
 same value from every metric path.
 
 * closed form: a synthetic wheel history with a known time at the limit (the rule's edge
@@ -21,17 +21,17 @@ from hypothesis import strategies as st
 from support.paths import ROOT
 from support.scenarios import make_scenario
 
-from adcs_sim.app import metric_defs
-from adcs_sim.app.analysis import run_metrics
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.batch_metrics import batch_metric_columns, batch_run_metrics, metric_columns
-from adcs_sim.app.campaign import Campaign, run_chunk
-from adcs_sim.app.registry import NODES
+from adcs_sim.app.analysis import metric_defs
+from adcs_sim.app.analysis.metrics import run_metrics
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.analysis.batch_metrics import batch_metric_columns, batch_run_metrics, metric_columns
+from adcs_sim.app.campaign.plan import Campaign, run_chunk
+from adcs_sim.app.scenario.registry import NODES
 from adcs_sim.app.report import envelope, long_run
 from adcs_sim.app.report.markdown import metric_note
-from adcs_sim.app.run_data import RunData
-from adcs_sim.app.scenario_files import validate_scenario
-from adcs_sim.app.stream_metrics import analyse_bag
+from adcs_sim.app.analysis.run_data import RunData
+from adcs_sim.app.scenario.files import validate_scenario
+from adcs_sim.app.analysis.stream_metrics import analyse_bag
 
 NAME = 'wheel_time_at_speed_limit_s'
 METRIC = next(m for m in metric_defs.DEFINED if m.name == NAME)

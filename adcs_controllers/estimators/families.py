@@ -4,7 +4,7 @@ once (flight software: pure numpy, leading batch axis, no rclpy, never the truth
 A family (:class:`EstimatorFamily`) is what an estimator node executable is, as
 :mod:`adcs_controllers.families` is for the controllers: the node (:mod:`adcs_controllers.nodes`)
 builds ``family.build(section)`` from its validated section and the batch engine
-(:mod:`adcs_sim.app.batch`) builds the very same object, so a graph run and its batch run execute
+(:mod:`adcs_sim.app.batch.engine`) builds the very same object, so a graph run and its batch run execute
 the same code. An estimator has one method, ``step(measurements) -> (Estimate, status)``
 (:mod:`adcs_msgs_py.measurements`), called once per lockstep step with every fitted sensor's
 reading of that step; it propagates from the previous step with the previous gyro sample, then
@@ -90,7 +90,7 @@ def up_to(limit: float, unit: str):
         values = v if isinstance(v, (list, tuple)) else [v]
         return None if all(0 < x <= limit for x in values) else \
             f'must be in (0, {limit:g}] {unit} (beyond it the filter learns nothing more), got {v!r}'
-    check.description = f'in (0, {limit:g}] {unit}'   # for docs/parameters.md (adcs_sim.app.parameters)
+    check.description = f'in (0, {limit:g}] {unit}'   # for docs/parameters.md (adcs_sim.app.scenario.parameters)
     return check
 
 

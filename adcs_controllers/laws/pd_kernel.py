@@ -1,6 +1,6 @@
 """Compiled one-run kernels of the PD law (seed 004 eq. 13) and the wheels' actuation (numba).
 
-The fused closed loop of the batch engine (:mod:`adcs_sim.app.fused`) calls these from compiled
+The fused closed loop of the batch engine (:mod:`adcs_sim.app.batch.fused`) calls these from compiled
 code, run by run; the numpy objects (:class:`adcs_controllers.laws.pd.PdLaw`,
 :class:`adcs_controllers.laws.allocation.Actuation`) stay the reference and the node's path. Every
 function does the numpy code's operations in the numpy code's order, so a run gets the same bits:

@@ -1,13 +1,13 @@
 """Python API for scripts and notebooks: load a scenario, override parameters, run it, analyse it.
 
 The same code as the command-line tools, without them: :class:`Scenario` reads and validates a
-scenario file (:mod:`adcs_sim.app.scenario_files`), :meth:`Scenario.run_graph` runs it through the
-ROS 2 node graph as ``adcs-run`` does (:func:`adcs_sim.app.runner.run_scenario`: one process per
+scenario file (:mod:`adcs_sim.app.scenario.files`), :meth:`Scenario.run_graph` runs it through the
+ROS 2 node graph as ``adcs-run`` does (:func:`adcs_sim.app.graph.runner.run_scenario`: one process per
 node, lockstep, recorded to a bag), :meth:`Scenario.run_batch` through the batch engine
-(:class:`adcs_sim.app.batch.BatchSimulation`: no ROS, N runs at once). Either gives
+(:class:`adcs_sim.app.batch.engine.BatchSimulation`: no ROS, N runs at once). Either gives
 :class:`RunResult` objects: the run's time series as numpy arrays (:class:`RunData`, the analysis
 library's), as a pandas DataFrame, the metrics
-(:func:`adcs_sim.app.analysis.run_metrics`) and the report's figures (:data:`adcs_sim.app.report.figures.FIGURES`).
+(:func:`adcs_sim.app.analysis.metrics.run_metrics`) and the report's figures (:data:`adcs_sim.app.report.figures.FIGURES`).
 
 Examples
 --------
@@ -33,14 +33,14 @@ from matplotlib.figure import Figure
 
 from adcs_msgs_py.params import BUILTIN_PARAMETERS, ParameterError, unflatten
 from adcs_msgs_py.params_file import dump_params, load_params_file, ros_value_problem
-from adcs_sim.app.analysis import RunData, attitude_errors, run_metrics
-from adcs_sim.app.batch import BatchResult, BatchSimulation
-from adcs_sim.app.montecarlo import read_results
-from adcs_sim.app.parameters import explain_sections
+from adcs_sim.app.analysis.metrics import RunData, attitude_errors, run_metrics
+from adcs_sim.app.batch.engine import BatchResult, BatchSimulation
+from adcs_sim.app.campaign.montecarlo import read_results
+from adcs_sim.app.scenario.parameters import explain_sections
 from adcs_sim.app.report.loading import Run, run_name
 from adcs_sim.app.report.single_run import run_figures, write_report
-from adcs_sim.app.runner import run_scenario
-from adcs_sim.app.scenario_files import resolve_scenario, validate_sections
+from adcs_sim.app.graph.runner import run_scenario
+from adcs_sim.app.scenario.files import resolve_scenario, validate_sections
 
 __all__ = ['Scenario', 'RunResult', 'BatchRuns', 'RunData', 'ParameterError', 'load_run', 'campaign_results']
 
@@ -119,7 +119,7 @@ class Scenario:
 
         Raises
         ------
-        adcs_sim.app.scenario_files.RunError
+        adcs_sim.app.scenario.files.RunError
             No such file.
         ParameterError
             A section or key is unknown, a value has the wrong type or is refused by its check
@@ -251,7 +251,7 @@ class Scenario:
 
         Raises
         ------
-        adcs_sim.app.scenario_files.RunError
+        adcs_sim.app.scenario.files.RunError
             A node failed, or the output folder is not empty.
         """
         out = Path(out)
@@ -271,7 +271,7 @@ class RunResult:
         The arrays (SI units, seconds): ``t``, ``q`` (N, 4) ``[x, y, z, w]``, ``w`` (N, 3) rad/s,
         ``t_u`` and ``u`` (applied body torque, N m, held from each ``t_u``), ``wheel_names``,
         ``t_wheels``, ``wheel_speed`` (rad/s), ``q_ref`` and the rest of
-        :class:`adcs_sim.app.analysis.RunData`.
+        :class:`adcs_sim.app.analysis.metrics.RunData`.
     bag : pathlib.Path or None
         The bag it was read from (graph runs), None for a batch run.
     """
@@ -280,7 +280,7 @@ class RunResult:
     bag: Path | None = None
 
     def metrics(self, tol_deg: float = 0.5, eigen_tol_deg: float | None = None) -> dict:
-        """The metrics ``adcs-run`` and ``adcs-analyze`` print (:func:`adcs_sim.app.analysis.run_metrics`).
+        """The metrics ``adcs-run`` and ``adcs-analyze`` print (:func:`adcs_sim.app.analysis.metrics.run_metrics`).
 
         Parameters
         ----------
@@ -377,7 +377,7 @@ class BatchRuns(Sequence):
 
     Attributes
     ----------
-    result : adcs_sim.app.batch.BatchResult
+    result : adcs_sim.app.batch.engine.BatchResult
         The raw arrays with a leading run axis: ``t`` (K + 1,), ``q`` (N, K + 1, 4), ``w``,
         ``u`` (N, K, 3), ``wheel_speed``, ``n_steps`` and ``failure`` (why a run stopped early).
     sections : list of dict

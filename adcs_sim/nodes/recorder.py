@@ -50,7 +50,7 @@ from adcs_sim.bag.writer import STAMP_FIRST_TYPES, BagWriteError, BagWriter, qos
 IGNORED_TOPICS = ('/rosout', '/parameter_events')
 STOP_REQUESTED = threading.Event()  # set by SIGINT / SIGTERM in the recorder process
 READY_LINE = 'recorder: ready'
-DRAIN_MAX_S = 10.0  # < the runner's stop timeout (adcs_sim.app.graph.STOP_TIMEOUT_S)
+DRAIN_MAX_S = 10.0  # < the runner's stop timeout (adcs_sim.app.graph.processes.STOP_TIMEOUT_S)
 PROFILES_ENV = 'FASTRTPS_DEFAULT_PROFILES_FILE'
 RECORDER_PROFILE = Path(__file__).resolve().parent / 'recorder_fastdds.xml'
 MAX_UNTAKEN = 1000  # messages a topic DDS holds for the recorder (recorder_fastdds.xml's max_samples)

@@ -244,7 +244,7 @@ def rk4_period(xr, k, xs, times, h, p, c, kinds, soff, poff, coff, counts, axes,
                env, env_on, pos, gg_factor, gg_on, thr, wk, aux):
     """Plant.step of one run's state xr (updated in place): len(times) RK4 steps of h, stage times
     times[i] = (t_i, t_i + h/2, t_i + h), quaternion renormalised after each (k (4, n_states), xs
-    (n_states,): work arrays). Also the fused closed loop's (:mod:`adcs_sim.app.fused`)."""
+    (n_states,): work arrays). Also the fused closed loop's (:mod:`adcs_sim.app.batch.fused`)."""
     n_states = xr.size
     half, sixth, third = 0.5 * h, h / 6.0, h / 3.0
     for i in range(times.shape[0]):

@@ -30,7 +30,7 @@ so new actuator models (thrusters, magnetorquers) are added as new classes, not 
 Every array function accepts a leading batch axis: ``x`` of shape ``(..., n_states)``. So do the
 physical parameters a Monte Carlo campaign disperses (inertia ``(..., 3, 3)``, wheel spin
 inertia and limits ``(..., n)``, torquer limits, initial state): one :class:`Plant` then holds a
-whole batch of different spacecraft (:mod:`adcs_sim.app.batch`). Matrix-vector products are
+whole batch of different spacecraft (:mod:`adcs_sim.app.batch.engine`). Matrix-vector products are
 :func:`~adcs_core.attitude.matvec` (fixed summation order), so a run's numbers do not depend on
 the other runs of its batch.
 """

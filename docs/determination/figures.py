@@ -15,7 +15,7 @@ sys.path.insert(0, str(HERE.parents[1] / 'tests'))   # the test truth models (se
 
 from support.estimator_runs import batch, write_run_bag  # noqa: E402
 
-from adcs_sim.app import estimation  # noqa: E402
+from adcs_sim.app.analysis import estimation  # noqa: E402
 from adcs_sim.app.report import estimation as figures  # noqa: E402
 
 

@@ -29,9 +29,9 @@ from pathlib import Path
 import numpy as np
 
 from adcs_msgs_py.params_file import load_params_file
-from adcs_sim.app.analysis import attitude_errors, attitude_errors_deg
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.registry import NODES
+from adcs_sim.app.analysis.metrics import attitude_errors, attitude_errors_deg
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.registry import NODES
 
 ROOT = Path(__file__).resolve().parents[2]
 PRINTED = np.array([0.2, 0.2, 0.2, 0.8246])

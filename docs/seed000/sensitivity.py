@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Seed 000 VI.A: how the six settling times and ∫‖u‖dt depend on what the paper leaves open.
 
-Runs the batch engine (the graph's own plant and law code, :mod:`adcs_sim.app.batch`) on the three
+Runs the batch engine (the graph's own plant and law code, :mod:`adcs_sim.app.batch.engine`) on the three
 VI.A scenarios started directly in the two-wheel phase: the Z wheel fails at t = 0 with the body
 at rest at the attitude it had at t0 (the three-wheel PD phase of the scenarios ends at rest at
 the off-pointing attitude to ~1e-9 rad/s, so this is the same run shifted by t0). Then varies one
@@ -23,9 +23,9 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from adcs_msgs_py.params_file import load_params_file  # noqa: E402
-from adcs_sim.app.analysis import fault_metrics  # noqa: E402
-from adcs_sim.app.batch import BatchSimulation  # noqa: E402
-from adcs_sim.app.registry import NODES  # noqa: E402
+from adcs_sim.app.analysis.metrics import fault_metrics  # noqa: E402
+from adcs_sim.app.batch.engine import BatchSimulation  # noqa: E402
+from adcs_sim.app.scenario.registry import NODES  # noqa: E402
 
 LAWS = {'zero momentum (eq. 13)': ('uosat12_zero_momentum', 'zero_momentum_controller'),
         'snlc (eq. 14/24)': ('uosat12_snlc', 'snlc_controller'),

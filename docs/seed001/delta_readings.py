@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from adcs_sim.app.analysis import k0_metric
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.registry import NODES
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.analysis.metrics import k0_metric
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.registry import NODES
+from adcs_sim.app.scenario.files import validate_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / 'config' / 'm2r_umax1.yaml'

@@ -30,10 +30,10 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT))
 
-from adcs_sim.app.analysis import RunData, k0_metric  # noqa: E402
-from adcs_sim.app.batch import BatchSimulation  # noqa: E402
-from adcs_sim.app.registry import NODES  # noqa: E402
-from adcs_sim.app.scenario_files import validate_scenario  # noqa: E402
+from adcs_sim.app.analysis.metrics import RunData, k0_metric  # noqa: E402
+from adcs_sim.app.batch.engine import BatchSimulation  # noqa: E402
+from adcs_sim.app.scenario.registry import NODES  # noqa: E402
+from adcs_sim.app.scenario.files import validate_scenario  # noqa: E402
 
 BAGS = ROOT / 'bags'
 CONFIG = ROOT / 'config'

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Sensitivity of the ESEO slew (seed 002) to the choices the paper does not give: gains K1, K2,
-lever arms, thrust mapping and deadzone. Batch engine (adcs_sim.app.batch: the graph's own plant, law
+lever arms, thrust mapping and deadzone. Batch engine (adcs_sim.app.batch.engine: the graph's own plant, law
 and allocation with a leading batch axis) on config/eseo_backstepping_slew.yaml; writes
 docs/seed002/sensitivity.md.
 
@@ -8,7 +8,7 @@ docs/seed002/sensitivity.md.
 
 Gains, lever arms and deadzone levels vary along the batch axis (one batch of 48 runs for the
 gain x geometry grid); each thrust mapping is its own batch (not a batch parameter). Metrics per run: settling time (the eigenaxis error stays below 1 deg
-from then on; adcs_sim.app.analysis.settling_time), total thruster impulse (N s), firings
+from then on; adcs_sim.app.analysis.metrics.settling_time), total thruster impulse (N s), firings
 (thruster-periods), and the largest error over the last 60 s.
 """
 from __future__ import annotations
@@ -28,9 +28,9 @@ ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT))
 
 from adcs_controllers.laws.backstepping import eseo_thruster_layout  # noqa: E402
-from adcs_sim.app.analysis import attitude_errors_deg, settling_time  # noqa: E402
-from adcs_sim.app.batch import BatchSimulation  # noqa: E402
-from adcs_sim.app.scenario_files import validate_scenario  # noqa: E402
+from adcs_sim.app.analysis.metrics import attitude_errors_deg, settling_time  # noqa: E402
+from adcs_sim.app.batch.engine import BatchSimulation  # noqa: E402
+from adcs_sim.app.scenario.files import validate_scenario  # noqa: E402
 
 SCENARIO = ROOT / 'config' / 'eseo_backstepping_slew.yaml'
 CTRL = 'backstepping_controller'

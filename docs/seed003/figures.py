@@ -14,7 +14,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from adcs_sim.app.analysis import RunData, pointing_error_deg  # noqa: E402
+from adcs_sim.app.analysis.metrics import RunData, pointing_error_deg  # noqa: E402
 
 
 def main() -> None:

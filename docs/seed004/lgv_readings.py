@@ -19,9 +19,9 @@ import numpy as np
 import yaml
 
 from adcs_controllers.laws.inverse_optimal import LGV_READINGS
-from adcs_sim.app.analysis import RunData, run_metrics, settling_times
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.analysis.metrics import RunData, run_metrics, settling_times
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.files import validate_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 PAPER = yaml.safe_load((ROOT / 'docs' / 'seed004' / 'paper.yaml').read_text())['runs']

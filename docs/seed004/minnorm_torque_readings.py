@@ -25,9 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from adcs_sim.app.analysis import run_metrics, zoh_durations
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.analysis.metrics import run_metrics, zoh_durations
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.files import validate_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 MN, PD = 'minnorm_controller', 'pd_controller'

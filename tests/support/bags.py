@@ -99,7 +99,7 @@ class Synthetic:
                                       np.full(N, 5.0)])
         self.torque = np.vstack([-self.u, np.zeros(3)])   # wheel motor torque = -(applied body torque)
 
-    # expected numbers, from the definitions (adcs_sim.app.analysis) in closed form
+    # expected numbers, from the definitions (adcs_sim.app.analysis.metrics) in closed form
     settling_eigen = TAU * math.log(ANGLE0_DEG / 0.5)
     integrated = (30 + 230) * float(np.linalg.norm(U))
     energy = (30 + 230) * float(U @ U)

@@ -24,7 +24,7 @@ def assert_recorded_run_equal(actual, recorded) -> None:
 def reference_comparison(bags, paper: Path, out: Path) -> str:
     """``comparison.md`` of ``adcs-analyze BAGS --compare --reference PAPER --out OUT`` (which must exit
     0): the published-vs-ours rows every seed's doc table is checked against."""
-    from adcs_sim.app.analyze import main as analyze  # matplotlib behind it: only for these tests
+    from adcs_sim.app.analysis.analyze import main as analyze  # matplotlib behind it: only for these tests
     assert analyze([*map(str, bags), '--compare', '--reference', str(paper), '--out', str(out)]) == 0
     return (out / 'comparison.md').read_text()
 

@@ -8,9 +8,9 @@ from support.estimation_truth import StateSensors, Truth, perturbed
 from support.scenarios import make_scenario
 
 from adcs_controllers.estimators.families import MEKF
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.registry import NODES
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.registry import NODES
+from adcs_sim.app.scenario.files import validate_scenario
 
 OMEGA = np.array([0.01, -0.02, 0.005])
 SECTION = {'gyro.sigma_v': 1e-5, 'gyro.sigma_u': 1e-7, 'star_tracker.sigma': [1e-4] * 3,

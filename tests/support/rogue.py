@@ -20,8 +20,8 @@ import numpy as np
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import topics
 from adcs_msgs_py.guard import subscribed_by
-from adcs_sim.app.batch import BatchSimulation
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.batch.engine import BatchSimulation
+from adcs_sim.app.scenario.files import validate_scenario
 from adcs_sim.bag.reader import read_messages
 from support.paths import ROOT
 
@@ -119,7 +119,7 @@ def run_with_rogue(tmp_path, monkeypatch, topic: str, start_s: float = 2.0, dura
     from rosgraph_msgs.msg import Clock
 
     out = tmp_path / 'run'
-    runner = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.runner', str(PD_SLEW),
+    runner = subprocess.Popen([sys.executable, '-m', 'adcs_sim.app.graph.runner', str(PD_SLEW),
                                '--out', str(out), '--duration', str(duration_s), '--no-progress'],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     try:

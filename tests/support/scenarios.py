@@ -67,11 +67,11 @@ def write_campaign(tmp_path: Path, scenario: Path | None = None, **overrides) ->
 
 
 def batch_of(scenario_path, overrides_per_run: list[dict]):
-    """A batch (:class:`~adcs_sim.app.batch.BatchSimulation`) of the scenario with
+    """A batch (:class:`~adcs_sim.app.batch.engine.BatchSimulation`) of the scenario with
     ``{section: {key: value}}`` overrides per run."""
-    from adcs_sim.app.batch import BatchSimulation
-    from adcs_sim.app.registry import NODES
-    from adcs_sim.app.scenario_files import validate_scenario
+    from adcs_sim.app.batch.engine import BatchSimulation
+    from adcs_sim.app.scenario.registry import NODES
+    from adcs_sim.app.scenario.files import validate_scenario
     nominal = validate_scenario(scenario_path)
     runs = []
     for o in overrides_per_run:
@@ -90,7 +90,7 @@ def batch_run_data(validated: dict):
     """The batch engine's run of one validated scenario, as RunData, computed once per test session
     for equal scenarios (several modules check the same long runs: a bag against its batch run,
     a reading study on the same scenario). Callers must not modify what it returns."""
-    from adcs_sim.app.batch import BatchSimulation
+    from adcs_sim.app.batch.engine import BatchSimulation
     key = json.dumps(validated, sort_keys=True, default=repr)
     if key not in _BATCH_RUNS:
         _BATCH_RUNS[key] = BatchSimulation.from_runs([validated]).run().run_data(0)

@@ -1,7 +1,7 @@
 """Reports of recorded runs: one run -> ``report.md`` with figures; several runs -> a comparison.
 
-Pure package (no rclpy): the time series come from :meth:`adcs_sim.app.analysis.RunData.from_bag`
-(one streaming pass over the bag) and the numbers from :mod:`adcs_sim.app.analysis`; a long run
+Pure package (no rclpy): the time series come from :meth:`adcs_sim.app.analysis.metrics.RunData.from_bag`
+(one streaming pass over the bag) and the numbers from :mod:`adcs_sim.app.analysis.metrics`; a long run
 (more state samples than :data:`.envelope.MAX_POINTS`) is streamed instead (:mod:`.long_run`: two
 passes, only the samples its figures draw kept, the same report byte for byte). Figures are
 drawn with :class:`matplotlib.figure.Figure` (no pyplot, no GUI backend) and saved as PNG and SVG.

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from adcs_msgs_py.params_file import YamlError, load_yaml
-from adcs_sim.app.analysis import attitude_errors
+from adcs_sim.app.analysis.metrics import attitude_errors
 from adcs_sim.app.report.envelope import reduced
 from adcs_sim.app.report.figures import add_legend, log_positive, new_figure, save_figure, step_plot
 from adcs_sim.app.report.kinds import reference_attitude, run_kind

@@ -1,7 +1,7 @@
 """The estimation figures of one run (:func:`estimation_figure`) and of a Monte Carlo batch
 (:func:`consistency_figure`): errors per body axis with the filter's ±3σ, NEES and NIS with their 95 %
 χ² bounds. :class:`matplotlib.figure.Figure` only (no pyplot); the numbers come from
-:mod:`adcs_sim.app.estimation`. A report calls these and saves the figure (:func:`save`)."""
+:mod:`adcs_sim.app.analysis.estimation`. A report calls these and saves the figure (:func:`save`)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -10,7 +10,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from adcs_msgs_py import names
-from adcs_sim.app.estimation import (
+from adcs_sim.app.analysis.estimation import (
     NIS_DOF,
     EstimationSeries,
     chi2_bounds,
@@ -91,7 +91,7 @@ def estimation_figure(s: EstimationSeries, settle_s: float = 0.0, title: str = '
 
 
 def consistency_figure(consistency: dict, t: np.ndarray, runs: int, title: str = '') -> Figure:
-    """The run-averaged NEES of a batch (:func:`adcs_sim.app.estimation.batch_consistency`) against
+    """The run-averaged NEES of a batch (:func:`adcs_sim.app.analysis.estimation.batch_consistency`) against
     the 95 % bounds of the mean of ``runs`` runs."""
     fig = Figure(figsize=(10.0, 3.4), layout='constrained')
     ax = fig.subplots()

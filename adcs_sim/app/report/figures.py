@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from adcs_msgs_py import names as topics
-from adcs_sim.app.analysis import RunData
+from adcs_sim.app.analysis.metrics import RunData
 from adcs_sim.app.report.envelope import log_positive, reduced
 from adcs_sim.app.report.kinds import UNKNOWN, RunKind
 from adcs_sim.app.report.loading import commanded_torque, thruster_topics

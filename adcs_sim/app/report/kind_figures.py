@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion
-from adcs_sim.app.analysis import POINTING_BANDS_DEG, first_entry_time, pointing_error_deg, settling_time
+from adcs_sim.app.analysis.metrics import POINTING_BANDS_DEG, first_entry_time, pointing_error_deg, settling_time
 from adcs_sim.app.report.envelope import reduced
 from adcs_sim.app.report.figures import (
     LINE,

@@ -28,8 +28,8 @@ import numpy as np
 from adcs_controllers.families import FAMILIES, RUN_KINDS
 from adcs_controllers.laws.backstepping import OrbitReference
 from adcs_core.orbit import CircularOrbit
-from adcs_sim.app.run_data import RunData
-from adcs_sim.app.status_records import status_column, texts
+from adcs_sim.app.analysis.run_data import RunData
+from adcs_sim.app.analysis.status_records import status_column, texts
 
 UNKNOWN = 'unknown'
 # The status key whose text value names the run's phases, per kind.

@@ -16,8 +16,8 @@ import numpy as np
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion
 from adcs_msgs_py.params_file import YamlError, load_yaml
-from adcs_sim.app import metric_defs
-from adcs_sim.app.analysis import (
+from adcs_sim.app.analysis import metric_defs
+from adcs_sim.app.analysis.metrics import (
     POINTING_BANDS_DEG,
     fault_metrics,
     first_fault_time,
@@ -30,8 +30,8 @@ from adcs_sim.app.analysis import (
     thruster_metrics,
 )
 from adcs_sim.app.report.kinds import RunKind, param_value, vector
-from adcs_sim.app.run_data import RunData
-from adcs_sim.app.status_records import parse_values, status_column
+from adcs_sim.app.analysis.run_data import RunData
+from adcs_sim.app.analysis.status_records import parse_values, status_column
 
 DOCS = Path(__file__).resolve().parents[3] / 'docs'
 SPIN_THETA_BAND_RAD = 0.01      # settling band of the spin's attitude error θ (0.57°)

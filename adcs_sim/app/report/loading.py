@@ -12,10 +12,10 @@ import numpy as np
 from mcap.exceptions import McapError
 
 from adcs_msgs_py import names as topics
-from adcs_sim.app.analysis import RunData, run_metrics
+from adcs_sim.app.analysis.metrics import RunData, run_metrics
 from adcs_sim.app.report import envelope
-from adcs_sim.app.run_data import TooLong
-from adcs_sim.app.status_records import TORQUE_KEYS, status_keys, status_names, status_values
+from adcs_sim.app.analysis.run_data import TooLong
+from adcs_sim.app.analysis.status_records import TORQUE_KEYS, status_keys, status_names, status_values
 
 ERROR_LEVEL = 2  # diagnostic_msgs/DiagnosticStatus.ERROR
 
@@ -77,7 +77,7 @@ class Run:
         return int(self.data.t.size) if self.long is None else self.long.samples
 
     def metrics(self, tol_deg: float = 0.5, eigen_tol_deg: float | None = None) -> dict:
-        """:func:`~adcs_sim.app.analysis.run_metrics` of the whole run."""
+        """:func:`~adcs_sim.app.analysis.metrics.run_metrics` of the whole run."""
         eigen_tol_deg = tol_deg if eigen_tol_deg is None else eigen_tol_deg
         if self.long is None:
             return run_metrics(self.data, tol_deg, eigen_tol_deg)
@@ -145,7 +145,7 @@ def status_series(run: RunData) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Controller status values per key: ``{key: (t, values)}``, values float where all parse, else str.
 
     Keys are prefixed ``<status name>/`` when several controllers publish. Read key by key from the
-    records' columns (:func:`~adcs_sim.app.status_records.status_column`), not record by record.
+    records' columns (:func:`~adcs_sim.app.analysis.status_records.status_column`), not record by record.
     """
     records = run.controller_status
     several = len(status_names(records)) > 1

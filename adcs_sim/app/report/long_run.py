@@ -1,14 +1,14 @@
 """A long run's report without holding the run (issue #18: a day at 10 Hz in <= 300 MB): :func:`load_long`.
 
-:meth:`~adcs_sim.app.run_data.RunData.from_bag` holds every series of a run, ~620 B a step. A
+:meth:`~adcs_sim.app.analysis.run_data.RunData.from_bag` holds every series of a run, ~620 B a step. A
 report draws a series of more than :data:`~.envelope.MAX_POINTS` samples from its envelope
 (:func:`~.envelope.reduced`), and the envelope of any superset of an envelope's samples is that
 envelope (the same columns: the first and last samples are in it; the same first smallest, largest
 and NaN sample of each column). So a long run is read in two streaming passes into a
 :class:`RunData` that holds, of each series, only the samples the report can draw:
 
-1. the metrics as :mod:`adcs_sim.app.stream_metrics` computes them (run_metrics' bit for bit), the
-   recording's other fields (:func:`~adcs_sim.app.run_data.set_recording`) and the first and last
+1. the metrics as :mod:`adcs_sim.app.analysis.stream_metrics` computes them (run_metrics' bit for bit), the
+   recording's other fields (:func:`~adcs_sim.app.analysis.run_data.set_recording`) and the first and last
    stamps and the length of each series: where its envelope's columns are cut;
 2. every series the report draws — the derived ones (errors to the reference, 2-1-3 angles, their
    log-axis masks, torques in N·m and in mN·m) computed per chunk with the code the figures run on
@@ -36,15 +36,15 @@ from types import SimpleNamespace
 import numpy as np
 
 from adcs_msgs_py import names as topics
-from adcs_sim.app import run_data as rd
-from adcs_sim.app import stream_metrics as sm
-from adcs_sim.app.analysis import attitude_errors
+from adcs_sim.app.analysis import run_data as rd
+from adcs_sim.app.analysis import stream_metrics as sm
+from adcs_sim.app.analysis.metrics import attitude_errors
 from adcs_sim.app.report import envelope
 from adcs_sim.app.report.envelope import log_positive
 from adcs_sim.app.report.kinds import PHASE_KEYS, _unit, param_value, run_kind
 from adcs_sim.app.report.lead import actuator_fault
-from adcs_sim.app.run_data import RunData
-from adcs_sim.app.status_records import TORQUE_KEYS, StatusRecords
+from adcs_sim.app.analysis.run_data import RunData
+from adcs_sim.app.analysis.status_records import TORQUE_KEYS, StatusRecords
 from adcs_sim.bag.batches import ColumnReader
 from adcs_sim.bag.columns import decode_batch, decode_diagnostics, header_time
 

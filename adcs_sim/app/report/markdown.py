@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from adcs_sim.app import metric_defs
+from adcs_sim.app.analysis import metric_defs
 
 METRIC_NOTES = {
     'duration_s': 'simulated time of the last state (s)',

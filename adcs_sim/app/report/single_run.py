@@ -15,8 +15,8 @@ from pathlib import Path
 from typing import Callable
 
 from adcs_msgs_py import names as topics
-from adcs_sim.app import metric_defs
-from adcs_sim.app.analysis import attitude_errors, run_metrics
+from adcs_sim.app.analysis import metric_defs
+from adcs_sim.app.analysis.metrics import attitude_errors, run_metrics
 from adcs_sim.app.report.estimation import estimation_lines
 from adcs_sim.app.report.figures import FIGURES, Context, save_figure
 from adcs_sim.app.report.kind_figures import LEAD_FIGURES
@@ -25,7 +25,7 @@ from adcs_sim.app.report.lead import actuator_fault, lead_metrics, paper_values,
 from adcs_sim.app.report.loading import Run, fault_events, has_wheels, missing_topics
 from adcs_sim.app.report.markdown import fmt, md_escape, metric_note
 from adcs_sim.app.report.status_figure import fig_controller_status
-from adcs_sim.app.run_data import RunData
+from adcs_sim.app.analysis.run_data import RunData
 from adcs_sim.bag.reader import read_metadata
 
 # Rest-to-rest metrics: not shown for a spin or a pointing run (the attitude is not regulated to a
@@ -244,7 +244,7 @@ def _metric_lines(report: Report) -> list[str]:
             left.append(f'`{k}` (the spacecraft has no reaction wheels)')
         else:
             shown[k] = v
-    lines = ['## All metrics', '', 'Definitions: `adcs_sim/app/analysis.py`; the same numbers as `adcs-analyze` prints '
+    lines = ['## All metrics', '', 'Definitions: `adcs_sim/app/analysis/metrics.py`; the same numbers as `adcs-analyze` prints '
              '(the attitude error against the scenario\'s `target.attitude`).', '',
              '| metric | value | meaning |', '| --- | --- | --- |']
     lines += [f'| `{k}` | {fmt(v)} | {md_escape(metric_note(k))} |' for k, v in shown.items()]

@@ -20,7 +20,7 @@ from matplotlib.ticker import MaxNLocator
 from adcs_msgs_py import names as topics
 from adcs_sim.app.report.figures import LINE, Context, add_legend, mark_faults, new_figure, step_plot
 from adcs_sim.app.report.loading import status_series
-from adcs_sim.app.status_records import TORQUE_KEYS
+from adcs_sim.app.analysis.status_records import TORQUE_KEYS
 
 MAX_TIMELINE_LEVELS = 12
 MAX_PER_PANEL = 3

@@ -32,11 +32,11 @@ Definitions (every metric printed by ``adcs-run`` and ``adcs-analyze``):
   and the final pointing error.
 * **Peak torque** per body axis ``max |u_i|`` over the applied-torque samples; **missed
   steps** from the last ``dynamics/status`` that reports them.
-* The metrics of :data:`adcs_sim.app.metric_defs.DEFINED`, each defined there once and computed
+* The metrics of :data:`adcs_sim.app.analysis.metric_defs.DEFINED`, each defined there once and computed
   by every path from that definition (the **peak wheel speed**, the **time each wheel spends at
   its speed limit**), between the peak torque and the missed steps.
 
-The time series come from :class:`~adcs_sim.app.run_data.RunData` (a bag read in one pass).
+The time series come from :class:`~adcs_sim.app.analysis.run_data.RunData` (a bag read in one pass).
 :func:`run_metrics` gives these at one tolerance; :func:`settling_times` the settling times at
 several (e.g. 0.5° and 1° for a comparison table). :func:`k0_metric` is seed 001's settling index
 (eq. 29) of a sampled error series.
@@ -49,10 +49,10 @@ import warnings
 import numpy as np
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213, pointing_error
-from adcs_sim.app import metric_defs
+from adcs_sim.app.analysis import metric_defs
 
 # The run's time series and what its scenario asks for (re-exported: this module's historical API).
-from adcs_sim.app.run_data import (  # noqa: F401
+from adcs_sim.app.analysis.run_data import (  # noqa: F401
     DIAGNOSTIC_ARRAY,
     JOINT_STATE,
     ODOMETRY,

@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from adcs_msgs_py import names
-from adcs_sim.app.analysis import ODOMETRY, VECTOR3_STAMPED, pointing_request
+from adcs_sim.app.analysis.metrics import ODOMETRY, VECTOR3_STAMPED, pointing_request
 from adcs_sim.app.outputs import OutputError, check_file
 from adcs_sim.app.report.loading import BagError, load_run
 from adcs_sim.bag.batches import ColumnReader

@@ -1,6 +1,6 @@
 """A run's controller status records, stored compactly: :class:`StatusRecords`.
 
-The controller publishes one ``DiagnosticArray`` per step; :class:`~adcs_sim.app.run_data.RunData`
+The controller publishes one ``DiagnosticArray`` per step; :class:`~adcs_sim.app.analysis.run_data.RunData`
 keeps each status as ``(t, name, {key: value text})``. Held as Python tuples and dicts that is
 about 1.5 kB a step (a 24 h run at 10 Hz: 1.3 GB, almost all of ``adcs-run``'s end-of-run
 memory, issue #18). Here the records of one layout (status name and keys) are a stamp array and

@@ -2,7 +2,7 @@
 states without building each run's ``SeedSequence`` (numpy only).
 
 A campaign's run ``i`` draws from ``np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(i,)))``
-(:mod:`adcs_sim.app.campaign`). Building a ``SeedSequence`` and a ``PCG64`` costs ~25 us a run (its
+(:mod:`adcs_sim.app.campaign.plan`). Building a ``SeedSequence`` and a ``PCG64`` costs ~25 us a run (its
 entropy is coerced to words in Python), more than the run's draws. :func:`pcg64_states` computes
 the very same PCG64 states for many runs: numpy's ``SeedSequence`` algorithm (its ``mix_entropy``
 over the seed's 32-bit words padded to the pool size and the spawn key, then ``generate_state(4,

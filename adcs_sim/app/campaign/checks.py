@@ -2,8 +2,8 @@
 (runs, seed, chunk size, settling band, series), its metrics and requirements, and the memory its
 runs take on this machine.
 
-What the file may say is documented in :mod:`adcs_sim.app.campaign`; each dispersion is checked by
-:mod:`adcs_sim.app.campaign_draws`. Every refusal is a :class:`CampaignError` naming its key.
+What the file may say is documented in :mod:`adcs_sim.app.campaign.plan`; each dispersion is checked by
+:mod:`adcs_sim.app.campaign.draws`. Every refusal is a :class:`CampaignError` naming its key.
 """
 from __future__ import annotations
 
@@ -12,15 +12,15 @@ from pathlib import Path
 
 from adcs_msgs_py.params import ParameterError
 from adcs_msgs_py.params_file import YamlError, load_params_file, load_yaml
-from adcs_sim.app.scenario_checks import MEMORY_SHARE, physical_memory_bytes
-from adcs_sim.app.scenario_files import RunError, config_dirs, resolve_scenario, validate_scenario
-from adcs_sim.app.seeding import MAX_RUN_INDEX
+from adcs_sim.app.scenario.checks import MEMORY_SHARE, physical_memory_bytes
+from adcs_sim.app.scenario.files import RunError, config_dirs, resolve_scenario, validate_scenario
+from adcs_sim.app.scenario.seeding import MAX_RUN_INDEX
 
 CAMPAIGN_KEYS = {'scenario', 'runs', 'seed', 'chunk_size', 'tolerance_deg', 'metrics', 'requirements',
                  'dispersions', 'series_every'}
 
 # The counts a campaign may ask for, and why. A run's index is the one 32-bit word of its generator's
-# spawn key (adcs_sim.app.seeding): at most 2^32 runs.
+# spawn key (adcs_sim.app.scenario.seeding): at most 2^32 runs.
 MAX_RUNS = MAX_RUN_INDEX + 1
 # SeedSequence mixes a seed into a pool of 128 bits: a larger seed draws nothing more random, and its
 # words are mixed in Python at load (a 4000-digit seed takes seconds).
@@ -85,7 +85,7 @@ def campaign_scenario(c: dict, path: Path) -> tuple[Path, dict, dict]:
 def campaign_numbers(c: dict, runs: int | None) -> tuple[int, int, int, float, int]:
     """(runs, seed, chunk_size, tolerance_deg, series_every), checked (``runs`` overrides the file's:
     ``--runs``); the runs' draws fit in memory (what
-    :meth:`adcs_sim.app.campaign.Campaign.check_runs` allocates)."""
+    :meth:`adcs_sim.app.campaign.plan.Campaign.check_runs` allocates)."""
     key = runs_key(runs)
     runs = _integer(c, 'runs', runs)
     if runs < 1:
@@ -171,7 +171,7 @@ def check_campaign_memory(where_runs: str, runs: int, chunk_size: int, steps: in
                           values: int, series_every: int) -> None:
     """A campaign of ``runs`` runs of ``steps`` control steps (the longest run's) fits this machine's
     memory (CampaignError naming the key otherwise): a chunk's batch, its runs recorded (``run_bytes``
-    each: :func:`adcs_sim.app.batch.run_bytes`) and their metrics computed (x
+    each: :func:`adcs_sim.app.batch.engine.run_bytes`) and their metrics computed (x
     :data:`BATCH_MEMORY_FACTOR`), and every run's row of ``values`` metrics and inputs (and its error
     series every ``series_every`` steps) until the tables are written. ``where_runs``: where the run
     count comes from (:func:`runs_key`)."""
@@ -189,7 +189,7 @@ def check_campaign_memory(where_runs: str, runs: int, chunk_size: int, steps: in
 
 def _fits_memory(key: str, what: str, need: float, why: str) -> None:
     """CampaignError naming ``key`` if ``need`` bytes exceed the share of this machine's memory a
-    campaign may take (:data:`adcs_sim.app.scenario_checks.MEMORY_SHARE`, as a run's dynamics node)."""
+    campaign may take (:data:`adcs_sim.app.scenario.checks.MEMORY_SHARE`, as a run's dynamics node)."""
     memory = physical_memory_bytes()
     if need > MEMORY_SHARE * memory:
         raise CampaignError(f'{key}: {what} need {need / 2**30:.3g} GiB ({why}), more than '

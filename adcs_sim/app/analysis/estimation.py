@@ -128,7 +128,7 @@ def series_from_bag(bag, namespace: str = '/') -> EstimationSeries:
 
 
 def series_from_batch(result, i: int) -> EstimationSeries:
-    """Run ``i`` of a :class:`~adcs_sim.app.batch.BatchResult` with an estimator section."""
+    """Run ``i`` of a :class:`~adcs_sim.app.batch.engine.BatchResult` with an estimator section."""
     est = result.estimate
     if est is None:
         raise ValueError('the batch has no estimator section')

@@ -2,7 +2,7 @@
 sqlite3 rosbag2 bag), what the scenario embedded in the bag asks for (its regulation target, its
 pointing request) and what the recorder wrote about intruders.
 
-Split out of :mod:`adcs_sim.app.analysis` (which defines the metrics and re-exports these names):
+Split out of :mod:`adcs_sim.app.analysis.metrics` (which defines the metrics and re-exports these names):
 this module reads, that one computes.
 """
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 from adcs_msgs_py import names as topics
 from adcs_msgs_py.params import ParameterError
 from adcs_msgs_py.params_file import load_params_text
-from adcs_sim.app.status_records import StatusRecords
+from adcs_sim.app.analysis.status_records import StatusRecords
 from adcs_sim.bag.batches import ColumnReader
 from adcs_sim.bag.columns import decode_batch, decode_diagnostics
 from adcs_sim.bag.reader import read_raw

@@ -1,7 +1,7 @@
-"""``python -m adcs_sim.app.launch <module> [args ...]``: run a node executable's module as
+"""``python -m adcs_sim.app.graph.launch <module> [args ...]``: run a node executable's module as
 ``python -m <module> [args ...]`` does, then end the process at once.
 
-How ``adcs-run`` starts its nodes (:meth:`adcs_sim.app.graph.Graph.start`). A node has shut down
+How ``adcs-run`` starts its nodes (:meth:`adcs_sim.app.graph.processes.Graph.start`). A node has shut down
 when its ``main`` returns (:func:`adcs_msgs_py.node.main_for`: the node destroyed, which deletes
 its DDS participant and removes its shared-memory segments from ``/dev/shm``, its files closed -
 the recorder's bag and ``metadata.yaml`` included - and the context shut down). What the
@@ -48,7 +48,7 @@ def run(module: str) -> int:
 
 def main() -> None:
     if len(sys.argv) < 2:
-        print('usage: python -m adcs_sim.app.launch <module> [args ...]', file=sys.stderr)
+        print('usage: python -m adcs_sim.app.graph.launch <module> [args ...]', file=sys.stderr)
         raise SystemExit(2)
     module = sys.argv[1]
     sys.argv = [sys.argv[0], *sys.argv[2:]]

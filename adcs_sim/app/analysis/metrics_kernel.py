@@ -1,6 +1,6 @@
 """The campaign metrics of full runs in two compiled passes over each run's samples (numba).
 
-:func:`adcs_sim.app.batch_metrics.batch_run_metrics` computes :func:`~adcs_sim.app.analysis.run_metrics`
+:func:`adcs_sim.app.analysis.batch_metrics.batch_run_metrics` computes :func:`~adcs_sim.app.analysis.metrics.run_metrics`
 of every full run of a batch at once. Written with numpy over ``(runs, samples)`` arrays it made
 ~40 passes over the history (error quaternions, Euler angles, degrees, absolute values, maxima,
 settling masks, reversed ``argmax``, products and sums), each allocating its result. Here
@@ -22,7 +22,7 @@ the band to tell. Every value is the numpy code's bit for bit:
   (and an absolute 1e-10 rad) of the band's edge, near gimbal lock, non-finite, or any band of 45
   degrees or more; the margin is ~1e5 times the rounding of either computation;
 * ``np.maximum`` and ``max`` propagate a NaN; the settling time is
-  :func:`~adcs_sim.app.batch_metrics.settling_times`' expression on the last sample outside the band
+  :func:`~adcs_sim.app.analysis.batch_metrics.settling_times`' expression on the last sample outside the band
   and the next one, tracked while the samples go by;
 * ``np.sum(p, axis=-1)`` of a C-contiguous ``(runs, K)`` array is ``0.0 + pairwise(row)``: numpy's
   pairwise summation (:func:`pairwise_sum`: fewer than 8 terms in sequence, up to 128 in 8

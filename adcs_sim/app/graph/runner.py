@@ -11,8 +11,8 @@
    recorder says it is ready.
 4. Shows a progress bar in simulated time (from ``/clock``) until the dynamics node finishes.
 5. Stops the controllers, then the recorder (which closes the bag), and prints the metrics
-   (:mod:`adcs_sim.app.analysis`, computed while the bag is read:
-   :func:`~adcs_sim.app.stream_metrics.analyse_bag`), also written to ``<out>/metrics.json``.
+   (:mod:`adcs_sim.app.analysis.metrics`, computed while the bag is read:
+   :func:`~adcs_sim.app.analysis.stream_metrics.analyse_bag`), also written to ``<out>/metrics.json``.
 
 A node that fails at start stops the whole graph; the runner exits non-zero with that node's
 error and removes the output folder (no partial bag claims to be a run). A node that dies
@@ -41,17 +41,17 @@ from adcs_msgs_py import names
 from adcs_msgs_py.node import EXIT_DISK_FULL, EXIT_FLIGHT_SOFTWARE, EXIT_INTRUSION, INTRUSION_LOG
 from adcs_msgs_py.params import ParameterError
 from adcs_msgs_py.params_file import one_line_warnings
-from adcs_sim.app.graph import PROGRESS_NODE, Graph, Progress, graph_env, lease_domain, recorded_state
+from adcs_sim.app.graph.processes import PROGRESS_NODE, Graph, Progress, graph_env, lease_domain, recorded_state
 from adcs_sim.app.outputs import OutputError, check_folder
-from adcs_sim.app.registry import NODES
-from adcs_sim.app.scenario_checks import check_disk
-from adcs_sim.app.scenario_files import DEFAULT_SCENARIO, RunError, config_dirs, resolve_scenario, validate_scenario
+from adcs_sim.app.scenario.registry import NODES
+from adcs_sim.app.scenario.checks import check_disk
+from adcs_sim.app.scenario.files import DEFAULT_SCENARIO, RunError, config_dirs, resolve_scenario, validate_scenario
 
 # Imported when first needed, not before the nodes start (the import of the analysis modules,
 # ~0.7 s on the 2-core machine, was on the critical path of every run's start-up):
-# adcs_sim.app.analysis, adcs_sim.app.stream_metrics (the metrics, read from the bag at the end;
-# imported while the graph shuts down: warm_analysis), adcs_sim.app.run_data (the target),
-# adcs_sim.app.parameters (--explain), adcs_sim.nodes.recorder (its ready line).
+# adcs_sim.app.analysis.metrics, adcs_sim.app.analysis.stream_metrics (the metrics, read from the bag at the end;
+# imported while the graph shuts down: warm_analysis), adcs_sim.app.analysis.run_data (the target),
+# adcs_sim.app.scenario.parameters (--explain), adcs_sim.nodes.recorder (its ready line).
 
 __all__ = ['DEFAULT_SCENARIO', 'RunError', 'config_dirs', 'resolve_scenario', 'validate_scenario',
            'graph_env', 'lease_domain', 'run_scenario', 'main']
@@ -96,9 +96,9 @@ def _compromised(found: list[str], bag_dir: Path) -> RunError | None:
 
 
 def _bag_intrusions(bag_dir: Path) -> list[str]:
-    """:func:`adcs_sim.app.analysis.bag_intrusions` (imported on the way out of a failed run)."""
+    """:func:`adcs_sim.app.analysis.metrics.bag_intrusions` (imported on the way out of a failed run)."""
     # lazy: the analysis (0.4 s): only on the way out of a failed run
-    from adcs_sim.app.analysis import bag_intrusions
+    from adcs_sim.app.analysis.metrics import bag_intrusions
     return bag_intrusions(bag_dir)
 
 
@@ -121,10 +121,10 @@ def _await_recorded_intrusion(run: _Run) -> None:
 
 def run_target(validated: dict) -> list[float]:
     """The target of the dynamics node's error topics and target markers: the offline analysis'
-    (:func:`~adcs_sim.app.analysis.target_attitude`: a controller section's ``target.attitude``),
+    (:func:`~adcs_sim.app.analysis.metrics.target_attitude`: a controller section's ``target.attitude``),
     so that ``error/*`` in the bag are the errors ``adcs-analyze`` computes."""
     # lazy: the run data module (0.4 s): off adcs-run's path to starting the nodes
-    from adcs_sim.app.run_data import target_attitude
+    from adcs_sim.app.analysis.run_data import target_attitude
     sections = {name: {'ros__parameters': {'target': {'attitude': list(values['target.attitude'])}}}
                 for name, values in validated.items() if name != 'dynamics' and 'target.attitude' in values}
     return [float(v) for v in target_attitude(sections)]
@@ -216,7 +216,7 @@ def warm_analysis() -> threading.Thread:
             # lazy: the analysis, warmed in a thread while the graph shuts down (see warm_analysis)
             import numpy as np
 
-            import adcs_sim.app.stream_metrics  # noqa: F401
+            import adcs_sim.app.analysis.stream_metrics  # noqa: F401
             from adcs_core.attitude import SMALL_BATCH, euler_213
             euler_213(np.tile([0.0, 0.0, 0.0, 1.0], (SMALL_BATCH + 1, 1)))   # loads the kernel
         except Exception:  # noqa: BLE001, S110 - raised again by the import in run_scenario
@@ -303,7 +303,7 @@ def _finish(run: _Run, tol_deg: float):
     _stop_graph(run)
     warming.join()
     # lazy: imported by warm_analysis while the graph shut down: here it is already loaded
-    from adcs_sim.app.stream_metrics import analyse_bag
+    from adcs_sim.app.analysis.stream_metrics import analyse_bag
     analysed = analyse_bag(run.bag_dir, tol_deg)
     compromised = _compromised(analysed.intrusions, run.bag_dir)
     if compromised is not None:
@@ -377,7 +377,7 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
         for s, h in old_handlers.items():
             signal.signal(s, h)
     # lazy: the analysis: loaded by warm_analysis at the end of the run, not at start
-    from adcs_sim.app.analysis import jsonable_metrics
+    from adcs_sim.app.analysis.metrics import jsonable_metrics
     metrics = analysed.metrics
     (out / 'metrics.json').write_text(json.dumps(jsonable_metrics(metrics), indent=2))
     return metrics
@@ -413,7 +413,7 @@ def main(argv=None) -> int:
         scenario = resolve_scenario(args.scenario)
         if args.explain:
             # lazy: the parameter tables (0.6 s): only for --explain
-            from adcs_sim.app.parameters import explain
+            from adcs_sim.app.scenario.parameters import explain
             print(explain(scenario, args.duration))
             return 0
         out = args.out or Path('runs') / f'{scenario.stem}-{datetime.now():%Y%m%d-%H%M%S}'
@@ -424,7 +424,7 @@ def main(argv=None) -> int:
         print(f'adcs-run: error: {exc}', file=sys.stderr)
         return 1 if isinstance(exc, RunError) else 2
     # lazy: the analysis: loaded by warm_analysis at the end of the run, not at start
-    from adcs_sim.app.analysis import format_metrics
+    from adcs_sim.app.analysis.metrics import format_metrics
     print(f'bag: {out / "bag"}')
     print('metrics:')
     print(format_metrics(metrics))

@@ -12,8 +12,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from adcs_msgs_py.node import RUNNER_PID_ENV, network_hygiene_defaults
-from adcs_sim.app.domains import DomainLease
-from adcs_sim.app.scenario_files import RunError
+from adcs_sim.app.graph.domains import DomainLease
+from adcs_sim.app.scenario.files import RunError
 
 # rclpy's executor and message modules, tqdm and the bag reader are imported where they are used
 # (Progress, recorded_state): `adcs-run` without a progress bar (not a terminal, tests,
@@ -29,13 +29,13 @@ PROFILE_ENV = 'ADCS_SIM_PROFILE_DIR'
 
 
 def node_command(name: str, module: str) -> list[str]:
-    """The interpreter arguments that run node ``module``: ``-m adcs_sim.app.launch <module>``
-    (:mod:`adcs_sim.app.launch`: the process ends as soon as the node has shut down), or under
+    """The interpreter arguments that run node ``module``: ``-m adcs_sim.app.graph.launch <module>``
+    (:mod:`adcs_sim.app.graph.launch`: the process ends as soon as the node has shut down), or under
     cProfile (``-m cProfile -o <file> -m <module>``) when :data:`PROFILE_ENV` is set."""
     folder = os.environ.get(PROFILE_ENV)
     if folder:
         return ['-m', 'cProfile', '-o', str(Path(folder) / f'{name}.prof'), '-m', module]
-    return ['-m', 'adcs_sim.app.launch', module]
+    return ['-m', 'adcs_sim.app.graph.launch', module]
 
 
 class Graph:

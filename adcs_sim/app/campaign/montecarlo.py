@@ -1,8 +1,8 @@
 """``adcs-montecarlo <campaign.yaml> [--runs N] [--out DIR] [--scheduler ADDR]``: a Monte Carlo
 campaign on the batch engine, scaled out with Dask.
 
-The campaign (:mod:`adcs_sim.app.campaign`) is checked whole before anything runs, split into chunks
-of ``chunk_size`` runs, and each chunk is simulated as one batch (:mod:`adcs_sim.app.batch`) by a Dask
+The campaign (:mod:`adcs_sim.app.campaign.plan`) is checked whole before anything runs, split into chunks
+of ``chunk_size`` runs, and each chunk is simulated as one batch (:mod:`adcs_sim.app.batch.engine`) by a Dask
 worker: a ``LocalCluster`` on loopback using every core by default, any running Dask scheduler
 with ``--scheduler tcp://host:port``, or no Dask at all with ``--scheduler none`` (in this
 process). The results do not depend on the split nor on the scheduler.
@@ -58,7 +58,7 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from adcs_msgs_py.params_file import one_line_warnings
-from adcs_sim.app.campaign import Campaign, CampaignError, run_chunk
+from adcs_sim.app.campaign.plan import Campaign, CampaignError, run_chunk
 from adcs_sim.app.outputs import OutputError, check_file, check_folder
 
 PERCENTILES = (5, 50, 95)

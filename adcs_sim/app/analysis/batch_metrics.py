@@ -1,9 +1,9 @@
-"""The metrics of every run of a batch at once: :func:`adcs_sim.app.analysis.run_metrics` over the batch axis.
+"""The metrics of every run of a batch at once: :func:`adcs_sim.app.analysis.metrics.run_metrics` over the batch axis.
 
-A campaign (:func:`adcs_sim.app.campaign.run_chunk`) needs the metrics of each of its runs;
+A campaign (:func:`adcs_sim.app.campaign.plan.run_chunk`) needs the metrics of each of its runs;
 computing them run by run costs about a millisecond each in numpy call overhead, more than the
 runs' simulation. :func:`batch_run_metrics` computes them for all the runs of a
-:class:`~adcs_sim.app.batch.BatchResult` with one call per operation on ``(runs, samples, ...)``
+:class:`~adcs_sim.app.batch.engine.BatchResult` with one call per operation on ``(runs, samples, ...)``
 arrays, with the same element-wise operations in the same order as :func:`run_metrics` on
 :meth:`BatchResult.run_data` (the error quaternion, eigenaxis and 2-1-3 Euler errors, settling by
 the last exit interpolated, the zero-order-hold integrals summed along each run's own row, peaks),
@@ -20,15 +20,15 @@ import math
 import numpy as np
 
 from adcs_core.attitude import euler_213, pointing_error
-from adcs_sim.app import metric_defs
-from adcs_sim.app import metrics_kernel as mk
-from adcs_sim.app.analysis import POINTING_BANDS_DEG, run_metrics, zoh_durations
-from adcs_sim.app.estimation import estimation_metrics, series_from_batch
-from adcs_sim.app.metrics_kernel import error_quaternions
+from adcs_sim.app.analysis import metric_defs
+from adcs_sim.app.analysis import metrics_kernel as mk
+from adcs_sim.app.analysis.metrics import POINTING_BANDS_DEG, run_metrics, zoh_durations
+from adcs_sim.app.analysis.estimation import estimation_metrics, series_from_batch
+from adcs_sim.app.analysis.metrics_kernel import error_quaternions
 
 
 def settling_times(t: np.ndarray, error: np.ndarray, tol: float) -> np.ndarray:
-    """:func:`adcs_sim.app.analysis.settling_time` of each row of ``error`` (runs, samples) on the
+    """:func:`adcs_sim.app.analysis.metrics.settling_time` of each row of ``error`` (runs, samples) on the
     common times ``t`` (samples,): the last exit from ``<= tol``, interpolated; ``t[0]`` if never
     outside, ``inf`` if the last sample is outside, the next sample's time after a non-finite one."""
     n = error.shape[-1]
@@ -45,7 +45,7 @@ def settling_times(t: np.ndarray, error: np.ndarray, tol: float) -> np.ndarray:
 
 
 def first_entry_times(t: np.ndarray, error: np.ndarray, tol: float) -> np.ndarray:
-    """:func:`adcs_sim.app.analysis.first_entry_time` of each row of ``error`` (runs, samples)."""
+    """:func:`adcs_sim.app.analysis.metrics.first_entry_time` of each row of ``error`` (runs, samples)."""
     inside = error <= tol
     first = np.argmax(inside, axis=1)
     rows = np.arange(error.shape[0])
@@ -59,7 +59,7 @@ def first_entry_times(t: np.ndarray, error: np.ndarray, tol: float) -> np.ndarra
 
 
 def _pointing_columns(t: np.ndarray, error_deg: np.ndarray, bands) -> dict[str, np.ndarray]:
-    """:func:`adcs_sim.app.analysis.pointing_metrics` over the batch axis (one array per metric)."""
+    """:func:`adcs_sim.app.analysis.metrics.pointing_metrics` over the batch axis (one array per metric)."""
     out = {}
     for b in bands:
         out[f'pointing_first_{b:g}deg_s'] = first_entry_times(t, error_deg, b)
@@ -71,7 +71,7 @@ def _pointing_columns(t: np.ndarray, error_deg: np.ndarray, bands) -> dict[str, 
 def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.ndarray]:
     """The metrics of runs ``rows`` (each simulated over the whole grid), one array per metric
     (a list-valued metric: an array (runs, n)), in :func:`run_metrics`' order: the compiled passes of
-    :mod:`adcs_sim.app.metrics_kernel` (:func:`full_run_columns_numpy`'s numbers bit for bit)."""
+    :mod:`adcs_sim.app.analysis.metrics_kernel` (:func:`full_run_columns_numpy`'s numbers bit for bit)."""
     K = result.t.size - 1
     t, t_end = result.t, float(result.t[K])
     take = slice(None) if rows.size == result.n_runs else rows   # every run: views, not copies
@@ -154,7 +154,7 @@ def full_run_columns_numpy(result, rows: np.ndarray, tol_deg: float) -> dict[str
 
 
 def _fault_columns(result, t: np.ndarray, qe: np.ndarray, u: tuple, t_end: float) -> dict[str, np.ndarray]:
-    """:func:`adcs_sim.app.analysis.fault_metrics` of full runs (the batch's fault schedule is every
+    """:func:`adcs_sim.app.analysis.metrics.fault_metrics` of full runs (the batch's fault schedule is every
     run's): q4 settling after the first fault in each band and the torque integral after it."""
     K = t.size - 1
     times = [f[0] for f in result.faults if f[0] <= t[K] and f[1] >= 2]   # run_data's faults, level ERROR

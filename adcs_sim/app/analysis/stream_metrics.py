@@ -1,6 +1,6 @@
 """A run's metrics computed while its bag is read: :func:`analyse_bag` (issue #18 item 5).
 
-:func:`~adcs_sim.app.analysis.run_metrics` on :meth:`RunData.from_bag` holds every series of the
+:func:`~adcs_sim.app.analysis.metrics.run_metrics` on :meth:`RunData.from_bag` holds every series of the
 run in memory (and the controller status, which no metric uses): its peak grows by ~620 B a step
 (+539 MiB over the runner's imports for 24 h at 10 Hz). Here one streaming pass over the bag feeds,
 chunk by chunk, what each metric needs:
@@ -33,9 +33,9 @@ from types import SimpleNamespace
 import numpy as np
 
 from adcs_msgs_py import names as topics
-from adcs_sim.app import metric_defs
-from adcs_sim.app import run_data as rd
-from adcs_sim.app.analysis import (
+from adcs_sim.app.analysis import metric_defs
+from adcs_sim.app.analysis import run_data as rd
+from adcs_sim.app.analysis.metrics import (
     POINTING_BANDS_DEG,
     RunData,
     attitude_errors,
@@ -74,7 +74,7 @@ class StreamResult:
 
 
 class BandTrack:
-    """:func:`~adcs_sim.app.analysis.settling_time` and ``first_entry_time`` of one error series
+    """:func:`~adcs_sim.app.analysis.metrics.settling_time` and ``first_entry_time`` of one error series
     at one tolerance, fed in order chunk by chunk; keeps four samples."""
 
     def __init__(self, tol: float) -> None:

@@ -1,6 +1,6 @@
 """The batch engine's fused closed loop: whole runs of the PD family in one compiled call (numba).
 
-:meth:`adcs_sim.app.batch.BatchSimulation.run` advances every run one control step at a time in
+:meth:`adcs_sim.app.batch.engine.BatchSimulation.run` advances every run one control step at a time in
 Python: each step measures, calls the law, allocates, packs the commands for the compiled plant
 (:mod:`adcs_sim.truth.kernel`) and records, a few dozen numpy calls per step whatever the batch
 size. For the commonest campaign (seed 004's PD benchmark: PD law, reaction wheels with
@@ -153,7 +153,7 @@ class FusedLoop:
 
 
 def plan(sim, x0: np.ndarray, progress=None, observe=None) -> FusedLoop | None:
-    """The fused loop of batch ``sim`` (a :class:`~adcs_sim.app.batch.BatchSimulation`) from states
+    """The fused loop of batch ``sim`` (a :class:`~adcs_sim.app.batch.engine.BatchSimulation`) from states
     ``x0``, or None when it does not apply (module docstring): the general path runs then."""
     plant, act = sim.plant, sim.actuation
     if not ENABLED or progress is not None or observe is not None or type(sim.law) is not PdLaw:

@@ -10,8 +10,8 @@ from pathlib import Path
 
 from adcs_msgs_py.params import ParameterError
 from adcs_msgs_py.params_file import load_params_file
-from adcs_sim.app.registry import NODES
-from adcs_sim.app.scenario_checks import check_agreement, check_resources, check_whole_run
+from adcs_sim.app.scenario.registry import NODES
+from adcs_sim.app.scenario.checks import check_agreement, check_resources, check_whole_run
 
 DEFAULT_SCENARIO = 'uosat12_gsmn.yaml'  # seed 000: a wheel fails, two-wheel GSMN recovers (the showcase)
 
@@ -51,7 +51,7 @@ def resolve_scenario(name: str | None) -> Path:
 
 def validate_scenario(path: Path, duration: float | None = None) -> dict:
     """Validate every section, then that they agree and that the run's needs fit
-    (:mod:`adcs_sim.app.scenario_checks`); return {section: validated params}. Raises ParameterError."""
+    (:mod:`adcs_sim.app.scenario.checks`); return {section: validated params}. Raises ParameterError."""
     return validate_sections(load_params_file(str(path)), path, duration)
 
 

@@ -28,7 +28,7 @@ Distributions (``shape`` is the nominal value's: a scalar or a list):
 * ``bernoulli`` (booleans, e.g. ``m2s_controller.vag``): true with probability ``p``.
 
 A scenario whose controller points a body axis (seed 003: ``sigma``, ``tau`` in its section) adds
-the pointing metrics of :func:`adcs_sim.app.analysis.pointing_metrics` (first entry and settling at
+the pointing metrics of :func:`adcs_sim.app.analysis.metrics.pointing_metrics` (first entry and settling at
 1°, 0.1°, 0.01°). ``series_every: k`` keeps each run's error time series (the pointing error for
 such a scenario, the eigenaxis error otherwise) every ``k`` control steps, for the figure of all
 runs (``adcs-montecarlo`` writes ``series.npz`` and ``figures/error_all_runs``).
@@ -43,15 +43,15 @@ section or parameter, a parameter the batch engine cannot vary, std < 0, low > h
 range that overflows, an offset past 64-bit integers), the requirements (finite, min <= max), and
 every run's drawn parameters against the node schemas (a negative inertia drawn names its run and
 key); the counts against what the seeding and this machine can take
-(:data:`adcs_sim.app.campaign_checks.MAX_RUNS`, the memory of a chunk's batch and of every run's
+(:data:`adcs_sim.app.campaign.checks.MAX_RUNS`, the memory of a chunk's batch and of every run's
 row: :meth:`Campaign.check_memory`). :func:`run_chunk` then simulates a list of runs with the batch
 engine; a run that diverges, or whose model raises (an SGP4 failure, a law or an estimator that
 cannot answer), is a failed row with its inputs and its reason, the other runs of its batch are
 unchanged, and the campaign goes on.
 
 The file's keys, counts, metrics, requirements and memory are checked by
-:mod:`adcs_sim.app.campaign_checks`; each dispersion's arguments, and how it draws, by
-:mod:`adcs_sim.app.campaign_draws`.
+:mod:`adcs_sim.app.campaign.checks`; each dispersion's arguments, and how it draws, by
+:mod:`adcs_sim.app.campaign.draws`.
 """
 from __future__ import annotations
 
@@ -65,16 +65,16 @@ import numpy as np
 import yaml
 
 from adcs_msgs_py.params import ParameterError, unflatten
-from adcs_sim.app.analysis import RunData, attitude_errors_deg, pointing_error_deg, run_metrics
-from adcs_sim.app.batch import BatchSimulation, run_bytes
-from adcs_sim.app.batch_metrics import batch_metric_columns, metric_columns
-from adcs_sim.app.campaign_checks import (CampaignError, campaign_metrics, campaign_numbers,
+from adcs_sim.app.analysis.metrics import RunData, attitude_errors_deg, pointing_error_deg, run_metrics
+from adcs_sim.app.batch.engine import BatchSimulation, run_bytes
+from adcs_sim.app.analysis.batch_metrics import batch_metric_columns, metric_columns
+from adcs_sim.app.campaign.checks import (CampaignError, campaign_metrics, campaign_numbers,
                                           campaign_requirements, campaign_scenario, campaign_section,
                                           check_campaign_memory, resolve_campaign, runs_key)
-from adcs_sim.app.campaign_draws import Dispersion, dispersion_args
-from adcs_sim.app.estimation import estimation_metric_names
-from adcs_sim.app.registry import NODES
-from adcs_sim.app.seeding import run_generators
+from adcs_sim.app.campaign.draws import Dispersion, dispersion_args
+from adcs_sim.app.analysis.estimation import estimation_metric_names
+from adcs_sim.app.scenario.registry import NODES
+from adcs_sim.app.scenario.seeding import run_generators
 from adcs_sim.truth.schema import step_timing
 
 log = logging.getLogger(__name__)
@@ -83,7 +83,7 @@ log = logging.getLogger(__name__)
 def metric_names(tol_deg: float, pointing: bool = False, wheels: int = 0) -> list[str]:
     """Names of the scalar metric columns at settling band ``tol_deg`` (lists are split per axis or
     per wheel); ``pointing``: with the pointing metrics of a seed 003 scenario; ``wheels``: the
-    truth model's wheel count (the per-wheel metrics of :data:`adcs_sim.app.metric_defs.DEFINED`)."""
+    truth model's wheel count (the per-wheel metrics of :data:`adcs_sim.app.analysis.metric_defs.DEFINED`)."""
     t = np.array([0.0, 1.0])
     dummy = RunData(t=t, q=np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), w=np.zeros((2, 3)),
                     t_u=t[:1], u=np.zeros((1, 3)), missed_steps=0,
@@ -283,7 +283,7 @@ class Campaign:
         """The campaign fits this machine's memory (CampaignError naming the key otherwise): a chunk's
         batch, its runs of ``steps`` control steps (the longest run's) recorded and their metrics
         computed, and every run's row (and error series) until the tables are written
-        (:func:`adcs_sim.app.campaign_checks.check_campaign_memory`)."""
+        (:func:`adcs_sim.app.campaign.checks.check_campaign_memory`)."""
         values = len(self.metrics) + sum(int(np.size(self._nominal_value(d.section, d.key))) for d in self.dispersions)
         check_campaign_memory(self.runs_key, self.runs, self.chunk_size, steps, run_bytes(self.defaults, steps),
                               values, self.series_every)

@@ -10,18 +10,18 @@ controller of an xdist run, not in each worker). On a warm cache it only loads.
 The groups and what compiles them:
 
 * ``plant``: :mod:`adcs_sim.truth.kernel` (RK4 and torque of the plant), through a plant's warm-up;
-* ``campaign``: :mod:`adcs_sim.app.fused`'s closed PD loop and :mod:`adcs_sim.app.metrics_kernel`'s
-  first pass with :mod:`adcs_sim.app.batch_metrics`, through a 2-run campaign of the PD slew;
-* ``rare metrics``: :func:`adcs_sim.app.metrics_kernel.compile_rare_kernels` (what a small campaign
+* ``campaign``: :mod:`adcs_sim.app.batch.fused`'s closed PD loop and :mod:`adcs_sim.app.analysis.metrics_kernel`'s
+  first pass with :mod:`adcs_sim.app.analysis.batch_metrics`, through a 2-run campaign of the PD slew;
+* ``rare metrics``: :func:`adcs_sim.app.analysis.metrics_kernel.compile_rare_kernels` (what a small campaign
   does not reach), the pairwise sum called alone, and the same kernels on read-only arrays (a run's
   reference or a dispersed parameter given per run is a read-only view: numba compiles those apart);
 * ``fused variants``: the closed loop with the law's inertia, reference attitude and rate or the wheel
-  limits given per run (read-only views, as :class:`adcs_sim.app.fused.FusedLoop` passes them);
+  limits given per run (read-only views, as :class:`adcs_sim.app.batch.fused.FusedLoop` passes them);
 * ``euler``: :func:`adcs_core.euler_kernel.euler_213_rows` (2-1-3 Euler angles of many quaternions);
 * ``pd rows``: :mod:`adcs_controllers.laws.pd_kernel`'s row functions called alone (the fused loop
   inlines them; the tests call them from Python).
 
-``python -m adcs_sim.app.kernels`` prints one line per group and the total.
+``python -m adcs_sim.app.batch.kernels`` prints one line per group and the total.
 """
 from __future__ import annotations
 
@@ -44,7 +44,7 @@ def _plant() -> None:
 
 def _campaign_file():
     # lazy: each group's modules, imported inside the group so that its time counts them
-    from adcs_sim.app.scenario_files import config_dirs
+    from adcs_sim.app.scenario.files import config_dirs
     for folder in config_dirs():
         if (folder / 'campaigns' / 'pd_slew_30deg.yaml').is_file():
             return folder / 'campaigns' / 'pd_slew_30deg.yaml'
@@ -53,7 +53,7 @@ def _campaign_file():
 
 def _campaign() -> None:
     # lazy: each group's modules, imported inside the group so that its time counts them
-    from adcs_sim.app.campaign import Campaign, run_chunk
+    from adcs_sim.app.campaign.plan import Campaign, run_chunk
     campaign = Campaign.load(_campaign_file(), runs=2)
     for chunk in campaign.chunks():
         run_chunk(campaign, chunk)
@@ -72,7 +72,7 @@ def _variants(dispatcher, arrays: tuple[int, ...], read_only_sets) -> None:
 
 def _rare_metrics() -> None:
     # lazy: each group's modules, imported inside the group so that its time counts them
-    from adcs_sim.app import metrics_kernel
+    from adcs_sim.app.analysis import metrics_kernel
     metrics_kernel.compile_rare_kernels()
     metrics_kernel.pairwise_sum(np.zeros(2), 0, 2)
     _variants(metrics_kernel.error_quaternions, (1,), [(), (1,)])   # q_ref: a run's own or a read-only view
@@ -81,7 +81,7 @@ def _rare_metrics() -> None:
 
 def _fused_variants() -> None:
     # lazy: each group's modules, imported inside the group so that its time counts them
-    from adcs_sim.app import fused
+    from adcs_sim.app.batch import fused
     _variants(fused.closed_loop, (6, 7, 8, 11), FUSED_READ_ONLY)
 
 

@@ -12,10 +12,10 @@ a run's samples chunk by chunk:
 * ``finish(state)``: the value of each run, an array (runs, ...).
 
 The paths are only drivers of these four calls: the in-memory path
-(:func:`adcs_sim.app.analysis.run_metrics`, ``adcs-analyze``) gives the whole run as one chunk of
-one run (:func:`run_values`); the streamed path (:mod:`adcs_sim.app.stream_metrics`: ``adcs-run``
+(:func:`adcs_sim.app.analysis.metrics.run_metrics`, ``adcs-analyze``) gives the whole run as one chunk of
+one run (:func:`run_values`); the streamed path (:mod:`adcs_sim.app.analysis.stream_metrics`: ``adcs-run``
 and the long report, :mod:`adcs_sim.app.report.long_run`) the bag's batches as they are read
-(:class:`StreamedValues`); the campaign (:mod:`adcs_sim.app.batch_metrics`) the whole grid of every
+(:class:`StreamedValues`); the campaign (:mod:`adcs_sim.app.analysis.batch_metrics`) the whole grid of every
 run of a batch at once (:func:`batch_values`). A reduction made of integer sums, maxima and counts is
 exact, so the paths give the same bits by construction (no summation order to keep).
 
@@ -193,7 +193,7 @@ def wheel_limits(scenario: dict | None, names) -> np.ndarray:
 
 
 def run_context(run) -> dict:
-    """The constants of a :class:`~adcs_sim.app.run_data.RunData` (one run: leading axis 1)."""
+    """The constants of a :class:`~adcs_sim.app.analysis.run_data.RunData` (one run: leading axis 1)."""
     limits = run.wheel_max_speed
     if limits is None:
         limits = wheel_limits(run.scenario, run.wheel_names)
@@ -218,7 +218,7 @@ def run_values(run) -> dict:
 
 
 def batch_values(result, rows: np.ndarray, twins: dict | None = None) -> dict[str, np.ndarray]:
-    """The defined metrics of runs ``rows`` of a :class:`~adcs_sim.app.batch.BatchResult` over its
+    """The defined metrics of runs ``rows`` of a :class:`~adcs_sim.app.batch.engine.BatchResult` over its
     whole grid (the campaign path): ``{name: (runs, ...)}``. ``twins``: ``{name: values}`` computed by
     a fast path that equals the definition (docs/architecture.md §3), used instead."""
     twins = twins or {}
@@ -236,7 +236,7 @@ def batch_values(result, rows: np.ndarray, twins: dict | None = None) -> dict[st
 
 class StreamedValues:
     """The defined metrics of one run fed chunk by chunk (the streamed path), per joint-name list
-    (:class:`~adcs_sim.app.stream_metrics.JointStream` keeps those named in the last message)."""
+    (:class:`~adcs_sim.app.analysis.stream_metrics.JointStream` keeps those named in the last message)."""
 
     def __init__(self) -> None:
         self.states: dict = {}      # names -> [state per metric]

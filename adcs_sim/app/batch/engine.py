@@ -1,6 +1,6 @@
 """Batch engine: N runs of one scenario advanced together, no ROS in the loop (numpy only).
 
-The graph is the faithful one-run-at-a-time path; campaigns (:mod:`adcs_sim.app.campaign`) need
+The graph is the faithful one-run-at-a-time path; campaigns (:mod:`adcs_sim.app.campaign.plan`) need
 thousands of runs. This engine drives the graph's own step objects with a leading batch axis (the
 truth step, :class:`adcs_sim.truth.step.TruthStep`, the dynamics node's; the flight-software steps,
 :class:`adcs_controllers.step.FlightStep` and :class:`~adcs_controllers.step.EstimationStep`, the
@@ -13,7 +13,7 @@ controller and estimator nodes'), so it runs the *same* code:
   suite (:func:`adcs_sim.truth.sensor_schema.build_sensors`): :meth:`BatchSimulation._measure` gives
   step ``k``'s :class:`~adcs_msgs_py.measurements.Measurements` (what the dynamics node publishes on
   ``sensors/*``), recorded into :attr:`BatchResult.sensors` when ``record_sensors`` is set;
-* the controller section's law object (:data:`adcs_sim.app.registry.NODES` ``[section].law``, the
+* the controller section's law object (:data:`adcs_sim.app.scenario.registry.NODES` ``[section].law``, the
   one its node builds) and the same actuation (:class:`adcs_controllers.laws.allocation.Actuation`:
   minimum-norm allocation and saturation, or wheel speed commands for a law whose ``output`` is
   the wheel momentum; or the registry's own ``actuation`` of the section, e.g. seed 002's
@@ -50,10 +50,10 @@ from adcs_controllers.step import MOMENTUM, EstimationStep, FlightStep
 from adcs_core.faults import FAULT_ERROR_MODES
 from adcs_msgs_py.measurements import Estimate, Measurements, received_readings
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app import fused
-from adcs_sim.app.analysis import RunData, run_metrics
-from adcs_sim.app.estimation import estimation_metrics, series_from_batch
-from adcs_sim.app.registry import NODES
+from adcs_sim.app.batch import fused
+from adcs_sim.app.analysis.metrics import RunData, run_metrics
+from adcs_sim.app.analysis.estimation import estimation_metrics, series_from_batch
+from adcs_sim.app.scenario.registry import NODES
 from adcs_sim.truth.fault_schedule import fault_schedule
 from adcs_sim.truth.sensors import MeasurementModel
 from adcs_sim.truth.step import TruthStep
@@ -93,7 +93,7 @@ class BatchResult:
         return self.q.shape[0]
 
     def run_data(self, i: int) -> RunData:
-        """Run ``i`` as the analysis library's :class:`~adcs_sim.app.analysis.RunData` (what a bag of
+        """Run ``i`` as the analysis library's :class:`~adcs_sim.app.analysis.metrics.RunData` (what a bag of
         the same run would give), so batch metrics are computed by the very same functions."""
         k = int(self.n_steps[i])
         q_ref = self.q_ref[i] if self.q_ref.ndim == 2 else self.q_ref
@@ -113,8 +113,8 @@ class BatchResult:
         return np.broadcast_to(limits, (self.n_runs, n))
 
     def metrics(self, i: int, tol_deg: float = 0.5) -> dict:
-        """:func:`adcs_sim.app.analysis.run_metrics` of run ``i`` and, with an estimator section,
-        :func:`adcs_sim.app.estimation.estimation_metrics` (a Monte Carlo row gets both)."""
+        """:func:`adcs_sim.app.analysis.metrics.run_metrics` of run ``i`` and, with an estimator section,
+        :func:`adcs_sim.app.analysis.estimation.estimation_metrics` (a Monte Carlo row gets both)."""
         out = run_metrics(self.run_data(i), tol_deg)
         if self.estimate is not None:
             out.update(estimation_metrics(series_from_batch(self, i)))
@@ -133,7 +133,7 @@ class BatchSimulation:
     def from_runs(cls, runs: list[dict[str, dict]], sensors: 'SensorSource | None' = None,
                   references=None) -> 'BatchSimulation':
         """A batch of N runs, each given as its validated sections (``{section: params}``, as
-        :func:`adcs_sim.app.runner.validate_scenario` returns them); the ``recorder`` section is left
+        :func:`adcs_sim.app.graph.runner.validate_scenario` returns them); the ``recorder`` section is left
         out. Raises ParameterError for a parameter that differs but cannot (:meth:`Schema.stack`)."""
         sections = {name: NODES[name].schema.stack([r[name] for r in runs]) for name in runs[0]
                     if NODES[name].role != 'recorder'}
@@ -382,7 +382,7 @@ class BatchSimulation:
         return self.truth.failure((k * self.period_ns) / NS_PER_S, x_new, u)
 
     def _run_fused(self, loop: 'fused.FusedLoop', x: np.ndarray, hist: dict, K: int) -> BatchResult:
-        """:meth:`run` on the fused compiled loop (:mod:`adcs_sim.app.fused`): the same rows."""
+        """:meth:`run` on the fused compiled loop (:mod:`adcs_sim.app.batch.fused`): the same rows."""
         self.K = K
         done_steps, failed, x_end = loop.run(self, x, hist)
         failure: list = [None] * self.n_runs

@@ -1,7 +1,7 @@
 """``adcs-analyze <bag> [<bag> ...]``: the run metrics of recorded bags, and their reports.
 
 The same numbers ``adcs-run`` prints at the end of a run; definitions in
-:mod:`adcs_sim.app.analysis`. ``--json`` prints machine-readable output.
+:mod:`adcs_sim.app.analysis.metrics`. ``--json`` prints machine-readable output.
 
 Each bag also gets a report (:mod:`adcs_sim.app.report`): ``report.md`` with the scenario, the
 metrics and figures (PNG + SVG), written to ``--out DIR``, else to ``<bag>/../report/`` (a
@@ -19,7 +19,7 @@ figures are comparison rows or the metrics a run's report leads with for its kin
 q4 settling after the fault).
 ``--no-report`` only prints the metrics. ``--foxglove-layout OUT.json`` and / or
 ``--plotjuggler-layout OUT.xml`` write the viewer layouts of one bag instead (no metrics, no
-report; :mod:`adcs_sim.app.layouts`): 3D view, attitude error, rates, wheels, torques, controller
+report; :mod:`adcs_sim.app.graph.layouts`): 3D view, attitude error, rates, wheels, torques, controller
 mode, from the topics the bag has (the panels left out are named on stderr).
 
 A path that is not a readable bag gives a one-line error on stderr and exit status 1 (the other
@@ -39,8 +39,8 @@ from pathlib import Path
 from types import SimpleNamespace
 
 from adcs_msgs_py.params_file import one_line_warnings
-from adcs_sim.app.analysis import format_metrics, jsonable_metrics
-from adcs_sim.app.layouts import LayoutError, write_layouts
+from adcs_sim.app.analysis.metrics import format_metrics, jsonable_metrics
+from adcs_sim.app.graph.layouts import LayoutError, write_layouts
 from adcs_sim.app.outputs import OutputError, check_folder, writable_folder
 from adcs_sim.app.report.kinds import run_kind
 from adcs_sim.app.report.loading import BagError, bag_folder, default_report_dir, load_run, run_name

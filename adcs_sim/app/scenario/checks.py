@@ -22,7 +22,7 @@ from adcs_controllers.estimators.families import covariance_problem
 from adcs_core.environment.environment import span_problem
 from adcs_msgs_py import names as topics
 from adcs_msgs_py.params import ParameterError
-from adcs_sim.app.registry import NODES
+from adcs_sim.app.scenario.registry import NODES
 from adcs_sim.truth.schema import command_topics, step_timing
 from adcs_sim.truth.sensor_schema import fault_targets, fitted_sensors
 
@@ -119,7 +119,7 @@ def check_resources(dyn: dict, memory: int | None = None) -> None:
         if count > MAX_ACTUATORS:
             raise ParameterError(f'{kind}.names', f'{count} {kind}: at most {MAX_ACTUATORS} '
                                  '(the first command of n actuators costs a time growing faster than n^2: '
-                                 f'seconds per step beyond ~100; adcs_sim.app.scenario_checks)', 'dynamics')
+                                 f'seconds per step beyond ~100; adcs_sim.app.scenario.checks)', 'dynamics')
     substeps = math.ceil(dyn['control_period'] / dyn['integrator.max_step'] - 1e-9)
     if substeps > MAX_SUBSTEPS_PER_PERIOD:
         raise ParameterError('integrator.max_step', f'control_period / integrator.max_step = {substeps} RK4 '

@@ -1,9 +1,9 @@
 """A campaign's dispersions (no ROS): each one's distribution and arguments checked against the
 parameter it draws, and how a run's generator draws its values.
 
-The distributions are documented in :mod:`adcs_sim.app.campaign`, which checks the dispersed
-parameter and its links against the scenario (:meth:`adcs_sim.app.campaign.Campaign._target`) and
-draws every run (:meth:`adcs_sim.app.campaign.Campaign.draws`).
+The distributions are documented in :mod:`adcs_sim.app.campaign.plan`, which checks the dispersed
+parameter and its links against the scenario (:meth:`adcs_sim.app.campaign.plan.Campaign._target`) and
+draws every run (:meth:`adcs_sim.app.campaign.plan.Campaign.draws`).
 """
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from adcs_core.attitude import EULER_213
-from adcs_sim.app.campaign_checks import CampaignError
+from adcs_sim.app.campaign.checks import CampaignError
 
 # distribution: (required fields, optional fields)
 DISTRIBUTIONS = {
@@ -32,7 +32,7 @@ INT64_MIN, INT64_MAX = -(2**63), 2**63 - 1
 
 @dataclass
 class Dispersion:
-    """How one parameter is drawn (see :mod:`adcs_sim.app.campaign`)."""
+    """How one parameter is drawn (see :mod:`adcs_sim.app.campaign.plan`)."""
 
     section: str
     key: str
@@ -52,7 +52,7 @@ class Dispersion:
 
     def sampler(self, nominal: Any):
         """``(raw, values)``, the arguments broadcast once
-        (:meth:`adcs_sim.app.campaign.Campaign.draws` makes one per dispersion): ``raw(rng, index)``
+        (:meth:`adcs_sim.app.campaign.plan.Campaign.draws` makes one per dispersion): ``raw(rng, index)``
         is what run ``index``'s generator draws for this dispersion (deviates uniform on [0, 1),
         standard normals, an SO(3) quaternion, the index), and ``values(raws)`` turns the raws of
         many runs, stacked (runs, ...), into their values at once (an array, one row per run; for

@@ -1,9 +1,9 @@
 """The parameter reference, generated from the schemas, and ``adcs-run --explain``.
 
 ``docs/parameters.md`` is :func:`reference_markdown`: every section of a scenario file
-(:data:`adcs_sim.app.registry.NODES`), every key with its type, default, unit, check, whether the
+(:data:`adcs_sim.app.scenario.registry.NODES`), every key with its type, default, unit, check, whether the
 batch engine accepts it dispersed across the runs of one batch (``batch=True``), and the scenarios
-in ``config/`` that set it. Regenerate it with ``python -m adcs_sim.app.parameters --write``;
+in ``config/`` that set it. Regenerate it with ``python -m adcs_sim.app.scenario.parameters --write``;
 a test fails when it is out of date.
 
 Units are read from the parameter's doc text (:func:`unit_of`): the schemas state them there, in
@@ -26,8 +26,8 @@ from typing import Any
 from adcs_msgs_py.params import BUILTIN_PARAMETERS, REQUIRED, Param, Schema
 from adcs_msgs_py.params_file import load_params_file
 from adcs_msgs_py.sensor_interfaces import SENSORS
-from adcs_sim.app.registry import NODES
-from adcs_sim.app.scenario_files import validate_scenario
+from adcs_sim.app.scenario.registry import NODES
+from adcs_sim.app.scenario.files import validate_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = ROOT / 'config'
@@ -123,7 +123,7 @@ def check_of(param: Param) -> str:
             LAMBDA_CHECKS.get(param.name) if name == '<lambda>' else CHECKS.get(name))
         if text is None:
             raise KeyError(f'{param.name}: no description of its check {param.check.__qualname__} '
-                           '(add it to CHECKS or LAMBDA_CHECKS in adcs_sim/app/parameters.py)')
+                           '(add it to CHECKS or LAMBDA_CHECKS in adcs_sim/app/scenario/parameters.py)')
         parts.append(text)
     return '; '.join(parts)
 
@@ -209,7 +209,7 @@ def reference_markdown(config: Path = CONFIG) -> str:
     having = _sections_in(config)
     n_keys = sum(len(info.schema.params) for info in NODES.values())
     lines = ['# Parameter reference', '',
-             '<!-- Generated from the schemas by `python -m adcs_sim.app.parameters --write`; do not edit. '
+             '<!-- Generated from the schemas by `python -m adcs_sim.app.scenario.parameters --write`; do not edit. '
              'tests/test_parameters.py fails when it is out of date. -->', '',
              f'A scenario file is a ROS 2 params file with one section per node (`<section>: ros__parameters: '
              f'{{...}}`); nested keys are the dotted names below. {len(NODES)} sections, {n_keys} keys. '
@@ -257,7 +257,7 @@ def explain_sections(validated: dict, given: dict, label: str, duration: float |
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog='python -m adcs_sim.app.parameters',
+    parser = argparse.ArgumentParser(prog='python -m adcs_sim.app.scenario.parameters',
                                      description='print (or --write) docs/parameters.md from the schemas')
     parser.add_argument('--write', action='store_true', help=f'write {REFERENCE.relative_to(ROOT)}')
     args = parser.parse_args(argv)

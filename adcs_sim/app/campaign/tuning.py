@@ -28,7 +28,7 @@ closed forms used (underdamped, ``ζ < 1``, as in the paper), with ``λ1 = ζ ω
   ``kp2 = 2 J ω_n2²``, ``kd2 = 2 ζ J ω_n2``. The paper's "maximum design torque" (IV.F) is the
   benchmark's initial torque ``kp1 |θ0| / 2``, the default limit here.
 
-CLI: ``python -m adcs_sim.app.tuning --inertia 10 --angle-deg 30 --kp1 0.02 --kd1 0.5
+CLI: ``python -m adcs_sim.app.campaign.tuning --inertia 10 --angle-deg 30 --kp1 0.02 --kd1 0.5
 --gamma 0.01 [--max-torque 0.005] [--simulate]``. Every argument is bounded to what the model can
 take (:data:`BOUNDS`), the tuning must be finite and a ``--simulate`` run samplable
 (:data:`MAX_SAMPLES`, :data:`MAX_RADIANS`): otherwise one line on stderr naming the argument, exit 2.
@@ -43,7 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from adcs_sim.app.analysis import settling_time
+from adcs_sim.app.analysis.metrics import settling_time
 
 PHASE_LOW_GAIN, PHASE_ZERO_TORQUE, PHASE_HIGH_GAIN = 0, 1, 2  # the GSMN mode codes
 
@@ -222,7 +222,7 @@ def simulate_single_axis(J: float, kp1: float, kd1: float, kp2: float, kd2: floa
 
 def single_axis_settling_time(run: SingleAxisRun, tol: float) -> float:
     """Time after which ``|θ| <= tol`` to the end of ``run`` (last exit, interpolated;
-    :func:`adcs_sim.app.analysis.settling_time`)."""
+    :func:`adcs_sim.app.analysis.metrics.settling_time`)."""
     return settling_time(run.t, np.abs(run.theta), tol)
 
 

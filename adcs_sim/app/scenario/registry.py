@@ -4,7 +4,7 @@ A scenario file has one section per node, named like the executable (``dynamics`
 ``pd_controller``, ``recorder``); the runner starts exactly those. The simulator's own nodes are
 listed here; the estimators are their families (:data:`adcs_controllers.estimators.families.ESTIMATOR_FAMILIES`:
 schema, estimator); the controllers are their families (:data:`adcs_controllers.families.FAMILIES`: schema,
-law, actuation), which the node and the batch engine (:mod:`adcs_sim.app.batch`) both build. Keep in
+law, actuation), which the node and the batch engine (:mod:`adcs_sim.app.batch.engine`) both build. Keep in
 step with setup.py's ``NODES`` (a test checks it).
 """
 from __future__ import annotations

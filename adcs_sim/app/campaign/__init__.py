@@ -1,0 +1,1 @@
+"""Monte Carlo campaigns: the campaign file, its draws and checks, adcs-montecarlo and adcs-tune-gsmn."""
