@@ -32,7 +32,7 @@ def config_dirs() -> list[Path]:
             pass
     except ImportError:
         pass
-    dirs.append(Path(__file__).resolve().parents[2] / 'config')
+    dirs.append(Path(__file__).resolve().parents[3] / 'config')
     return dirs
 
 

@@ -29,7 +29,7 @@ from adcs_msgs_py.sensor_interfaces import SENSORS
 from adcs_sim.app.scenario.registry import NODES
 from adcs_sim.app.scenario.files import validate_scenario
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 CONFIG = ROOT / 'config'
 REFERENCE = ROOT / 'docs' / 'parameters.md'
 
