@@ -326,12 +326,14 @@ def _value(metric: Metric, context: dict, chunk: dict, t_end_s: float) -> np.nda
 
 # --- drivers -------------------------------------------------------------------------------------
 
-def run_values(run) -> dict:
-    """The defined metrics of one run in memory: one chunk a topic (the in-memory path)."""
+def run_values(run, names=None) -> dict:
+    """The defined metrics of one run in memory (``names``: only those), one chunk a topic (the
+    in-memory path)."""
     context = run_context(run)
     chunks = {'wheel_speed': {'t_s': run.t_wheels, 'wheel_speed': run.wheel_speed[None]},
               'torque': {'t_s': run.t_u, 'torque': np.asarray(run.u).reshape(1, -1, 3)}}
-    return {m.name: _listed(m, _value(m, context, chunks[m.needs[0]], run.t_end)[0]) for m in DEFINED}
+    return {m.name: _listed(m, _value(m, context, chunks[m.needs[0]], run.t_end)[0])
+            for m in DEFINED if names is None or m.name in names}
 
 
 def batch_values(result, rows: np.ndarray, twins: dict | None = None) -> dict[str, np.ndarray]:
