@@ -14,30 +14,16 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 from support.ros_graph import record_pd_loop
-from support.scenarios import make_scenario
+from support.scenarios import batch_of, make_scenario
 
 from adcs_msgs_py.params import ParameterError
 from adcs_sim.app.analysis.metrics import RunData, run_metrics
-from adcs_sim.app.batch.engine import BatchSimulation
 from adcs_sim.app.scenario.registry import NODES
 from adcs_sim.app.scenario.files import validate_scenario
 
 NOISE = {'noise.seed': 7, 'noise.attitude_std': 1e-4, 'noise.rate_std': 1e-6}
 # Q0 of the paper's slew and two other attitudes to share its batch.
 Q_OTHERS = [[0.1, -0.2, 0.05, math.sqrt(1 - 0.0525)], [-0.3, 0.1, 0.2, math.sqrt(1 - 0.14)]]
-
-
-def batch_of(scenario_path, overrides_per_run: list[dict]) -> BatchSimulation:
-    """A batch of the scenario with ``{section: {key: value}}`` overrides per run."""
-    nominal = validate_scenario(scenario_path)
-    runs = []
-    for o in overrides_per_run:
-        run = {}
-        for name, params in nominal.items():
-            given = {**params, **o.get(name, {})}
-            run[name] = NODES[name].schema.validate(given)
-        runs.append(run)
-    return BatchSimulation.from_runs(runs)
 
 
 def test_batch_run_matches_the_graph_run(ros_domain, tmp_path):

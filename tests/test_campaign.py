@@ -11,36 +11,16 @@ from __future__ import annotations
 import csv
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 from support.paths import CONFIG
-from support.scenarios import make_scenario
+from support.scenarios import make_scenario, write_campaign
 
 from adcs_sim.app.batch.engine import BatchSimulation
 from adcs_sim.app.campaign.plan import Campaign, CampaignError, run_chunk
 from adcs_sim.app.campaign.montecarlo import execute, main
 from adcs_sim.app.scenario.files import validate_scenario
-
-BASE_DISPERSIONS = {
-    'dynamics.initial.attitude': {'distribution': 'euler213_uniform', 'max_deg': 30},
-    'dynamics.inertia': {'distribution': 'normal', 'std': [0.6, 0.7, 0.5]},
-    'pd_controller.kd': {'distribution': 'uniform', 'plus_minus': 0.01},
-}
-
-
-def write_campaign(tmp_path: Path, scenario: Path | None = None, **overrides) -> Path:
-    if scenario is None:
-        scenario = make_scenario(tmp_path, {'dynamics': {'duration': 150.0}})
-    body = {'scenario': str(scenario), 'runs': 7, 'seed': 11, 'chunk_size': 7,
-            'dispersions': BASE_DISPERSIONS}
-    body.update(overrides)
-    body = {k: v for k, v in body.items() if v is not None}
-    path = tmp_path / f'campaign_{len(list(tmp_path.glob("campaign_*.yaml")))}.yaml'
-    path.write_text(yaml.safe_dump({'campaign': body}, sort_keys=False))
-    return path
 
 
 def rows_of(campaign: Campaign, chunk_size: int) -> list[dict]:

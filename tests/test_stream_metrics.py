@@ -227,10 +227,11 @@ def test_streams_under_any_chunk_boundaries(name, cuts, u_cuts):
     u_ns = np.round(run.t_u * 1e9).astype(np.int64)
     for a, b in _pieces(u_cuts, run.t_u.size):
         torque.add(run.t_u[a:b], u_ns[a:b], run.u[a:b])
-    sums = [float(np.sum(torque.terms(w, run.t_end))) for w in ('norm', 'square')]
-    assert text({'s': sums}) == text({'s': [integrated_norm(run.t_u, run.u, run.t_end),
-                                           integrated_square(run.t_u, run.u, run.t_end)]})
-    assert torque.peak.tolist() == expected['peak_torque_Nm']
+    got = torque.defined.values((), 0, run.t_end)   # the torque metrics of metric_defs.DEFINED
+    assert set(got) == {'integrated_torque_Nms', 'control_energy_N2m2s', 'peak_torque_Nm'}
+    assert text(got) == text({k: expected[k] for k in got})
+    assert text({'s': [got['integrated_torque_Nms'], got['control_energy_N2m2s']]}) == \
+        text({'s': [integrated_norm(run.t_u, run.u, run.t_end), integrated_square(run.t_u, run.u, run.t_end)]})
 
 
 # --- memory ----------------------------------------------------------------------------------

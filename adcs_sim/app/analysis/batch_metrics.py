@@ -100,11 +100,12 @@ def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.
         f'settling_euler213_{tol_deg:g}deg_s': cols[:, mk.SETTLE_EULER],
         'settling_euler213_per_axis_s': cols[:, mk.SETTLE_AXIS:mk.SETTLE_AXIS + 3],
         'final_eigenaxis_error_deg': cols[:, mk.FINAL_EIGEN],
-        'integrated_torque_Nms': cols[:, mk.TORQUE],
-        'control_energy_N2m2s': cols[:, mk.ENERGY],
-        'peak_torque_Nm': cols[:, mk.PEAK_TORQUE:mk.PEAK_TORQUE + 3],
-        # the metrics defined once; the peak wheel speed from the compiled pass, its twin
-        **metric_defs.batch_values(result, rows, {'peak_wheel_speed_rad_s': cols[:, mk.PEAK_SPEED]}),
+        # the metrics defined once; the torque integrals and peaks and the peak wheel speed from
+        # the compiled pass, their twins (tests/test_metrics_kernel.py)
+        **metric_defs.batch_values(result, rows, {
+            'integrated_torque_Nms': cols[:, mk.TORQUE], 'control_energy_N2m2s': cols[:, mk.ENERGY],
+            'peak_torque_Nm': cols[:, mk.PEAK_TORQUE:mk.PEAK_TORQUE + 3],
+            'peak_wheel_speed_rad_s': cols[:, mk.PEAK_SPEED]}),
     }
     if result.faults:
         qe = np.empty(q.shape)
@@ -119,7 +120,7 @@ def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.
 def full_run_columns_numpy(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.ndarray]:
     """:func:`_full_run_columns` in numpy over the batch axis (the reference of the compiled passes)."""
     K = result.t.size - 1
-    t, t_u, t_end = result.t, result.t[:K], float(result.t[K])
+    t, t_end = result.t, float(result.t[K])
     take = slice(None) if rows.size == result.n_runs else rows   # every run: views, not copies
     q = result.q[take]
     q_ref = result.q_ref[take] if result.q_ref.ndim == 2 else np.broadcast_to(result.q_ref, (rows.size, 4))
@@ -129,7 +130,6 @@ def full_run_columns_numpy(result, rows: np.ndarray, tol_deg: float) -> dict[str
     euler = np.abs(np.degrees(euler_213(qe)))
     u = result.u[take]
     u0, u1, u2 = u[..., 0], u[..., 1], u[..., 2]
-    zoh = zoh_durations(t_u, t_end)
     # The reductions over the 3 components written out: numpy reduces a length-3 axis in sequence
     # ((a0 + a1) + a2; max is exact) but 20-50x slower than these element-wise passes.
     out = {
@@ -140,9 +140,6 @@ def full_run_columns_numpy(result, rows: np.ndarray, tol_deg: float) -> dict[str
         'settling_euler213_per_axis_s': np.stack([settling_times(t, euler[:, :, i], tol_deg)
                                                   for i in range(3)], axis=1),
         'final_eigenaxis_error_deg': eigen[:, -1],
-        'integrated_torque_Nms': np.sum(np.sqrt((u0 * u0 + u1 * u1) + u2 * u2) * zoh, axis=-1),   # norm(u, axis=-1)
-        'control_energy_N2m2s': np.sum(((u0 ** 2 + u1 ** 2) + u2 ** 2) * zoh, axis=-1),
-        'peak_torque_Nm': np.stack([np.abs(c).max(axis=1) for c in (u0, u1, u2)], axis=1),   # |u|.max(axis=1)
         **metric_defs.batch_values(result, rows),   # the metrics defined once (metric_defs.DEFINED)
     }
     out.update(_fault_columns(result, t, qe, (u0, u1, u2), t_end))

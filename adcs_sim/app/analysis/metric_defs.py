@@ -6,10 +6,12 @@ a run's samples chunk by chunk:
 
 * ``state = init(context)``: ``context`` the run constants, each with a leading run axis;
 * ``state = update(state, chunk)`` for each chunk in time order: ``chunk['t_s']`` (samples,)
-  stamps (s) shared by the runs (:func:`stamps_ns` gives their exact integer nanoseconds), each
-  series of ``needs`` (runs, samples, ...);
+  stamps (s) shared by the runs (:func:`stamps_ns` gives their exact integer nanoseconds) of the
+  one topic the series of ``needs`` come from, each series (runs, samples, ...): ``'wheel_speed'``
+  (``wheels/state``, rad/s) or ``'torque'`` (``actuators/torque``, the applied body torque, N·m);
 * ``merge(a, b)``: the state of span ``a`` followed by span ``b`` (each from ``init``);
-* ``finish(state)``: the value of each run, an array (runs, ...).
+* ``finish(state, t_end_s)``: the value of each run, an array (runs, ...); ``t_end_s`` the run's
+  end (its last state stamp), to which a zero-order-held last sample counts.
 
 The paths are only drivers of these four calls: the in-memory path
 (:func:`adcs_sim.app.analysis.metrics.run_metrics`, ``adcs-analyze``) gives the whole run as one chunk of
@@ -17,7 +19,10 @@ one run (:func:`run_values`); the streamed path (:mod:`adcs_sim.app.analysis.str
 and the long report, :mod:`adcs_sim.app.report.long_run`) the bag's batches as they are read
 (:class:`StreamedValues`); the campaign (:mod:`adcs_sim.app.analysis.batch_metrics`) the whole grid of every
 run of a batch at once (:func:`batch_values`). A reduction made of integer sums, maxima and counts is
-exact, so the paths give the same bits by construction (no summation order to keep).
+exact, so the paths give the same bits by construction (no summation order to keep). A float
+sum (the torque integrals) keeps its terms and sums them once in :func:`finish` with numpy's
+pairwise summation of the whole row: the order :func:`adcs_sim.app.analysis.metrics.run_metrics` always
+had, whatever the chunking (merging is concatenating), at 8 B a sample.
 
 To add a metric: a subclass here, an instance in :data:`DEFINED`, its test. Nothing else.
 """
@@ -55,8 +60,116 @@ class Metric:
     def merge(self, a, b):
         raise NotImplementedError
 
-    def finish(self, state) -> np.ndarray:
+    def finish(self, state, t_end_s: float | None = None) -> np.ndarray:
         raise NotImplementedError
+
+
+class HeldIntegral(Metric):
+    """``∫ f(u) dt`` of the applied body torque ``u``, held over each control period (zero-order
+    hold): ``Σ f(u_k) Δt_k``, ``Δt_k`` the time to the next sample, the last one's to the run's end
+    (``max(t_end, t_last) - t_last``); NaN without torque samples. The terms are kept and summed
+    once in :meth:`finish` (numpy's pairwise summation of the run's whole row: module docstring)."""
+
+    needs = ('torque',)
+
+    @staticmethod
+    def term(u0, u1, u2):
+        raise NotImplementedError
+
+    def init(self, context: dict):
+        return {'runs': context['runs'], 'parts': [], 'first_t': None, 'last_t': None, 'last_v': None}
+
+    def update(self, state, chunk: dict):
+        t = np.asarray(chunk['t_s'], dtype=float)
+        if not t.size:
+            return state
+        u = np.asarray(chunk['torque'], dtype=float)                # (runs, m, 3)
+        v = self.term(u[..., 0], u[..., 1], u[..., 2])              # (runs, m)
+        if state['last_t'] is None:
+            state['first_t'] = t[0]
+        else:                                                       # the previous sample's hold
+            state['parts'].append((state['last_v'] * (t[0] - state['last_t']))[:, None])
+        if t.size > 1:
+            state['parts'].append(v[:, :-1] * np.diff(t))
+        state['last_t'], state['last_v'] = t[-1], v[:, -1]
+        return state
+
+    def merge(self, a, b):
+        if a['last_t'] is None:
+            return b
+        if b['last_t'] is None:
+            return a
+        hold = (a['last_v'] * (b['first_t'] - a['last_t']))[:, None]
+        return {'runs': a['runs'], 'parts': [*a['parts'], hold, *b['parts']], 'first_t': a['first_t'],
+                'last_t': b['last_t'], 'last_v': b['last_v']}
+
+    def terms(self, state, t_end_s: float) -> np.ndarray:
+        """``f(u_k) Δt_k`` of every sample (runs, samples), the last held to ``t_end_s``."""
+        if state['last_t'] is None:
+            return np.zeros((state['runs'], 0))
+        last = state['last_v'] * (max(t_end_s, state['last_t']) - state['last_t'])   # zoh_durations
+        return np.concatenate([*state['parts'], last[:, None]], axis=1)
+
+    def finish(self, state, t_end_s: float | None = None) -> np.ndarray:
+        if state['last_t'] is None:
+            return np.full(state['runs'], math.nan)
+        return np.sum(self.terms(state, t_end_s), axis=-1)   # each C-order row: its 1-D pairwise sum
+
+
+class IntegratedTorque(HeldIntegral):
+    """``∫‖u‖ dt`` (N·m·s), ``‖u‖`` the Euclidean norm ``sqrt((u0² + u1²) + u2²)`` (numpy's
+    ``norm(u, axis=-1)``, the same operations in the same order)."""
+
+    name = 'integrated_torque_Nms'
+    unit = 'N·m·s'
+    note = '∫‖u‖dt of the applied torque (N·m·s)'
+
+    @staticmethod
+    def term(u0, u1, u2):
+        return np.sqrt((u0 * u0 + u1 * u1) + u2 * u2)
+
+
+class ControlEnergy(HeldIntegral):
+    """``∫uᵀu dt`` (N²·m²·s), ``uᵀu = (u0² + u1²) + u2²`` (numpy's ``sum(u ** 2, axis=-1)``)."""
+
+    name = 'control_energy_N2m2s'
+    unit = 'N²·m²·s'
+    note = '∫uᵀu dt of the applied torque (N²·m²·s)'
+
+    @staticmethod
+    def term(u0, u1, u2):
+        return (u0 ** 2 + u1 ** 2) + u2 ** 2
+
+
+class PeakTorque(Metric):
+    """``max |u_i|`` per body axis x, y, z over the applied-torque samples (N·m); NaN without
+    samples; a NaN sample makes its axis NaN (numpy's maximum)."""
+
+    name = 'peak_torque_Nm'
+    unit = 'N·m'
+    note = 'max |u_i| per body axis x, y, z (N·m)'
+    needs = ('torque',)
+    per = 'axis'
+
+    def init(self, context: dict):
+        return {'runs': context['runs'], 'peak': None}
+
+    def update(self, state, chunk: dict):
+        u = np.asarray(chunk['torque'], dtype=float)               # (runs, m, 3)
+        if not u.shape[1]:
+            return state
+        # per component: numpy reduces a middle axis of length-3 rows ~20-50x slower (max is exact)
+        peak = np.stack([np.abs(u[..., i]).max(axis=1) for i in range(3)], axis=1)
+        state['peak'] = peak if state['peak'] is None else np.maximum(state['peak'], peak)
+        return state
+
+    def merge(self, a, b):
+        if a['peak'] is None or b['peak'] is None:
+            return b if a['peak'] is None else a
+        return {'runs': a['runs'], 'peak': np.maximum(a['peak'], b['peak'])}
+
+    def finish(self, state, t_end_s: float | None = None) -> np.ndarray:
+        return state['peak'] if state['peak'] is not None else np.full((state['runs'], 3), math.nan)
 
 
 class PeakWheelSpeed(Metric):
@@ -81,7 +194,7 @@ class PeakWheelSpeed(Metric):
     def merge(self, a, b):
         return {'peak': np.maximum(a['peak'], b['peak']), 'seen': a['seen'] or b['seen']}
 
-    def finish(self, state) -> np.ndarray:
+    def finish(self, state, t_end_s: float | None = None) -> np.ndarray:
         return state['peak'] if state['seen'] else np.full(state['peak'].shape, math.nan)
 
 
@@ -159,12 +272,13 @@ class TimeAtWheelSpeedLimit(Metric):
         a['last_t'], a['last_at'] = b['last_t'], b['last_at']
         return a
 
-    def finish(self, state) -> np.ndarray:
+    def finish(self, state, t_end_s: float | None = None) -> np.ndarray:
         return state['total'] / NS_PER_S   # the double nearest the exact seconds
 
 
-# In run_metrics' order, between ``peak_torque_Nm`` and ``missed_steps``.
-DEFINED: tuple[Metric, ...] = (PeakWheelSpeed(), TimeAtWheelSpeedLimit())
+# In run_metrics' order, between ``final_eigenaxis_error_deg`` and ``missed_steps``.
+DEFINED: tuple[Metric, ...] = (IntegratedTorque(), ControlEnergy(), PeakTorque(),
+                               PeakWheelSpeed(), TimeAtWheelSpeedLimit())
 
 
 def notes() -> dict[str, str]:
@@ -197,24 +311,29 @@ def run_context(run) -> dict:
     limits = run.wheel_max_speed
     if limits is None:
         limits = wheel_limits(run.scenario, run.wheel_names)
-    return {'wheel_max_speed': np.asarray(limits, dtype=float).reshape(1, len(run.wheel_names))}
+    return {'runs': 1, 'wheel_max_speed': np.asarray(limits, dtype=float).reshape(1, len(run.wheel_names))}
 
 
 def _listed(metric: Metric, values: np.ndarray):
-    """A run's value (``values`` (...)) as run_metrics shows it: a list per wheel, or a float."""
+    """A run's value (``values`` (...)) as run_metrics shows it: a list per wheel or axis, or a float."""
     return values.tolist() if metric.per else float(values)
+
+
+def _value(metric: Metric, context: dict, chunk: dict, t_end_s: float) -> np.ndarray:
+    """``metric`` of the runs whose samples are all in ``chunk``."""
+    return metric.finish(metric.update(metric.init(context), chunk), t_end_s)
 
 
 # --- drivers -------------------------------------------------------------------------------------
 
-def run_values(run) -> dict:
-    """The defined metrics of one run in memory: one chunk (the in-memory path)."""
+def run_values(run, names=None) -> dict:
+    """The defined metrics of one run in memory (``names``: only those), one chunk a topic (the
+    in-memory path)."""
     context = run_context(run)
-    chunk = {'t_s': run.t_wheels, 'wheel_speed': run.wheel_speed[None]}
-    out = {}
-    for m in DEFINED:
-        out[m.name] = _listed(m, m.finish(m.update(m.init(context), chunk))[0])
-    return out
+    chunks = {'wheel_speed': {'t_s': run.t_wheels, 'wheel_speed': run.wheel_speed[None]},
+              'torque': {'t_s': run.t_u, 'torque': np.asarray(run.u).reshape(1, -1, 3)}}
+    return {m.name: _listed(m, _value(m, context, chunks[m.needs[0]], run.t_end)[0])
+            for m in DEFINED if names is None or m.name in names}
 
 
 def batch_values(result, rows: np.ndarray, twins: dict | None = None) -> dict[str, np.ndarray]:
@@ -222,37 +341,58 @@ def batch_values(result, rows: np.ndarray, twins: dict | None = None) -> dict[st
     whole grid (the campaign path): ``{name: (runs, ...)}``. ``twins``: ``{name: values}`` computed by
     a fast path that equals the definition (docs/architecture.md §3), used instead."""
     twins = twins or {}
+    K = result.t.size - 1
     take = slice(None) if rows.size == result.n_runs else rows
     n = len(result.wheel_names) if result.wheel_names and result.wheel_speed.shape[-1] else 0
-    speed = result.wheel_speed[take] if n else np.zeros((rows.size, result.t.size, 0))
     limits = result.wheel_limits()[take] if n else np.zeros((rows.size, 0))
-    context = {'wheel_max_speed': limits}
-    chunk = {'t_s': result.t, 'wheel_speed': speed}
-    if n and twins.get('peak_wheel_speed_rad_s') is not None:   # the whole run's max |Ω|, known
-        chunk['wheel_peak'] = twins['peak_wheel_speed_rad_s']
-    return {m.name: twins[m.name] if m.name in twins else m.finish(m.update(m.init(context), chunk))
-            for m in DEFINED}
+    context = {'runs': rows.size, 'wheel_max_speed': limits}
+
+    def chunk(series: str) -> dict:   # only for a metric without a twin (a row selection copies)
+        if series == 'torque':
+            return {'t_s': result.t[:K], 'torque': result.u[take]}   # each held over its step
+        out = {'t_s': result.t, 'wheel_speed': result.wheel_speed[take] if n else np.zeros((rows.size, K + 1, 0))}
+        if n and twins.get('peak_wheel_speed_rad_s') is not None:   # the whole run's max |Ω|, known
+            out['wheel_peak'] = twins['peak_wheel_speed_rad_s']
+        return out
+
+    chunks: dict = {}
+    out = {}
+    for m in DEFINED:
+        if m.name in twins:
+            out[m.name] = twins[m.name]
+            continue
+        if m.needs[0] not in chunks:
+            chunks[m.needs[0]] = chunk(m.needs[0])
+        out[m.name] = _value(m, context, chunks[m.needs[0]], float(result.t[K]))
+    return out
 
 
 class StreamedValues:
-    """The defined metrics of one run fed chunk by chunk (the streamed path), per joint-name list
-    (:class:`~adcs_sim.app.analysis.stream_metrics.JointStream` keeps those named in the last message)."""
+    """The defined metrics that read ``series`` of one run, fed chunk by chunk (the streamed path),
+    per joint-name list (:class:`~adcs_sim.app.analysis.stream_metrics.JointStream` keeps those named in the
+    last message; ``()`` for a topic without names, the applied torque)."""
 
-    def __init__(self) -> None:
+    def __init__(self, series: str = 'wheel_speed') -> None:
+        self.series = series
+        self.metrics = [m for m in DEFINED if m.needs == (series,)]
         self.states: dict = {}      # names -> [state per metric]
         self.limits: dict = {}      # names -> the limits used
 
-    def add(self, names: tuple, limits: np.ndarray, t_s: np.ndarray, speed: np.ndarray) -> None:
+    def add(self, names: tuple, limits: np.ndarray, t_s: np.ndarray, values: np.ndarray) -> None:
         if names not in self.states:
-            context = {'wheel_max_speed': np.asarray(limits, dtype=float).reshape(1, len(names))}
-            self.states[names] = [m.init(context) for m in DEFINED]
+            context = {'runs': 1, 'wheel_max_speed': np.asarray(limits, dtype=float).reshape(1, len(limits))}
+            self.states[names] = [m.init(context) for m in self.metrics]
             self.limits[names] = limits
-        chunk = {'t_s': t_s, 'wheel_speed': speed[None]}
-        self.states[names] = [m.update(s, chunk) for m, s in zip(DEFINED, self.states[names])]
+        chunk = {'t_s': t_s, self.series: values[None]}
+        self.states[names] = [m.update(s, chunk) for m, s in zip(self.metrics, self.states[names])]
 
-    def values(self, names, n_wheels: int) -> dict:
+    def state(self, name: str, names: tuple):
+        """The state of metric ``name`` for ``names`` (fed at least once)."""
+        return self.states[names][[m.name for m in self.metrics].index(name)]
+
+    def values(self, names, n_wheels: int, t_end_s: float | None = None) -> dict:
         """The values for the wheels ``names`` (those RunData keeps); no samples: as a run with none."""
         if names not in self.states:
-            context = {'wheel_max_speed': np.zeros((1, n_wheels))}
-            return {m.name: _listed(m, m.finish(m.init(context))[0]) for m in DEFINED}
-        return {m.name: _listed(m, m.finish(s)[0]) for m, s in zip(DEFINED, self.states[names])}
+            context = {'runs': 1, 'wheel_max_speed': np.zeros((1, n_wheels))}
+            return {m.name: _listed(m, m.finish(m.init(context), t_end_s)[0]) for m in self.metrics}
+        return {m.name: _listed(m, m.finish(s, t_end_s)[0]) for m, s in zip(self.metrics, self.states[names])}

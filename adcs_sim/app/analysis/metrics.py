@@ -33,8 +33,9 @@ Definitions (every metric printed by ``adcs-run`` and ``adcs-analyze``):
 * **Peak torque** per body axis ``max |u_i|`` over the applied-torque samples; **missed
   steps** from the last ``dynamics/status`` that reports them.
 * The metrics of :data:`adcs_sim.app.analysis.metric_defs.DEFINED`, each defined there once and computed
-  by every path from that definition (the **peak wheel speed**, the **time each wheel spends at
-  its speed limit**), between the peak torque and the missed steps.
+  by every path from that definition (the **torque integrals** and **peak torque** above, the
+  **peak wheel speed**, the **time each wheel spends at its speed limit**), between the final
+  eigenaxis error and the missed steps.
 
 The time series come from :class:`~adcs_sim.app.analysis.run_data.RunData` (a bag read in one pass).
 :func:`run_metrics` gives these at one tolerance; :func:`settling_times` the settling times at
@@ -116,14 +117,26 @@ def zoh_durations(t: np.ndarray, t_end: float) -> np.ndarray:
     return np.diff(np.append(t, max(t_end, t[-1]))) if t.size else t
 
 
+def _held(metric, t: np.ndarray, u: np.ndarray, t_end: float) -> float:
+    """``metric`` (a :class:`~adcs_sim.app.analysis.metric_defs.HeldIntegral`) of one run's samples; 0 (the
+    empty sum) without samples."""
+    t = np.asarray(t, dtype=float)
+    if not t.size:
+        return 0.0
+    chunk = {'t_s': t, 'torque': np.asarray(u, dtype=float).reshape(1, -1, 3)}
+    return float(metric.finish(metric.update(metric.init({'runs': 1}), chunk), t_end)[0])
+
+
 def integrated_norm(t: np.ndarray, u: np.ndarray, t_end: float) -> float:
-    """``∫‖u‖ dt`` of a zero-order-held signal ``u`` (N, k) sampled at ``t``."""
-    return float(np.sum(np.linalg.norm(u, axis=-1) * zoh_durations(t, t_end)))
+    """``∫‖u‖ dt`` of a zero-order-held torque ``u`` (N, 3) sampled at ``t``: its one definition,
+    :class:`~adcs_sim.app.analysis.metric_defs.IntegratedTorque`."""
+    return _held(metric_defs.IntegratedTorque(), t, u, t_end)
 
 
 def integrated_square(t: np.ndarray, u: np.ndarray, t_end: float) -> float:
-    """``∫uᵀu dt`` of a zero-order-held signal ``u`` (N, k) sampled at ``t``."""
-    return float(np.sum(np.sum(np.asarray(u) ** 2, axis=-1) * zoh_durations(t, t_end)))
+    """``∫uᵀu dt`` of a zero-order-held torque ``u`` (N, 3) sampled at ``t``: its one definition,
+    :class:`~adcs_sim.app.analysis.metric_defs.ControlEnergy`."""
+    return _held(metric_defs.ControlEnergy(), t, u, t_end)
 
 
 def k0_metric(e: np.ndarray, window: int = 200, threshold: float = 0.03, reduce: str = 'max'):
@@ -246,15 +259,9 @@ def run_metrics(run: RunData, tol_deg: float = 0.5, eigen_tol_deg: float | None 
         f'settling_euler213_{tol_deg:g}deg_s': settling_time(run.t, euler.max(axis=1), tol_deg),
         'settling_euler213_per_axis_s': [settling_time(run.t, euler[:, i], tol_deg) for i in range(3)],
         'final_eigenaxis_error_deg': float(eigen[-1]),
-        'integrated_torque_Nms': math.nan, 'control_energy_N2m2s': math.nan,
-        'peak_torque_Nm': [math.nan] * 3,
         **metric_defs.run_values(run),   # the metrics defined once (metric_defs.DEFINED)
         'missed_steps': run.missed_steps,
     }
-    if run.u.size:
-        out['integrated_torque_Nms'] = integrated_norm(run.t_u, run.u, run.t_end)
-        out['control_energy_N2m2s'] = integrated_square(run.t_u, run.u, run.t_end)
-        out['peak_torque_Nm'] = np.abs(run.u).max(axis=0).tolist()
     out.update(missed_step_gaps(run))
     out.update(fault_metrics(run))
     out.update(thruster_metrics(run))

@@ -8,10 +8,12 @@ chunk by chunk, what each metric needs:
 * settling and first-entry times: per error series and band, the last sample outside the band
   and the one after it, the first inside and the one before it (:class:`BandTrack`);
 * peaks (running maxima), final values, counts;
-* the two torque integrals: their per-sample terms ``‖u_k‖ Δt_k`` and ``u_kᵀu_k Δt_k`` and the
-  torque stamps (8 B a step each), summed once at the end, so that numpy's pairwise summation sees
-  the very array it sees in :func:`run_metrics` (its split points depend on the length, unknown
-  until the end: a running sum would differ in the last bits);
+* the metrics defined once (:data:`adcs_sim.app.analysis.metric_defs.DEFINED`: torque integrals and
+  peaks, wheel metrics), fed chunk by chunk to their definitions; the torque integrals keep their
+  per-sample terms ``‖u_k‖ Δt_k`` and ``u_kᵀu_k Δt_k`` (8 B a step each) and sum them once at the
+  end, so that numpy's pairwise summation sees the very array it sees in :func:`run_metrics` (its
+  split points depend on the length, unknown until the end: a running sum would differ in the
+  last bits); the torque stamps (8 B a step) for the integral after a fault;
 * the state stamps (8 B a step): the settling after a fault needs the first sample after the
   fault's time, known only once the ``faults`` topic is read, and the missed-step gaps the median
   step; thruster on-times (one float per thruster and step, thruster runs only).
@@ -44,7 +46,6 @@ from adcs_sim.app.analysis.metrics import (
     missed_step_gaps,
     pointing_error_deg,
     run_metrics,
-    zoh_durations,
 )
 from adcs_sim.bag.batches import ColumnReader
 from adcs_sim.bag.columns import decode_batch, decode_diagnostics
@@ -196,43 +197,26 @@ class AttitudeStream(_Ordered):
 
 
 class TorqueStream(_Ordered):
-    """Applied torque: the integrals' terms (summed at the end) and the peak per axis."""
+    """Applied torque: its defined metrics (metric_defs.DEFINED: the integrals keep their terms,
+    summed at the end) and its stamps (the integral after a fault)."""
 
     def __init__(self, topic: str) -> None:
         super().__init__(topic)
         self.t_parts: list[np.ndarray] = []
-        self.norm_parts: list[np.ndarray] = []     # ‖u_k‖ Δt_k, Δt_k known (the next sample read)
-        self.square_parts: list[np.ndarray] = []   # u_kᵀu_k Δt_k
-        self.pending = None                        # (t, ‖u‖, uᵀu) of the latest sample
-        self.peak = None
+        self.defined = metric_defs.StreamedValues('torque')
 
     def add(self, t: np.ndarray, stamp_ns: np.ndarray, u: np.ndarray) -> None:
         self.check(stamp_ns)
         if not t.size:
             return
-        norm = np.linalg.norm(u, axis=-1)
-        square = np.sum(np.asarray(u) ** 2, axis=-1)
-        peak = np.abs(u).max(axis=0)
-        self.peak = peak if self.peak is None else np.maximum(self.peak, peak)
-        if self.pending is not None:
-            t0, n0, s0 = self.pending
-            t, norm, square = np.r_[t0, t], np.r_[n0, norm], np.r_[s0, square]
-        dt = np.diff(t)
-        self.t_parts.append(t[:-1])
-        self.norm_parts.append(norm[:-1] * dt)
-        self.square_parts.append(square[:-1] * dt)
-        self.pending = (t[-1], norm[-1], square[-1])
+        self.t_parts.append(t)
+        self.defined.add((), np.zeros(0), t, u)
 
-    def terms(self, which: str, t_end: float) -> np.ndarray:
-        """``‖u‖ Δt`` (``which='norm'``) or ``uᵀu Δt`` (``'square'``) of every sample, the last
-        one held to ``t_end`` (zoh_durations); ``'t'``: the stamps."""
-        t_last, n_last, s_last = self.pending
-        if which == 't':
-            return np.concatenate([*self.t_parts, [t_last]])
-        last_dt = zoh_durations(np.array([t_last]), t_end)
-        if which == 'norm':
-            return np.concatenate([*self.norm_parts, n_last * last_dt])
-        return np.concatenate([*self.square_parts, s_last * last_dt])
+    def norm_terms(self, t_end: float) -> tuple[np.ndarray, np.ndarray]:
+        """(stamps, ``‖u‖ Δt`` of every sample, the last held to ``t_end``): the terms of
+        :class:`~adcs_sim.app.analysis.metric_defs.IntegratedTorque` (its state, not a copy of its rule)."""
+        metric = metric_defs.IntegratedTorque()
+        return np.concatenate(self.t_parts), metric.terms(self.defined.state(metric.name, ()), t_end)[0]
 
 
 class JointStream:
@@ -391,25 +375,22 @@ class _Pass:
         att = truth if truth is not None and truth.rows else state
         t_end = float(att.t_parts[-1][-1])
         out = att.metrics(self.tol, self.eigen_tol)
-        out.update({'integrated_torque_Nms': math.nan, 'control_energy_N2m2s': math.nan,
-                    'peak_torque_Nm': [math.nan] * 3})
         wheels = self.joints.get(ns + topics.WHEELS_STATE)
         if self.limits and (_scenario_text(reader.metadata) or '') != self.limits_text:
             scenario = rd._scenario(_scenario_text(reader.metadata), reader.bag)
             if any(not np.array_equal(metric_defs.wheel_limits(scenario, names), limits)
                    for names, limits in self.limits.items()):
                 raise Unstreamable('the scenario (wheel speed limits) was written after the wheel states')
-        out.update(wheels.defined_values() if wheels is not None else   # metric_defs.DEFINED
-                   metric_defs.StreamedValues().values(None, 0))
-        dynamics = self.diagnostics.get(ns + topics.DYNAMICS_STATUS, [])
-        out['missed_steps'] = rd._missed_steps(dynamics)
         torque = self.torque.get(ns + topics.APPLIED_TORQUE)
         if torque is not None and not torque.rows:
             torque = None
-        if torque is not None:   # (one array at a time: each is a copy of the kept parts)
-            out['integrated_torque_Nms'] = float(np.sum(torque.terms('norm', t_end)))
-            out['control_energy_N2m2s'] = float(np.sum(torque.terms('square', t_end)))
-            out['peak_torque_Nm'] = torque.peak.tolist()
+        # the metrics defined once (metric_defs.DEFINED), in their order
+        defined = (torque.defined if torque is not None else metric_defs.StreamedValues('torque')).values((), 0, t_end)
+        defined.update(wheels.defined_values() if wheels is not None else
+                       metric_defs.StreamedValues().values(None, 0))
+        out.update({m.name: defined[m.name] for m in metric_defs.DEFINED})
+        dynamics = self.diagnostics.get(ns + topics.DYNAMICS_STATUS, [])
+        out['missed_steps'] = rd._missed_steps(dynamics)
         missed_at = rd._missed_at(dynamics)
         if missed_at.size:
             out.update(missed_step_gaps(SimpleNamespace(missed_at=missed_at, t=np.concatenate(att.t_parts))))
@@ -436,8 +417,8 @@ def _fault_metrics(faults: list, att: AttitudeStream, torque: TorqueStream | Non
     for band, track in zip(FAULT_BANDS, att.q4):
         out[f'settling_q4_{band:g}_after_fault_s'] = _settling_from(track, t, t0) - t0
     if torque is not None:
-        after = torque.terms('t', t_end) >= t0
-        out['integrated_torque_after_fault_Nms'] = float(np.sum(torque.terms('norm', t_end)[after]))
+        t_u, terms = torque.norm_terms(t_end)
+        out['integrated_torque_after_fault_Nms'] = float(np.sum(terms[t_u >= t0]))
     return out
 
 

@@ -249,6 +249,6 @@ def _pointing(run: RunData, rk: RunKind, q_ref) -> list[Metric]:
                        f'time after which the pointing error stays ≤ {b:g}° (last exit)')]
     out += _torque(run)
     if run.wheel_speed.size:
-        peak = metric_defs.run_values(run)['peak_wheel_speed_rad_s']   # its one definition
+        peak = metric_defs.run_values(run, ('peak_wheel_speed_rad_s',))['peak_wheel_speed_rad_s']   # its one definition
         out.append(Metric('peak_wheel_speed_rad_s', peak, 'rad/s', 'max |Ω| over the wheels, relative to the body'))
     return out
