@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.testing import assert_array_equal
-from support.ros_graph import InProcessGraph
+from support.ros_graph import InProcessGraph, record_sensor_graph
 from support.scenarios import make_scenario
 
 from adcs_msgs_py import conversions_determination as cd
@@ -16,7 +16,6 @@ from adcs_sim.app.batch.engine import BatchSimulation
 from adcs_sim.app.scenario.files import validate_scenario
 from adcs_sim.bag.reader import read_messages
 from adcs_sim.nodes.dynamics import DynamicsNode
-from adcs_sim.nodes.fault_injector import FaultInjectorNode
 from adcs_sim.nodes.recorder import RecorderNode
 
 # March equinox (the Sun along inertial +x), sunlit part of a 500 km equatorial orbit; the spacecraft
@@ -41,14 +40,7 @@ def test_fine_sun_sensor_messages_on_the_graph_equal_the_batch(ros_domain, tmp_p
                      'lockstep.commands': ['none'], **expect, **SENSORS},
         'recorder': {'output': str(bag_dir)}, 'fault_injector': FAULTS}, drop=('pd_controller',))
     expected = {'/sensors/imu': n + 1, '/sensors/fine_sun': n + 1, '/dynamics/status': 2, '/faults': 3}
-    with InProcessGraph(scenario) as graph:
-        rec = graph.add(RecorderNode)
-        graph.add(FaultInjectorNode)
-        dyn = graph.add(DynamicsNode)
-        dyn.run(graph.executor)
-        counts = rec.bag.topics
-        graph.spin_until(lambda: all(t in counts and counts[t].count == c for t, c in expected.items()))
-        rec.close()
+    dyn = record_sensor_graph(scenario, expected)
     assert dyn.rejects.total == 0 and dyn.missed_steps == 0 and dyn.faults.late == 0
 
     sim = BatchSimulation.from_runs([validate_scenario(scenario)])

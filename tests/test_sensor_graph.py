@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.testing import assert_array_equal
-from support.ros_graph import InProcessGraph, run_lockstep_graph
+from support.ros_graph import InProcessGraph, record_sensor_graph, run_lockstep_graph
 from support.scenarios import make_scenario
 
 from adcs_controllers.nodes.pd_controller import PdController
@@ -18,7 +18,6 @@ from adcs_sim.app.batch.engine import BatchSimulation
 from adcs_sim.app.scenario.files import validate_scenario
 from adcs_sim.bag.reader import read_messages
 from adcs_sim.nodes.dynamics import DynamicsNode
-from adcs_sim.nodes.fault_injector import FaultInjectorNode
 from adcs_sim.nodes.recorder import RecorderNode
 
 SENSORS = {'sensors.seed': 11,
@@ -112,14 +111,7 @@ def test_node_survives_sensor_edge_cases(ros_domain, tmp_path):
         'fault_injector': {'schedule.time': [0.0], 'schedule.actuator': ['star_tracker'],
                            'schedule.mode': ['failed']}}, drop=('pd_controller',))
     expected = {'/sensors/imu': n + 1, '/sensors/star_tracker': n + 1, '/dynamics/status': 2}
-    with InProcessGraph(scenario) as graph:
-        rec = graph.add(RecorderNode)
-        graph.add(FaultInjectorNode)
-        dyn = graph.add(DynamicsNode)
-        dyn.run(graph.executor)
-        counts = rec.bag.topics
-        graph.spin_until(lambda: all(t in counts and counts[t].count == c for t, c in expected.items()))
-        rec.close()
+    dyn = record_sensor_graph(scenario, expected)
     assert dyn.rejects.total == 0 and dyn.missed_steps == 0
     imu = [m for _, _, m in read_messages(bag_dir, {'/sensors/imu'})]
     assert all((m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z) == (1e-9, -1e-9, 0.0) for m in imu)

@@ -118,6 +118,24 @@ def record_pd_loop(tmp_path: Path, n: int, dynamics: dict | None = None, extra_c
     return bag_dir, dyn
 
 
+def record_sensor_graph(scenario: Path, expected: dict):
+    """Recorder + fault injector + dynamics in this process (free flight, no controller), the run of
+    ``scenario`` (its recorder section names the bag); waits until the recorder has ``expected``
+    ({topic: message count}). Returns the dynamics node."""
+    from adcs_sim.nodes.dynamics import DynamicsNode
+    from adcs_sim.nodes.fault_injector import FaultInjectorNode
+    from adcs_sim.nodes.recorder import RecorderNode
+    with InProcessGraph(scenario) as graph:
+        rec = graph.add(RecorderNode)
+        graph.add(FaultInjectorNode)
+        dyn = graph.add(DynamicsNode)
+        dyn.run(graph.executor)
+        counts = rec.bag.topics
+        graph.spin_until(lambda: all(t in counts and counts[t].count == c for t, c in expected.items()))
+        rec.close()
+    return dyn
+
+
 def run_lockstep_graph(scenario: Path, controller_class, expected: dict, faults: bool = False,
                        timeout: float = 120.0):
     """Recorder (+ fault injector when ``faults``) + dynamics + ``controller_class`` in this
