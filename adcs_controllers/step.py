@@ -1,6 +1,6 @@
 """The flight-software steps: what a controller node and an estimator node do with one step's input,
 pure (no ROS, no truth model), on one run or a batch; the nodes and the batch engine drive these very
-objects (issue 32, "one step, two drivers").
+objects (docs/architecture.md, "One step, two drivers").
 
 :class:`FlightStep` (a controller section): due faults (the latest snapshot stamped ``<= t_k``,
 :meth:`adcs_core.faults.FaultTracker.due`: the actuation follows it and tells the law) → the law (with

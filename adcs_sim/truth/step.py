@@ -1,6 +1,6 @@
 """The truth step: one control period of the simulated spacecraft, pure (no ROS), batch-first.
 
-:class:`TruthStep` owns what the dynamics node and the batch engine both drive (issue 32, "one step,
+:class:`TruthStep` owns what the dynamics node and the batch engine both drive (docs/architecture.md, "One step,
 two drivers"): the plant (:func:`adcs_sim.truth.schema.build_plant`), the state measurement model
 (``noise.*``), the sensor suite (``sensors.*``) on the truth environment (``environment.*``), the
 plant's one orbit (:func:`adcs_sim.truth.schema.plant_orbit`) and the fault snapshots
