@@ -88,7 +88,8 @@ class FlightStep:
         run's decoded message. ``log`` gets the fault notes."""
         if not batch or self.faults.snapshots:   # a batch holds its schedule from the start: none, none due
             # (a node checks every step: a snapshot received late is counted, FaultTracker.late)
-            notes = self.apply_due_faults(t_ns) if batch else answer(self.name, t_ns, lambda: self.apply_due_faults(t_ns))
+            notes = (self.apply_due_faults(t_ns) if batch
+                     else answer(self.name, t_ns, lambda: self.apply_due_faults(t_ns)))
             if log is not None:
                 for note in notes:
                     log(note)

@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""The speed of each metric path, this tree against another (a metric path must not get slower when a metric moves onto its one definition).
+"""The speed of each metric path, this tree against another (a metric path must not get slower when a
+metric moves onto its one definition).
 
 Times (process CPU time), best of ``--repeat`` in one process each:
 
