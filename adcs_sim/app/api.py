@@ -7,7 +7,8 @@ node, lockstep, recorded to a bag), :meth:`Scenario.run_batch` through the batch
 (:class:`adcs_sim.app.batch.engine.BatchSimulation`: no ROS, N runs at once). Either gives
 :class:`RunResult` objects: the run's time series as numpy arrays (:class:`RunData`, the analysis
 library's), as a pandas DataFrame, the metrics
-(:func:`adcs_sim.app.analysis.metrics.run_metrics`) and the report's figures (:data:`adcs_sim.app.report.figures.FIGURES`).
+(:func:`adcs_sim.app.analysis.metrics.run_metrics`) and the report's figures
+(:data:`adcs_sim.app.report.figures.FIGURES`).
 
 Examples
 --------

@@ -1,7 +1,7 @@
 """The campaign metrics of full runs in two compiled passes over each run's samples (numba).
 
-:func:`adcs_sim.app.analysis.batch_metrics.batch_run_metrics` computes :func:`~adcs_sim.app.analysis.metrics.run_metrics`
-of every full run of a batch at once. Written with numpy over ``(runs, samples)`` arrays it made
+:func:`adcs_sim.app.analysis.batch_metrics.batch_run_metrics` computes
+:func:`~adcs_sim.app.analysis.metrics.run_metrics` of every full run of a batch at once. Written with numpy over ``(runs, samples)`` arrays it made
 ~40 passes over the history (error quaternions, Euler angles, degrees, absolute values, maxima,
 settling masks, reversed ``argmax``, products and sums), each allocating its result. Here
 :func:`first_pass` computes, run by run in one pass over its samples, every column; of the

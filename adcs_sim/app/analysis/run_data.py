@@ -298,8 +298,8 @@ def _kept(columns, type_name: str):
     names = KEPT_FIELDS.get(type_name)
     if names is not None:
         # (a copy when a field is a view: the decoded block it views would otherwise stay alive)
-        columns.fields = {name: columns.fields[name] if columns.fields[name].base is None else columns.fields[name].copy()
-                          for name in names}
+        columns.fields = {name: (columns.fields[name] if columns.fields[name].base is None
+                                 else columns.fields[name].copy()) for name in names}
     return columns
 
 

@@ -244,8 +244,8 @@ def _metric_lines(report: Report) -> list[str]:
             left.append(f'`{k}` (the spacecraft has no reaction wheels)')
         else:
             shown[k] = v
-    lines = ['## All metrics', '', 'Definitions: `adcs_sim/app/analysis/metrics.py`; the same numbers as `adcs-analyze` prints '
-             '(the attitude error against the scenario\'s `target.attitude`).', '',
+    lines = ['## All metrics', '', 'Definitions: `adcs_sim/app/analysis/metrics.py`; the same numbers as '
+             '`adcs-analyze` prints (the attitude error against the scenario\'s `target.attitude`).', '',
              '| metric | value | meaning |', '| --- | --- | --- |']
     lines += [f'| `{k}` | {fmt(v)} | {md_escape(metric_note(k))} |' for k, v in shown.items()]
     lines.append('')
