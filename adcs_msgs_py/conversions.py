@@ -8,6 +8,7 @@ catch it through :class:`adcs_msgs_py.guard.RejectCounter`, which counts and war
 """
 from __future__ import annotations
 
+import json
 import math
 import struct
 from collections.abc import Mapping, Sequence
@@ -19,6 +20,7 @@ from geometry_msgs.msg import Vector3Stamped
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 
 from adcs_core.attitude import quat_norm
 from adcs_core.faults import FAULT_ERROR_MODES, FAULT_OK_MODES, FaultState
@@ -407,3 +409,29 @@ def _fault_status(status: DiagnosticStatus, known: Mapping[str, int]) -> tuple[s
         raise InvalidMessage(f'faults: schedule position {event} of {events} for {name!r} is out of '
                              f'0 <= event < events <= {MAX_FAULT_EVENTS}')
     return name, FaultState(mode, value, t), (event, events)
+
+
+# --- the recorder's start-up handshake (recorder/matched) ----------------------------------------
+
+MAX_MATCHED_TEXT = 1 << 20   # bytes: a handshake of hundreds of topics is ~10 kB
+
+
+def matched_to_msg(matched: Mapping[str, Sequence[str]]) -> String:
+    """``{resolved topic: [fully qualified node name, ...]}`` -> std_msgs/String (JSON, sorted)."""
+    return String(data=json.dumps({t: sorted(n) for t, n in sorted(matched.items())}))
+
+
+def matched_from_msg(msg: String, topic: str = 'recorder/matched') -> dict[str, frozenset[str]]:
+    """The inverse of :func:`matched_to_msg`, checked: a JSON object of topic names to lists of node
+    names, at most :data:`MAX_MATCHED_TEXT` bytes; anything else is an :class:`InvalidMessage`."""
+    text = msg.data
+    if not isinstance(text, str) or len(text) > MAX_MATCHED_TEXT:
+        raise InvalidMessage(f'{topic}: not a JSON text of at most {MAX_MATCHED_TEXT} bytes')
+    try:
+        raw = json.loads(text)
+    except (ValueError, RecursionError) as exc:   # RecursionError: a nesting bomb
+        raise InvalidMessage(f'{topic}: not JSON ({type(exc).__name__})') from None
+    if not isinstance(raw, dict) or not all(
+            isinstance(t, str) and isinstance(n, list) and all(isinstance(x, str) for x in n) for t, n in raw.items()):
+        raise InvalidMessage(f'{topic}: not an object of topic names to lists of node names')
+    return {t: frozenset(n) for t, n in raw.items()}

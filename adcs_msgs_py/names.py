@@ -46,6 +46,8 @@ VISUAL_TOPICS = (FRAMES_BODY, FRAMES_ORBIT, MARKERS, MARKERS_STATIC, ERROR_EIGEN
 RECORDED_VISUAL_TOPICS = (FRAMES_BODY, FRAMES_ORBIT, MARKERS, ERROR_EIGENAXIS, ERROR_EULER_213)
 RECORDED_TOPICS = (CLOCK, *RECORDED_VISUAL_TOPICS)
 RECORDING_CONFIG = 'dynamics/recording'   # std_msgs/String, latched: what the recorder writes itself (JSON)
+# std_msgs/String, latched: the publishers the recorder's readers have matched (JSON, start-up only)
+RECORDER_MATCHED = 'recorder/matched'
 FRAME_TOPICS = (FRAMES_BODY, FRAMES_ORBIT)
 # Written by the recorder into the bag only: the transforms received on FRAME_TOPICS as
 # tf2_msgs/TFMessage (no tf2_msgs wheel for Jazzy on PyPI: it cannot be published here), the
@@ -86,6 +88,7 @@ PUBLISHER_ROLES: dict[str, tuple[str, ...]] = {
     **{topic: ('dynamics',) for topic in SENSOR_TOPICS.values()},
     ESTIMATE_STATE: ('estimator',), ESTIMATOR_STATUS: ('estimator',),
     **{topic: ('dynamics',) for topic in (*VISUAL_TOPICS, RECORDING_CONFIG)},
+    RECORDER_MATCHED: ('recorder',),
 }
 
 

@@ -39,7 +39,8 @@ from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
-from adcs_msgs_py import topics
+from adcs_msgs_py import conversions as cv
+from adcs_msgs_py import names, topics
 from adcs_msgs_py.executor import LockstepExecutor
 from adcs_msgs_py.guard import (
     Intruder,
@@ -126,22 +127,29 @@ def _plain(value):
 MATCH_RECHECK_S = 0.02
 
 
+def _can_meet(offered, requested) -> bool:
+    """Whether a writer's ``offered`` QoS can meet a reader's ``requested`` one on the two policies DDS
+    matches that the interface sets: not a reliable reader of a best-effort writer, nor a
+    transient-local reader of a volatile one. Anything else (an unknown policy included) may match.
+    (rclpy's ``qos_check_compatible`` is no use here: an endpoint's own profile holds "default"
+    durations where the graph lists "infinite", which it reports as incompatible.)"""
+    return not ((offered.reliability == ReliabilityPolicy.BEST_EFFORT and requested.reliability == ReliabilityPolicy.RELIABLE)
+                or (offered.durability == DurabilityPolicy.VOLATILE
+                    and requested.durability == DurabilityPolicy.TRANSIENT_LOCAL))
+
+
 def can_match(pub) -> Callable[[object], bool]:
     """Whether a subscription the graph lists (a topic endpoint info) can ever be matched to the
-    publisher ``pub``: the same type, and no request its offer cannot meet on the two policies DDS
-    matches that the interface sets (a reliable reader of a best-effort writer, a transient-local
-    reader of a volatile one). Anything else (an unknown policy included) may match. (rclpy's
-    ``qos_check_compatible`` is no use here: the publisher's own profile holds "default" durations
-    where the graph lists "infinite", which it reports as incompatible.)"""
-    name = topics.type_name(pub.msg_type)
-    qos = pub.qos_profile
+    publisher ``pub``: the same type and a request its offer can meet (:func:`_can_meet`)."""
+    name, qos = topics.type_name(pub.msg_type), pub.qos_profile
+    return lambda info: info.topic_type == name and _can_meet(qos, info.qos_profile)
 
-    def check(info) -> bool:
-        wanted = info.qos_profile
-        return info.topic_type == name and not (
-            (qos.reliability == ReliabilityPolicy.BEST_EFFORT and wanted.reliability == ReliabilityPolicy.RELIABLE)
-            or (qos.durability == DurabilityPolicy.VOLATILE and wanted.durability == DurabilityPolicy.TRANSIENT_LOCAL))
-    return check
+
+def can_deliver(sub) -> Callable[[object], bool]:
+    """Whether a publisher the graph lists can ever be matched to the subscription ``sub``: the
+    same type and an offer that can meet its request (:func:`_can_meet`)."""
+    name, qos = topics.type_name(sub.msg_type), sub.qos_profile
+    return lambda info: info.topic_type == name and _can_meet(info.qos_profile, qos)
 
 
 class MatchedWait:
@@ -222,6 +230,8 @@ class AdcsNode(Node):
         self.rejects = RejectCounter(self.get_logger())
         self.vetting = PublisherVetting(self, parse_publishers(self.params.get('startup.publishers', [])),
                                         self.on_intrusion, self.on_unmatchable)
+        self._recorder_matched_sub = None     # recorder/matched, once a start-up waits for it
+        self._recorder_matched: dict[str, frozenset[str]] = {}
 
     # --- the validation boundary of every incoming message ----------------------------------
 
@@ -348,6 +358,28 @@ class AdcsNode(Node):
         messages (adcs_msgs_py.topics)."""
         if self.params['startup.expect_recorder'] and step % topics.ACK_INTERVAL == 0:
             self.wait_acked(publishers, timeout)
+
+    def wait_recorder_matched(self, publishers, executor) -> None:
+        """With a recorder expected: spin ``executor`` until the recorder's latest ``recorder/matched``
+        names this node on the topic of each of ``publishers`` (None entries skipped), i.e. until the
+        recorder's *readers* have matched them; GraphTimeout after ``startup.timeout``.
+
+        :meth:`wait_for_publishers` sees the writer's side of a match only. DDS matches the two
+        sides on their own, and a VOLATILE reader that matches a writer late takes only what is
+        written after that: seen as a bag without the first 59 steps of every topic on a loaded
+        machine. Hence every node writing a recorded topic waits for this before its first message."""
+        if not self.params['startup.expect_recorder']:
+            return
+        wanted = {pub.topic_name for pub in publishers if pub is not None}
+        if self._recorder_matched_sub is None:
+            self._recorder_matched_sub = self.subscription(names.RECORDER_MATCHED, self._on_recorder_matched)
+        me = self.get_fully_qualified_name()
+        self.spin_until(executor, f'the recorder matching its publishers on {", ".join(sorted(wanted))}',
+                        lambda: all(me in self._recorder_matched.get(t, ()) for t in wanted),
+                        self.params['startup.timeout'])
+
+    def _on_recorder_matched(self, msg) -> None:
+        self._recorder_matched = cv.matched_from_msg(msg, self._recorder_matched_sub.topic_name)
 
     def wait_for_publishers(self, required: dict, timeout: float) -> None:
         """Wait until each publisher has at least the given number of matched subscriptions. When

@@ -71,6 +71,7 @@ from adcs_msgs_py.names import (  # noqa: F401
     RECORDED_TOPICS,
     RECORDED_VISUAL_TOPICS,
     RECORDING_CONFIG,
+    RECORDER_MATCHED,
     REFERENCE,
     SENSOR_IMU,
     SENSOR_MAGNETOMETER,
@@ -204,6 +205,10 @@ TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in (
               'published once before t = 0: what the recorder writes itself (JSON: /clock from the '
               'state stamps; the viewer messages\' target, axis length, wheel and thruster geometry, '
               'orbit, attitude topic): adcs_msgs_py/recorded_topics.py'),
+    TopicSpec(RECORDER_MATCHED, String, QOS_LATCHED,
+              'the recorder\'s start-up handshake: JSON {topic: [node, ...]}, the nodes whose publishers '
+              'on each recorded topic its readers have matched; a writer waits to be named before its '
+              'first message (AdcsNode.wait_recorder_matched). Not recorded'),
 )}
 
 
@@ -287,4 +292,7 @@ QOS_RATIONALE: dict[str, str] = {
                    'that joins late (it cannot write /clock or a viewer message without it; the dynamics node '
                    'also waits for the acknowledgement before t = 0). KEEP_LAST depth 100 as faults '
                    '(one message).',
+    RECORDER_MATCHED: 'RELIABLE and TRANSIENT_LOCAL: a node that subscribes after an announcement still '
+                      'gets the latest; published again whenever the recorder\'s matches change. '
+                      'KEEP_LAST depth 100 as faults (only the latest counts).',
 }

@@ -77,7 +77,7 @@ def test_controller_rejects_bad_states(ros_domain, tmp_path):
         pub = test.create_publisher(Odometry, topics.STATE, topics.QOS_LOCKSTEP)
         answers = []
         test.create_subscription(JointState, topics.WHEELS_CMD, answers.append, topics.QOS_LOCKSTEP)
-        pd.connect()
+        pd.connect(graph.executor)
         graph.spin_until(lambda: pub.get_subscription_count() >= 1, what='a matched state subscriber')
         bad = [
             cv.state_to_msg(1, [0.0, 0.0, 0.0, 1.1], [0.0, 0.0, 0.0]),          # not unit

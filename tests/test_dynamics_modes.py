@@ -27,7 +27,7 @@ def test_realtime_mode_paces_and_uses_latest_commands(ros_domain, tmp_path):
     with InProcessGraph(scenario) as graph:
         dyn = graph.add(DynamicsNode)
         pd = graph.add(PdController)
-        pd.connect()
+        pd.connect(graph.executor)
         e0 = float(eigenaxis_angle(dyn.x[:4]))
         wall0 = time.monotonic()
         dyn.run(graph.executor)

@@ -84,7 +84,7 @@ def estimator(tmp_path_factory):
         mp.setenv('ROS_DOMAIN_ID', str(lease.domain_id))
         with InProcessGraph(scenario) as graph:
             node = graph.add(MekfEstimator)
-            node.connect()
+            node.connect(graph.executor)
             yield node
     lease.release()
 

@@ -65,8 +65,8 @@ def test_estimator_node_equals_its_family_and_a_controller_flies_on_it(name, ros
             qos = topics.spec(topic).qos
             test.create_subscription(topics.spec(topic).msg_type, topic, got[key].append,
                                      QoSProfile(depth=100, reliability=qos.reliability, durability=qos.durability))
-        pd.connect()      # its wheels/cmd is matched by the test: it subscribes to estimate/state
-        est.connect()     # estimate/state is matched by the controller: it subscribes to the sensors
+        pd.connect(graph.executor)      # its wheels/cmd is matched by the test: it subscribes to estimate/state
+        est.connect(graph.executor)     # estimate/state is matched by the controller: it subscribes to the sensors
         graph.spin_until(lambda: all(p.get_subscription_count() >= 1 for p in pubs.values()), what='sensor subs')
         sent = []
         for k in range(STEPS):

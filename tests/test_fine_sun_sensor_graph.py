@@ -91,8 +91,8 @@ def test_estimator_chain_on_the_fine_sun_sensor_in_lockstep_equals_the_batch(ros
         dyn = graph.add(DynamicsNode)
         est = graph.add(MekfEstimator)
         pd = graph.add(PdController)
-        pd.connect()      # its wheels/cmd is matched: it subscribes to estimate/state
-        est.connect()     # estimate/state is matched by the controller: it subscribes to the sensors
+        pd.connect(graph.executor)      # its wheels/cmd is matched: it subscribes to estimate/state
+        est.connect(graph.executor)     # estimate/state is matched by the controller: it subscribes to the sensors
         dyn.run(graph.executor)
         counts = rec.bag.topics
         graph.spin_until(lambda: all(t in counts and counts[t].count == c for t, c in expected.items()),

@@ -137,9 +137,9 @@ def graphs(tmp_path_factory):
                 # the injector's /clock subscription as it started, kept: a run to the end drops it
                 _INJECTOR_CLOCK['sub'] = nodes['fault_injector'].sub_clock
                 nodes['pd_controller'].wait_for_faults(a.executor)
-                nodes['pd_controller'].connect()
+                nodes['pd_controller'].connect(a.executor)
                 b.add(DynamicsNode)   # what the backstepping controller's start-up waits for
-                nodes['backstepping_controller'].connect()
+                nodes['backstepping_controller'].connect(b.executor)
                 yield a, nodes, steps, tmp / 'bag'
     for lease in leases:
         lease.release()

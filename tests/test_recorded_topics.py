@@ -192,7 +192,7 @@ def test_in_a_graph_the_bag_holds_what_a_live_viewer_received(tmp_path, ros_doma
         pubs = {**dyn.pub_visual, names.CLOCK: dyn.pub_clock}
         graph.spin_until(lambda: all(pubs[t].get_subscription_count() >= 1 for t in live))
         pd = graph.add(PdController)
-        pd.connect()
+        pd.connect(graph.executor)
         dyn.run(graph.executor)
         graph.spin_until(lambda: all(len(m) == n + (t != names.MARKERS) for t, m in live.items())
                          and rec.bag.topics['/state'].count == n + 1 and '/markers' in rec.bag.topics

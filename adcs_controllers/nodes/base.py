@@ -182,11 +182,13 @@ class ControllerNode(FlightSoftwareStop, WheelStatePairing, AdcsNode):
 
     # --- plumbing ---------------------------------------------------------------------------
 
-    def connect(self) -> None:
-        """Wait for the command publisher to be matched, then subscribe to the state."""
+    def connect(self, executor) -> None:
+        """Wait for the command publishers to be matched (by the recorder's readers too: spinning
+        ``executor``), then subscribe to the state."""
         recorder = 1 if self.params['startup.expect_recorder'] else 0
         self.wait_for_publishers({**{pub: 1 + recorder for pub in self.pub_cmds.values()},
                                   self.pub_status: recorder}, self.params['startup.timeout'])
+        self.wait_recorder_matched([*self.pub_cmds.values(), self.pub_status], executor)
         if self.pairs_wheels:
             self.sub_wheels = self.subscription(topics.WHEELS_STATE, self._on_wheel_state, raw=True)
         self.sub_state = self.subscription(self.state_topic, self._on_state, raw=True)
@@ -194,7 +196,7 @@ class ControllerNode(FlightSoftwareStop, WheelStatePairing, AdcsNode):
     def run(self, executor) -> None:
         if self.params['startup.expect_faults']:
             self.wait_for_faults(executor)
-        self.connect()
+        self.connect(executor)
         self.spin(executor)
 
     # --- faults -----------------------------------------------------------------------------

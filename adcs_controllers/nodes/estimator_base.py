@@ -92,17 +92,19 @@ class EstimatorNode(FlightSoftwareStop, AdcsNode):
         self.steps = 0              # steps answered (the acknowledgement pacing counts them)
         self.last_ns: int | None = None
 
-    def connect(self) -> None:
-        """Wait for the estimate's subscribers, then subscribe to the sensors."""
+    def connect(self, executor) -> None:
+        """Wait for the estimate's subscribers (the recorder's readers too: spinning ``executor``),
+        then subscribe to the sensors."""
         p = self.params
         recorder = 1 if p['startup.expect_recorder'] else 0
         self.wait_for_publishers({self.pub_estimate: p['startup.estimate_subscribers'] + recorder,
                                   self.pub_status: recorder}, p['startup.timeout'])
+        self.wait_recorder_matched([self.pub_estimate, self.pub_status], executor)
         for name in self.sensors:
             self.subs[name] = self.subscription(SENSOR_TOPICS[name], lambda msg, n=name: self._on_sensor(n, msg))
 
     def run(self, executor) -> None:
-        self.connect()
+        self.connect(executor)
         self.spin(executor)
 
     def _on_sensor(self, name: str, msg) -> None:

@@ -317,7 +317,7 @@ class DynamicsNode(AdcsNode):
 
     # --- main loop ------------------------------------------------------------------------
 
-    def wait_for_graph(self) -> None:
+    def wait_for_graph(self, executor) -> None:
         p = self.params
         timeout = p['startup.timeout']
         recorder = 1 if p['startup.expect_recorder'] else 0
@@ -343,10 +343,11 @@ class DynamicsNode(AdcsNode):
             # a step only with that step's wheels/state, so that must reach it from t = 0.
             required[self.pub_wheels] = max(required.get(self.pub_wheels, 0), 1 + recorder)
         self.wait_for_publishers(required, timeout)
+        self.wait_recorder_matched([pub for pub, n in required.items() if n >= recorder > 0], executor)
 
     def run(self, executor) -> None:
         self.plant.warm()   # loads the compiled kernel while discovery matches the endpoints
-        self.wait_for_graph()
+        self.wait_for_graph(executor)
         if self.params['startup.expect_faults']:
             self.wait_for_faults(executor)
         self.get_logger().info(

@@ -40,8 +40,8 @@ from std_msgs.msg import String
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import names, topics
 from adcs_msgs_py.cdr import deserialized
-from adcs_msgs_py.guard import Intruder, Unmatchable
-from adcs_msgs_py.node import FASTDDS_PROFILE, AdcsNode, DiskFull, RunStopped, main_for
+from adcs_msgs_py.guard import UNKNOWN_NODE, Intruder, Unmatchable
+from adcs_msgs_py.node import FASTDDS_PROFILE, AdcsNode, DiskFull, RunStopped, can_deliver, main_for
 from adcs_msgs_py.recorded_topics import MAX_PENDING, RecordedTopics, parse_config
 from adcs_sim.bag.schema import RECORDER_SCHEMA
 from adcs_sim.bag.tf import TF_TYPE, tf_message_cdr
@@ -53,6 +53,9 @@ READY_LINE = 'recorder: ready'
 DRAIN_MAX_S = 10.0  # < the runner's stop timeout (adcs_sim.app.graph.processes.STOP_TIMEOUT_S)
 PROFILES_ENV = 'FASTRTPS_DEFAULT_PROFILES_FILE'
 RECORDER_PROFILE = Path(__file__).resolve().parent / 'recorder_fastdds.xml'
+# How often the recorder looks at its readers' matches (recorder/matched): the longest a node's
+# start-up waits after the recorder has matched it; ~15 matched counts a look, a few µs each.
+MATCH_LOOK_S = 0.05
 MAX_UNTAKEN = 1000  # messages a topic DDS holds for the recorder (recorder_fastdds.xml's max_samples)
 
 
@@ -134,11 +137,16 @@ class RecorderNode(AdcsNode):
         # the config first: an executor that takes ready subscriptions in their order takes it
         # before a state that arrived with it (the events executor takes them as they arrive)
         for spec in sorted(topics.TOPICS.values(), key=lambda s: s.name != names.RECORDING_CONFIG):
-            if spec.name in names.RECORDED_TOPICS:
+            if spec.name in names.RECORDED_TOPICS or spec.name == names.RECORDER_MATCHED:
                 continue
             if self.record_all or spec.name in wanted or (spec.name == names.RECORDING_CONFIG and self.own_topics):
                 self._subscribe(spec.name, spec.msg_type, topics.recorder_qos(spec.qos), spec.qos)
         self.create_timer(p['flush_period'], self._unless_unwritable(self.bag.flush))
+        # the start-up handshake (AdcsNode.wait_recorder_matched): whose publishers it has matched
+        self.pub_matched = self.publisher(names.RECORDER_MATCHED)
+        self._matched_looked: dict[str, int] | None = None   # the matched counts last accounted for
+        self._matched_sent: dict[str, set[str]] | None = None
+        self.create_timer(MATCH_LOOK_S, self._announce_matched)
         if self.record_all:
             self.create_timer(p['discovery_period'], self._unless_unwritable(self._discover))
         if self.vetting.active:   # an intruder is recorded even if nothing it sends comes through
@@ -175,6 +183,29 @@ class RecorderNode(AdcsNode):
 
         self.subs[resolved] = self.subscription(name, self._unless_unwritable(on_message), qos=qos,
                                                 msg_type=msg_type, raw=True)
+
+    def _announce_matched(self) -> None:
+        """Publish ``recorder/matched`` when the readers' matched counts change: for each topic
+        whose matched publishers are at least those the graph lists (each listed one is then
+        matched; the graph can list a writer a moment before or after its match), their nodes.
+        Counts the graph does not account for yet (or whose node names have not arrived) are looked
+        at again next time."""
+        counts = {topic: sub.get_publisher_count() for topic, sub in self.subs.items()}
+        if counts == self._matched_looked:
+            return
+        matched, settled = {}, True
+        for topic, count in counts.items():
+            if not count:
+                continue
+            infos = [i for i in self.get_publishers_info_by_topic(topic) if can_deliver(self.subs[topic])(i)]
+            # a node name arrives after its endpoints (UNKNOWN_NODE until then): looked at again
+            settled &= len(infos) == count and all(i.node_name != UNKNOWN_NODE for i in infos)
+            if count >= len(infos):
+                matched[topic] = {f'{i.node_namespace.rstrip("/")}/{i.node_name}' for i in infos}
+        if matched != self._matched_sent:
+            self.pub_matched.publish(cv.matched_to_msg(matched))
+            self._matched_sent = matched
+        self._matched_looked = counts if settled else None
 
     def _unless_unwritable(self, callback):
         """``callback``, doing nothing once the bag cannot be written, and stopping the recorder
@@ -246,7 +277,8 @@ class RecorderNode(AdcsNode):
     def _discover(self) -> None:
         """Subscribe to topics that appeared in the graph (in this namespace) since the last look."""
         ns = self.get_namespace().rstrip('/') + '/'
-        reserved = (self.resolve_topic_name(names.INTRUSIONS), ns + names.QUARANTINE_PREFIX + '/')
+        reserved = (self.resolve_topic_name(names.INTRUSIONS), ns + names.QUARANTINE_PREFIX + '/',
+                    self.resolve_topic_name(names.RECORDER_MATCHED))
         for name, types in self.get_topic_names_and_types():
             if (name in self.subs or name in self.skipped or name in IGNORED_TOPICS or name in self.derived
                     or (name == names.CLOCK and (self.recorded.config.clock if self.recorded

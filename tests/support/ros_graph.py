@@ -110,7 +110,7 @@ def record_pd_loop(tmp_path: Path, n: int, dynamics: dict | None = None, extra_c
         rec = graph.add(RecorderNode)
         dyn = graph.add(DynamicsNode)
         pd = graph.add(PdController)
-        pd.connect()
+        pd.connect(graph.executor)
         dyn.run(graph.executor)
         counts = rec.bag.topics
         graph.spin_until(lambda: all(counts[t].count == c for t, c in expected.items()))
@@ -155,7 +155,7 @@ def run_lockstep_graph(scenario: Path, controller_class, expected: dict, faults:
         ctrl = graph.add(controller_class)
         if faults:
             ctrl.wait_for_faults(graph.executor)
-        ctrl.connect()
+        ctrl.connect(graph.executor)
         dyn.run(graph.executor)
         counts = rec.bag.topics
         graph.spin_until(lambda: all(t in counts and counts[t].count == c for t, c in expected.items()),

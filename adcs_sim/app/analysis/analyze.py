@@ -122,6 +122,9 @@ def _load(paths: list[str], args) -> tuple[dict, int]:
             problem = run.data.problem if writer is None else f'still being written by {writer}'
             print(f'adcs-analyze: warning: {path}: {problem}; analysed the {run.message_count} '
                   f'messages read (up to t = {run.data.t_end:.6g} s)', file=sys.stderr)
+        if len(run.data.t) and run.data.t[0] > 0:   # every run's first state is stamped 0
+            print(f'adcs-analyze: warning: {path}: the recording starts at t = {run.data.t[0]:.6g} s, not at '
+                  'the run\'s start (t = 0): the metrics cover what was recorded', file=sys.stderr)
     return runs, status
 
 

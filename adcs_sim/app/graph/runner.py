@@ -73,7 +73,7 @@ def allowed_publishers(sections, restarts: int = 0) -> list[str]:
     with ``restarts`` (``--restart N``), the controllers are restartable (a killed one's
     predecessor stays in the graph for a while beside it: adcs_msgs_py.guard)."""
     by_role: dict[str, list[str]] = {}
-    for name in sections:
+    for name in sorted({*sections, 'recorder'}):   # every run has a recorder, with a section or not
         by_role.setdefault(NODES[name].role, []).append(name)
     allowed = {topic: [n for role in roles for n in by_role.get(role, [])]
                for topic, roles in names.PUBLISHER_ROLES.items()}
