@@ -112,6 +112,24 @@ def quat_conjugate(q: np.ndarray) -> np.ndarray:
     return np.concatenate([-q[..., :3], q[..., 3:4]], axis=-1)
 
 
+ROTATION_VECTOR_SMALL = 1e-8   # |q_v| below which rotation_vector uses its series (truncation ~1e-24)
+
+
+def rotation_vector(q: np.ndarray) -> np.ndarray:
+    """The rotation vector ``φ`` (..., 3) of the unit quaternion ``q`` (..., 4): ``exp(φ/2) = ±q``,
+    the shorter of the two (``|φ| <= π``): ``φ = 2 atan2(|q_v|, |q_4|) sign(q_4) q_v / |q_v|``,
+    the series ``2 sign(q_4) q_v / |q_4| (1 − |q_v|²/(3 q_4²))`` for a tiny ``|q_v|``."""
+    q = np.asarray(q, dtype=float)
+    sign = np.where(q[..., 3] < 0.0, -1.0, 1.0)
+    v, w = q[..., :3] * sign[..., None], np.abs(q[..., 3])
+    n = np.sqrt(v[..., 0] * v[..., 0] + v[..., 1] * v[..., 1] + v[..., 2] * v[..., 2])
+    small = n < ROTATION_VECTOR_SMALL
+    w_safe = np.where(small, np.where(w > 0.0, w, 1.0), 1.0)
+    factor = np.where(small, 2.0 / w_safe * (1.0 - n * n / (3.0 * w_safe * w_safe)),
+                      2.0 * np.arctan2(n, w) / np.where(small, 1.0, n))
+    return factor[..., None] * v
+
+
 def quat_norm(q: np.ndarray) -> np.ndarray:
     """Norm of quaternions (..., 4), summed in a fixed order: a row gives the same bits alone or in
     a batch."""

@@ -230,8 +230,8 @@ class AdcsNode(Node):
         self.rejects = RejectCounter(self.get_logger())
         self.vetting = PublisherVetting(self, parse_publishers(self.params.get('startup.publishers', [])),
                                         self.on_intrusion, self.on_unmatchable)
-        self._recorder_matched_sub = None     # recorder/matched, once a start-up waits for it
-        self._recorder_matched: dict[str, frozenset[str]] = {}
+        self._matched_names_sub = None     # recorder/matched, once a start-up waits for it
+        self._matched_names: dict[str, frozenset[str]] = {}
 
     # --- the validation boundary of every incoming message ----------------------------------
 
@@ -371,15 +371,15 @@ class AdcsNode(Node):
         if not self.params['startup.expect_recorder']:
             return
         wanted = {pub.topic_name for pub in publishers if pub is not None}
-        if self._recorder_matched_sub is None:
-            self._recorder_matched_sub = self.subscription(names.RECORDER_MATCHED, self._on_recorder_matched)
+        if self._matched_names_sub is None:
+            self._matched_names_sub = self.subscription(names.RECORDER_MATCHED, self._on_matched_names)
         me = self.get_fully_qualified_name()
         self.spin_until(executor, f'the recorder matching its publishers on {", ".join(sorted(wanted))}',
-                        lambda: all(me in self._recorder_matched.get(t, ()) for t in wanted),
+                        lambda: all(me in self._matched_names.get(t, ()) for t in wanted),
                         self.params['startup.timeout'])
 
-    def _on_recorder_matched(self, msg) -> None:
-        self._recorder_matched = cv.matched_from_msg(msg, self._recorder_matched_sub.topic_name)
+    def _on_matched_names(self, msg) -> None:
+        self._matched_names = cv.matched_from_msg(msg, self._matched_names_sub.topic_name)
 
     def wait_for_publishers(self, required: dict, timeout: float) -> None:
         """Wait until each publisher has at least the given number of matched subscriptions. When

@@ -83,7 +83,7 @@ def test_without_a_recorder_nothing_is_awaited(ros_domain, tmp_path):
         s = topics.spec(topics.WHEELS_CMD)
         stand_in.create_subscription(s.msg_type, topics.WHEELS_CMD, lambda _m: None, s.qos)
         pd.connect(graph.executor)
-        assert pd._recorder_matched_sub is None and pd.sub_state is not None
+        assert pd._matched_names_sub is None and pd.sub_state is not None
 
 
 # --- the recorder says it -------------------------------------------------------------------------

@@ -116,10 +116,11 @@ def estimator_params(sensors_default: list[str], sensor_choice: str, vectors=VEC
               doc=f'the fitted sensors this estimator uses ({sensor_choice}); their topics are sensors/*'),
         Param('gyro.sigma_v', 'double', default=1e-5, check=up_to(MAX_GYRO_NOISE, 'rad/s^0.5'), batch=True,
               doc='angle random walk the filter assumes (rad/s^0.5)'),
-        Param('gyro.propagation', 'string', default='hold', choices=('hold', 'average'),
-              doc="the rate over [t_k-1, t_k]: 'hold' the sample of t_k-1 (a sample that is the mean rate "
-                  "over the step after it, the Farrenkopf model); 'average' the mean of the samples of t_k-1 "
-                  "and t_k (instantaneous samples: the trapezoidal rule)"),
+        Param('gyro.propagation', 'string', default='increment', choices=('increment', 'hold', 'average'),
+              doc="the rate over [t_k-1, t_k]: 'increment' the sample of t_k (a rate-integrating gyro's "
+                  "mean rate over the step that ends at t_k, the simulator's gyro); 'hold' the sample of "
+                  "t_k-1 (a sample that is the mean rate over the step after it); 'average' the mean of the "
+                  "samples of t_k-1 and t_k (instantaneous samples: the trapezoidal rule)"),
         *(_vector_sigma(name) for name in vectors),
         Param('references.model', 'string', default='constant', choices=('constant', 'environment'),
               doc="the inertial reference vectors of the vector sensors: 'constant' references.sun and "
@@ -310,7 +311,7 @@ class _Base:
         self.sensors = tuple(p.sensors)
         self.references = references or default_references(p)
         self.sigma_v = np.asarray(p.gyro.sigma_v, dtype=float)
-        self.average = p.gyro.propagation == 'average'
+        self.propagation = p.gyro.propagation
         self.sigma_dir = {name: np.asarray(getattr(p, name).sigma, dtype=float) for name in VECTOR_SENSORS
                           if hasattr(getattr(p, name, None), 'sigma')}
         self.t_ns: int | None = None
@@ -330,8 +331,9 @@ class _Base:
         return dt
 
     def _gyro(self, m: Measurements, shape) -> tuple[np.ndarray, np.ndarray]:
-        """(this step's gyro rate, the rate over the interval that ends here: the last valid sample,
-        or with ``gyro.propagation: average`` its mean with this one where this one is valid)."""
+        """(this step's gyro rate, the rate over the interval that ends here: with
+        ``gyro.propagation`` ``increment`` this sample, ``hold`` the last valid one, ``average`` their
+        mean; the last valid one wherever this one is not valid)."""
         if m.gyro is None:
             raise ValueError('estimator: no gyro reading (the gyro is not fitted)')
         valid = _valid(m.gyro, shape)
@@ -342,7 +344,10 @@ class _Base:
         self._count('rejected_gyro', valid & ~ok)
         last = np.zeros(shape + (3,)) if self.rate is None else self.rate
         rate = _placeholder(m.gyro.value, ok, last)
-        interval = np.where(ok[..., None], 0.5 * (last + rate), last) if self.average else last
+        if self.propagation == 'hold':
+            interval = last
+        else:
+            interval = np.where(ok[..., None], rate if self.propagation == 'increment' else 0.5 * (last + rate), last)
         self.rate = rate
         return rate, interval
 

@@ -19,7 +19,17 @@ from collections import deque
 
 import numpy as np
 
-from adcs_core.attitude import cross, dot, matvec, quat_multiply, rotate_to_body, rotate_to_inertial, unit
+from adcs_core.attitude import (
+    cross,
+    dot,
+    matvec,
+    quat_conjugate,
+    quat_multiply,
+    rotate_to_body,
+    rotate_to_inertial,
+    rotation_vector,
+    unit,
+)
 from adcs_msgs_py.measurements import Reading
 
 GYRO_AXES = ('x', 'y', 'z')
@@ -98,23 +108,28 @@ class _Model:
 
 
 class Gyro(_Model):
-    """Three-axis rate gyro, the discrete Farrenkopf model (Crassidis & Junkins, *Optimal Estimation
-    of Dynamic Systems*, 2nd ed., CRC 2012, ch. 7, the gyro measurement model used to simulate the
-    attitude Kalman filter; equation numbers not checked):
+    """Three-axis rate-integrating gyro, the discrete Farrenkopf model (Crassidis & Junkins, *Optimal
+    Estimation of Dynamic Systems*, 2nd ed., CRC 2012, ch. 7, the gyro measurement model used to
+    simulate the attitude Kalman filter; equation numbers not checked):
 
-    ``ω̃_k = (1 + s) ∘ ω(t_k) + ½ (β_k + β_{k+1}) + m_k + b_f + (σ_v²/Δt + σ_u² Δt/12)^½ N_v``,
+    ``ω̃_k = (1 + s) ∘ ω̄_k + ½ (β_k + β_{k+1}) + m_k + b_f + (σ_v²/Δt + σ_u² Δt/12)^½ N_v``,
     ``β_{k+1} = β_k + σ_u Δt^½ N_u``, ``β_0`` = the constant bias,
 
-    the average over ``[t_k, t_k+1]`` of ``ω + β + η_v`` (``β̇ = η_u``) that the MEKF
-    (:mod:`adcs_controllers.estimators.mekf`) propagates with: ``σ_v`` the angle random walk
-    (rad/√s), ``σ_u`` the rate random walk (rad/s^1.5), ``s`` the scale-factor errors. Optional bias
-    instability as a first-order Gauss-Markov ``m_{k+1} = φ m_k + σ_m (1 − φ²)^½ N_m``,
-    ``φ = exp(−Δt/τ)``, ``m_0 = 0``; ``b_f`` the fault bias (a bias jump). The output is clipped to
-    ``±max_rate`` per axis (saturation); a stuck axis repeats its reading. The rate term is the
-    true rate at ``t_k`` (the state of the step; the plant's rate varies within the step, which the
-    estimator's constant-rate propagation does not model, as in flight). The reported covariance
-    is that of the white part, ``(σ_v²/Δt + σ_u² Δt/12) I``. Draws per step and run: ``N_v`` (3),
-    ``N_u`` (3), then ``N_m`` (3) when the Markov term is on.
+    the average over the step of ``ω + β + η_v`` (``β̇ = η_u``): ``σ_v`` the angle random walk
+    (rad/√s), ``σ_u`` the rate random walk (rad/s^1.5), ``s`` the scale-factor errors. The rate
+    term ``ω̄_k`` is the body rate over the step that ends at ``t_k``, as a rate-integrating gyro
+    with coning compensation outputs it (a strapdown unit's angle increment over its sample
+    period): the rotation vector of ``q(t_{k−1})* ⊗ q(t_k)`` over ``Δt``, the constant rate that
+    takes the attitude of ``t_{k−1}`` to that of ``t_k`` exactly, whatever the rate did within the
+    step. So the MEKF (:mod:`adcs_controllers.estimators.mekf`) propagating ``[t_{k−1}, t_k]`` with
+    the sample of ``t_k`` (``gyro.propagation: increment``) propagates the true attitude exactly but
+    for the noise and bias it models. At the first step (no step before it) ``ω̄_0`` is the true
+    rate of ``t_0``. Optional bias instability as a first-order Gauss-Markov
+    ``m_{k+1} = φ m_k + σ_m (1 − φ²)^½ N_m``, ``φ = exp(−Δt/τ)``, ``m_0 = 0``; ``b_f`` the fault
+    bias (a bias jump). The output is clipped to ``±max_rate`` per axis (saturation); a stuck axis
+    repeats its reading. The reported covariance is that of the white part,
+    ``(σ_v²/Δt + σ_u² Δt/12) I``. Draws per step and run: ``N_v`` (3), ``N_u`` (3), then ``N_m`` (3)
+    when the Markov term is on.
     """
 
     STREAM = 1
@@ -140,6 +155,7 @@ class Gyro(_Model):
         self.stuck_value = np.zeros((self.n_runs, 3))
         self.true_bias = self.beta.copy()           # the bias in the last reading (½(β_k+β_k+1) + m_k + b_f)
         self.cov = np.broadcast_to(self.variance * np.eye(3), (self.n_runs, 3, 3))
+        self.q_last = None                          # the attitude of the previous reading (runs, 4)
 
     def apply_fault(self, axis: int, mode: str, value: float = 0.0) -> None:
         """``bias``: the axis reads ``value`` rad/s more; ``stuck``: it repeats this step's reading;
@@ -150,13 +166,19 @@ class Gyro(_Model):
         self.stuck[axis] = mode == 'stuck'
 
     def read(self, k: int, q, w, env) -> Reading:
-        return self.measure(w)
+        """The reading of step ``k`` (one a step, in order): of the mean rate over the step that
+        ends here (class docstring), the true rate ``w`` at the first."""
+        q = self._batch(q, 4)
+        mean = w if self.q_last is None else rotation_vector(quat_multiply(quat_conjugate(self.q_last), q)) / self.dt
+        self.q_last = q.copy()
+        return self.measure(mean)
 
     def follow_fault(self, target: str, fault) -> None:
         self.apply_fault(GYRO_AXES.index(target.split('.', 1)[1]), fault.mode, fault.value)
 
     def measure(self, w) -> Reading:
-        """The reading of true body rate ``w`` (3,) or (runs, 3) at this step."""
+        """The reading of the body rate ``w`` (3,) or (runs, 3) over this step (:meth:`read` gives
+        the step's mean rate)."""
         w = self._batch(w, 3)
         n = _normals(self.rngs, 9 if self.markov_on else 6)
         beta_next = self.beta + self.sigma_walk * n[:, 3:6]

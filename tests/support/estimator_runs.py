@@ -49,6 +49,8 @@ def write_run_bag(path, steps=200):
 Q0 = [0.3062, 0.1768, 0.1768, 0.9186]
 SIGMA_V, SIGMA_U, SIGMA_ST = 1e-5, 1e-7, 1e-4
 BIAS0 = np.radians([0.1, -0.05, 0.08])     # a 0.1 deg/s-class gyro bias
+# StateSensors' gyro samples the rate at t_k (an instantaneous sample, not the truth model's
+# rate-integrating gyro): the trapezoidal rule is the propagation that fits it.
 MEKF_SECTION = {'sensors': ['gyro', 'star_tracker'], 'gyro.propagation': 'average', 'gyro.sigma_v': SIGMA_V, 'gyro.sigma_u': SIGMA_U,
                 'star_tracker.sigma': [SIGMA_ST] * 3, 'initial.attitude': Q0,
                 'initial.attitude_sigma': [0.05] * 3, 'initial.bias_sigma': [0.003] * 3}
