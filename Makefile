@@ -13,7 +13,7 @@ $(VENV)/.installed: requirements.txt requirements-dev.txt setup.py setup.cfg pyp
 	$(PY) -m adcs_sim.app.batch.kernels
 	touch $@
 
-.PHONY: install run test bench
+.PHONY: install run test bench docs
 install: $(VENV)/.installed
 
 run: $(VENV)/.installed
@@ -21,6 +21,10 @@ run: $(VENV)/.installed
 
 test: $(VENV)/.installed
 	$(PY) -m pytest -q -n 2 --dist loadfile --durations=25 tests
+
+# The user guide (docs/, mkdocs.yml) as a static site in site/; any warning fails the build.
+docs: $(VENV)/.installed
+	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict --site-dir site
 
 # BENCH_FLAGS=--basilisk adds the Basilisk comparisons (bsk installed into a throwaway venv in /tmp).
 # Not here (tens of minutes): benchmarks/long_run_memory.py, the real 24 h graph run.
