@@ -293,6 +293,7 @@ def write_histograms(campaign: Campaign, rows: list[dict], out: Path) -> list[Pa
     from matplotlib.figure import Figure
 
     from adcs_sim.app.report.figures import save_figure
+    from adcs_sim.app.report.markdown import metric_label
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     for m in campaign.metrics:
@@ -309,10 +310,10 @@ def write_histograms(campaign: Campaign, rows: list[dict], out: Path) -> list[Pa
         bound = campaign.requirements.get(m, {})
         for k, v in bound.items():
             ax.axvline(v, color='tab:red', linewidth=1.5, label=f'requirement {k} {v:g}')
-        ax.set_xlabel(m)
+        ax.set_xlabel(metric_label(m))   # a readable name and unit; the column's key in the title
         ax.set_ylabel('runs')
         extra = f', {values.size - finite.size} not finite' if values.size > finite.size else ''
-        ax.set_title(f'{m}: {finite.size} runs{extra}', fontsize='medium')
+        ax.set_title(f'{finite.size} runs{extra} (column {m})', fontsize='medium')
         ax.grid(True, alpha=0.35)
         ax.legend(fontsize='small')
         safe = m.replace('[', '_').replace(']', '')
