@@ -281,6 +281,7 @@ def _stop_graph(run: _Run) -> None:
     """The run completed: stop the other nodes, then the recorder (which closes the bag)."""
     graph = run.graph
     if run.progress is not None:
+        run.progress.complete()   # the last ticks it saw were a few steps short of the end
         run.progress.close()
         run.progress = None
     graph.stopping = True   # from here a signal cannot cut the shutdown short
