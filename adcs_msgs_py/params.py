@@ -50,7 +50,7 @@ def unknown_parameter(names, node: str, known) -> str:
     hint = did_you_mean(names[0], known)
     return (f'unknown parameter for node {node!r} (unknown: {", ".join(names)}); '
             + (f'{hint} ' if hint else '')
-            + f'every parameter of the node: {PARAMETER_REFERENCE} or `{node} --help`')
+            + f'every parameter of the node is in {PARAMETER_REFERENCE} (or `{node} --help`)')
 
 
 class ParameterError(ValueError):

@@ -152,7 +152,7 @@ class Campaign:
             hint = did_you_mean(key, schema.by_name)
             raise CampaignError(f'{where}: unknown parameter {key!r} of node {section!r}; '
                                 + (f'{hint} ' if hint else '')
-                                + f'every parameter of the node: {PARAMETER_REFERENCE}')
+                                + f'every parameter of the node is in {PARAMETER_REFERENCE}')
         if not param.batch:
             raise CampaignError(f'{where}: {section}.{key} cannot differ between runs of the batch '
                                 'engine (dispersible: '
