@@ -48,9 +48,9 @@ def unknown_parameter(names, node: str, known) -> str:
     first, and where every parameter is listed (never the whole list: a section has up to ~100)."""
     names = [names] if isinstance(names, str) else list(names)
     hint = did_you_mean(names[0], known)
-    return (f'unknown parameter for node {node!r} (unknown: {", ".join(names)}); '
-            + (f'{hint} ' if hint else '')
-            + f'every parameter of the node is in {PARAMETER_REFERENCE} (or `{node} --help`)')
+    return (f'unknown parameter for node {node!r} (unknown: {", ".join(names)}'
+            + (f'; {hint}' if hint else '')
+            + f'); every parameter of the node is in {PARAMETER_REFERENCE} (or `{node} --help`)')
 
 
 class ParameterError(ValueError):

@@ -150,9 +150,9 @@ class Campaign:
         param = schema.by_name.get(key)
         if param is None:
             hint = did_you_mean(key, schema.by_name)
-            raise CampaignError(f'{where}: unknown parameter {key!r} of node {section!r}; '
-                                + (f'{hint} ' if hint else '')
-                                + f'every parameter of the node is in {PARAMETER_REFERENCE}')
+            raise CampaignError(f'{where}: unknown parameter {key!r} of node {section!r}'
+                                + (f' ({hint})' if hint else '')
+                                + f'; every parameter of the node is in {PARAMETER_REFERENCE}')
         if not param.batch:
             raise CampaignError(f'{where}: {section}.{key} cannot differ between runs of the batch '
                                 'engine (dispersible: '

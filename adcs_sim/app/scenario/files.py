@@ -91,8 +91,8 @@ def validate_sections(sections: dict, path, duration: float | None = None) -> di
     unknown = [s for s in sections if s not in NODES]
     if unknown:
         hint = did_you_mean(unknown[0], NODES)
-        raise ParameterError(unknown[0], f'unknown node section {unknown[0]!r} in {path}; '
-                             + (f'{hint} ' if hint else '') + f'known nodes: {sorted(NODES)}')
+        raise ParameterError(unknown[0], f'unknown node section {unknown[0]!r} in {path}'
+                             + (f' ({hint})' if hint else '') + f'; known nodes: {sorted(NODES)}')
     if 'dynamics' not in sections:
         raise ParameterError('dynamics', f'{path} has no dynamics section: nothing would simulate')
     controllers = [s for s in sections if NODES[s].role == 'controller']
