@@ -42,6 +42,7 @@ from rclpy.signals import SignalHandlerOptions
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import names, topics
 from adcs_msgs_py.executor import LockstepExecutor
+from adcs_msgs_py.help_text import sentence
 from adcs_msgs_py.guard import (
     Intruder,
     IntrusionDetected,
@@ -436,12 +437,12 @@ def usage(schema: Schema) -> str:
     """What ``<node> --help`` prints: how to start it and its parameters, one line each."""
     lines = [f'usage: {schema.node} [-h] [--ros-args --params-file FILE] [--ros-args -p NAME:=VALUE ...]', '']
     if schema.doc:
-        lines += [schema.doc.strip(), '']
+        lines += [sentence(schema.doc), '']
     lines += [f'parameters (section {schema.node}.ros__parameters of a scenario file):']
     width = max((len(p.name) for p in schema.params), default=0)
     for p in schema.params:
         default = 'required' if p.default is REQUIRED else f'default {p.default!r}'
-        doc = f' {p.doc}' if p.doc else ''
+        doc = f' {sentence(p.doc)}' if p.doc else ''
         lines.append(f'  {p.name:<{width}}  {p.kind}, {default}.{doc}')
     return '\n'.join(lines)
 

@@ -11,6 +11,7 @@ No rclpy here: this module is importable and testable without ROS (params files 
 """
 from __future__ import annotations
 
+import difflib
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -28,6 +29,28 @@ CROSS_READS = ('value', 'length', 'none')
 
 # Parameters every rclpy node has; never "unknown".
 BUILTIN_PARAMETERS = frozenset({'use_sim_time', 'start_type_description_service'})
+
+
+# Where every parameter of every node is described (a user's pointer from an unknown-key message).
+PARAMETER_REFERENCE = 'docs/parameters.md'
+MAX_SUGGESTIONS = 5
+
+
+def did_you_mean(name: str, known) -> str:
+    """``"did you mean 'a', 'b'?"`` with the (at most :data:`MAX_SUGGESTIONS`) close matches of
+    ``name`` among ``known`` (difflib's ratio), or ``''`` when none is close."""
+    close = difflib.get_close_matches(str(name), sorted(map(str, known)), n=MAX_SUGGESTIONS, cutoff=0.6)
+    return f"did you mean {', '.join(repr(c) for c in close)}?" if close else ''
+
+
+def unknown_parameter(names, node: str, known) -> str:
+    """The one-line problem of unknown parameter(s) ``names`` of ``node``: the close matches of the
+    first, and where every parameter is listed (never the whole list: a section has up to ~100)."""
+    names = [names] if isinstance(names, str) else list(names)
+    hint = did_you_mean(names[0], known)
+    return (f'unknown parameter for node {node!r} (unknown: {", ".join(names)}'
+            + (f'; {hint}' if hint else '')
+            + f'); every parameter of the node is in {PARAMETER_REFERENCE} (or `{node} --help`)')
 
 
 class ParameterError(ValueError):
@@ -166,9 +189,7 @@ class Schema:
         """
         unknown = sorted(set(given) - set(self.by_name) - BUILTIN_PARAMETERS)
         if unknown:
-            close = ', '.join(unknown)
-            raise ParameterError(unknown[0], f'unknown parameter for node {self.node!r} '
-                                 f'(unknown: {close}); known: {sorted(self.by_name)}', self.node)
+            raise ParameterError(unknown[0], unknown_parameter(unknown, self.node, self.by_name), self.node)
         out: dict[str, Any] = {}
         for p in self.params:
             if p.name in given:
@@ -193,8 +214,7 @@ class Schema:
         for name, value in changes.items():
             p = self.by_name.get(name)
             if p is None:
-                raise ParameterError(name, f'unknown parameter for node {self.node!r} (unknown: {name}); '
-                                     f'known: {sorted(self.by_name)}', self.node)
+                raise ParameterError(name, unknown_parameter(name, self.node, self.by_name), self.node)
             try:
                 out[name] = p.coerce(value)
             except (TypeError, ValueError) as exc:

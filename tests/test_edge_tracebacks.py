@@ -112,13 +112,14 @@ def test_adcs_analyze_refuses_an_unusable_output_before_reading(tmp_path, kind, 
 
 
 def test_adcs_analyze_compare_default_is_checked_and_relative(tmp_path, monkeypatch, capsys):
-    """--compare with no --out: ``comparison`` in the current folder, checked like any --out."""
+    """--compare with no --out: a new ``runs/comparison-<time>`` under the current folder, checked like
+    any --out (here ``runs`` is a file of the user's: refused in one line, left as it was)."""
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(analyze, 'load_run', _reached)
-    (tmp_path / 'comparison').write_text('not a folder\n')
+    (tmp_path / 'runs').write_text('not a folder\n')
     assert analyze.main([str(BAG), str(BAG), '--compare']) == 2
-    one_line(capsys.readouterr().err, 'adcs-analyze', 'comparison', 'not a folder')
-    assert (tmp_path / 'comparison').read_text() == 'not a folder\n'
+    one_line(capsys.readouterr().err, 'adcs-analyze', 'runs/comparison-', 'not a folder')
+    assert (tmp_path / 'runs').read_text() == 'not a folder\n'
 
 
 # --- adcs-montecarlo --export-run and --scheduler -----------------------------------------------------

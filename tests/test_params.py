@@ -334,3 +334,24 @@ def test_errors_from_a_file_name_section_and_key(tmp_path, sections):
     loaded = load_params_file(str(path))
     with pytest.raises(ParameterError, match=r"'pd_controller\.ros__parameters\.kp'"):
         PD_SCHEMA.validate(loaded['pd_controller'])
+
+
+def test_an_unknown_key_names_its_close_matches_in_one_line():
+    """A misspelt key: the message is one line with at most five close matches and where every
+    parameter is described, never the whole list of the section's keys."""
+    with pytest.raises(ParameterError) as err:
+        DYNAMICS_SCHEMA.validate({'inertai': [1.0, 2.0, 3.0]})
+    message = str(err.value)
+    assert '\n' not in message
+    assert "did you mean 'inertia'?" in message
+    assert 'docs/parameters.md' in message
+    assert 'wheels.max_torque' not in message and len(message) < 300
+    suggested = message.split('did you mean ', 1)[1].split('?', 1)[0]
+    assert 1 <= suggested.count("'") // 2 <= 5
+
+
+def test_an_unknown_key_far_from_any_says_where_the_keys_are():
+    with pytest.raises(ParameterError) as err:
+        PD_SCHEMA.validate({'inertia': [1.0, 1.0, 1.0], 'kp': 1.0, 'kd': 1.0, 'zzzzqqq': 1})
+    message = str(err.value)
+    assert 'did you mean' not in message and 'docs/parameters.md' in message and 'target.rate' not in message

@@ -179,8 +179,9 @@ def test_comparison_table_and_overlaid_figures(bags, tmp_path, capsys):
 
 
 def test_comparison_default_folder_and_bad_member(bags, tmp_path, capsys, monkeypatch):
-    """Without --out: comparison/ in the current directory, nothing among the inputs (issue #17);
-    an unreadable bag is reported, the rest compared."""
+    """Without --out: a new runs/comparison-<time> (git-ignored), a second comparison a second
+    folder, nothing among the inputs nor a bare comparison/ in the current directory; an
+    unreadable bag is reported, the rest compared."""
     monkeypatch.chdir(tmp_path)
     inputs = sorted(bags['run_a'].parent.parent.rglob('*'))
     junk = tmp_path / 'junk.txt'
@@ -192,8 +193,14 @@ def test_comparison_default_folder_and_bad_member(bags, tmp_path, capsys, monkey
     assert [line for line in captured.err.splitlines() if line.startswith('adcs-analyze:')] == \
         [line for line in captured.err.splitlines() if str(junk) in line]
     assert sorted(bags['run_a'].parent.parent.rglob('*')) == inputs   # nothing written beside the bags
-    out = tmp_path / 'comparison'
-    assert math.isclose(float(next(r for r in csv.reader(open(out / 'comparison.csv')) if r[0] == 'missed_steps')[2]), 3)
+    assert not (tmp_path / 'comparison').exists()
+    [out] = (tmp_path / 'runs').glob('comparison-*')
+    rows = csv.reader(open(out / 'comparison.csv'))
+    assert math.isclose(float(next(r for r in rows if r[0] == 'missed_steps')[2]), 3)
+    first = (out / 'comparison.md').read_text()
+    assert analyze_main(['--compare', str(bags['run_a']), str(bags['run_b'])]) == 0
+    assert len(list((tmp_path / 'runs').glob('comparison-*'))) == 2
+    assert (out / 'comparison.md').read_text() == first   # the first comparison left as it was
 
 
 @pytest.mark.slow

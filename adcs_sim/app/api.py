@@ -16,13 +16,15 @@ Examples
 >>> slew = Scenario.load('microsat_pd_slew.yaml').override({'dynamics.duration': 120.0})
 >>> batch = slew.run_batch()
 >>> batch[0].metrics()['integrated_torque_Nms']  # doctest: +SKIP
->>> graph = slew.run_graph('runs/pd_slew')  # ROS 2 processes, loopback only  # doctest: +SKIP
+>>> graph = slew.run_graph()  # ROS 2 processes, loopback only, into a new runs/ folder  # doctest: +SKIP
 
 See ``docs/examples/pd_slew.py`` for a complete script.
 """
 from __future__ import annotations
 
 import copy
+import functools
+import logging
 import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -40,7 +42,9 @@ from adcs_sim.app.campaign.montecarlo import read_results
 from adcs_sim.app.scenario.parameters import explain_sections
 from adcs_sim.app.report.loading import Run, run_name
 from adcs_sim.app.report.single_run import run_figures, write_report
+from adcs_sim.app.graph.domains import MAX_DOMAIN_ID
 from adcs_sim.app.graph.runner import run_scenario
+from adcs_sim.app.outputs import fresh_folder
 from adcs_sim.app.scenario.files import resolve_scenario, validate_sections
 
 __all__ = ['Scenario', 'RunResult', 'BatchRuns', 'RunData', 'ParameterError', 'load_run', 'campaign_results']
@@ -226,24 +230,36 @@ class Scenario:
         result = BatchSimulation.from_runs(runs).run(progress=progress)
         return BatchRuns(result, runs)
 
-    def run_graph(self, out: str | Path, progress: bool = False, tol_deg: float = 0.5,
-                  restarts: int = 0) -> 'RunResult':
+    def run_graph(self, out: str | Path | None = None, progress: bool = False, tol_deg: float = 0.5,
+                  restarts: int = 0, domain_id: int | None = None, verbose: bool = False,
+                  overwrite: bool = False) -> 'RunResult':
         """Run the scenario through the ROS 2 node graph, as ``adcs-run`` does, and read its bag.
 
-        Each node is its own process on a freshly leased ``ROS_DOMAIN_ID``, discovery limited to
-        this machine; the recorder writes ``<out>/bag``.
+        Each node is its own process on a freshly leased ``ROS_DOMAIN_ID`` (or ``domain_id``),
+        discovery limited to this machine; the recorder writes ``<out>/bag``. Quiet by default:
+        what ``adcs-run`` prints goes to the ``adcs_sim.api`` logger (level INFO).
 
         Parameters
         ----------
-        out : str or pathlib.Path
-            Output folder (must not exist or be empty): ``bag/``, ``logs/``, ``metrics.json``,
-            ``scenario.yaml``.
+        out : str or pathlib.Path, optional
+            Output folder: ``bag/``, ``logs/``, ``metrics.json``, ``scenario.yaml``. It must not
+            exist or be empty (or, with ``overwrite``, hold an earlier run's output). Default: a new
+            folder ``runs/<scenario>-<date>-<time>`` (numbered if taken), so that running the
+            same lines twice gives two runs.
         progress : bool, optional
-            Show the progress bar in simulated time.
+            Show the progress bar in simulated time (on stderr).
         tol_deg : float, optional
             Settling band of ``metrics.json`` (deg).
         restarts : int, optional
             How many times a controller that dies mid-run is started again.
+        domain_id : int, optional
+            The ``ROS_DOMAIN_ID`` to run on (0..232), e.g. to watch the run with ``ros2 topic``;
+            default: a free one in 1..99.
+        verbose : bool, optional
+            Print the runner's lines (domain, discovery) on stdout instead of logging them.
+        overwrite : bool, optional
+            Replace ``out`` if it holds an earlier run's output and nothing else (a folder holding
+            anything else is refused, never written over).
 
         Returns
         -------
@@ -252,14 +268,30 @@ class Scenario:
 
         Raises
         ------
+        ValueError
+            ``domain_id`` is not an integer in 0..232 (before anything starts).
         adcs_sim.app.scenario.files.RunError
-            A node failed, or the output folder is not empty.
+            A node failed, the domain id is held by another run, or the output folder is not empty.
         """
-        out = Path(out)
+        check_domain_id(domain_id)
+        out = fresh_folder(self.source.stem) if out is None else Path(out)
+        log = functools.partial(print, flush=True) if verbose else logging.getLogger('adcs_sim.api').info
         with tempfile.TemporaryDirectory(prefix='adcs_api_') as tmp:
             path = self.write(Path(tmp) / self.source.name)
-            run_scenario(path, out, progress=progress, tol_deg=tol_deg, restarts=restarts)
+            run_scenario(path, out, progress=progress, tol_deg=tol_deg, restarts=restarts, domain_id=domain_id,
+                         log=log, overwrite=overwrite)
         return load_run(out / 'bag')
+
+
+def check_domain_id(domain_id) -> None:
+    """``domain_id`` is None or an integer in 0..232 (a ROS_DOMAIN_ID whose DDS ports are valid),
+    else a one-line ValueError naming it."""
+    if domain_id is None:
+        return
+    if isinstance(domain_id, bool) or not isinstance(domain_id, (int, np.integer)) \
+            or not 0 <= int(domain_id) <= MAX_DOMAIN_ID:
+        raise ValueError(f'domain_id: must be an integer in 0..{MAX_DOMAIN_ID} (a ROS_DOMAIN_ID), '
+                         f'got {domain_id!r}')
 
 
 @dataclass

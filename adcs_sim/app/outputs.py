@@ -9,7 +9,9 @@ nothing that is not the tool's own is ever written over:
   files it holds), writable, and neither inside one of the tool's inputs nor holding one;
 * :func:`check_file`: a file the tool writes must be absent or a regular file the tool wrote
   itself (``owned``, from its content), in an existing writable folder, and not an input or
-  inside one.
+  inside one;
+* :func:`fresh_folder`: a tool's default output folder, ``<parent>/<stem>-<date>-<time>``, numbered
+  (``-2``, ``-3``...) when that name is taken: running a command twice never meets its first output.
 
 Writability is probed by creating a file and removing it (``os.access`` says yes to root on a
 folder that refuses every write, e.g. an immutable or read-only mounted one); the probe is made in
@@ -22,9 +24,13 @@ import os
 import stat
 import tempfile
 from collections.abc import Callable, Iterable
+from datetime import datetime
 from pathlib import Path
 
-__all__ = ['OutputError', 'check_folder', 'check_file', 'path_kind', 'writable_folder']
+__all__ = ['OutputError', 'check_folder', 'check_file', 'fresh_folder', 'path_kind', 'writable_folder']
+
+# The default parent of every tool's output (git-ignored in the repository).
+RUNS = Path('runs')
 
 
 class OutputError(ValueError):
@@ -165,3 +171,15 @@ def check_file(path, inputs: Iterable = (), owned: Callable[[Path], bool] | None
     if not os.access(path, os.W_OK):
         raise OutputError(path, 'is not writable')
     return True
+
+
+def fresh_folder(stem: str, parent=RUNS, now: datetime | None = None) -> Path:
+    """A default output folder no earlier output holds: ``<parent>/<stem>-<YYYYmmdd-HHMMSS>``,
+    or the first of ``...-2``, ``...-3``... that does not exist (the same command run twice in one
+    second gets two folders). Nothing is created: the tool's own checks then see an absent folder."""
+    base = Path(parent) / f'{stem}-{(now or datetime.now()):%Y%m%d-%H%M%S}'
+    path, n = base, 1
+    while os.path.lexists(path):
+        n += 1
+        path = base.with_name(f'{base.name}-{n}')
+    return path

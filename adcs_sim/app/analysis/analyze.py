@@ -1,4 +1,5 @@
-"""``adcs-analyze <bag> [<bag> ...]``: the run metrics of recorded bags, and their reports.
+"""``adcs-analyze <bag> [<bag> ...]``: print the run metrics of recorded bags and write their reports
+(or one comparison of them all, or a viewer layout).
 
 The same numbers ``adcs-run`` prints at the end of a run; definitions in
 :mod:`adcs_sim.app.analysis.metrics`. ``--json`` prints machine-readable output.
@@ -7,12 +8,12 @@ Each bag also gets a report (:mod:`adcs_sim.app.report`): ``report.md`` with the
 metrics and figures (PNG + SVG), written to ``--out DIR``, else to ``<bag>/../report/`` (a
 ``report`` folder beside the bag folder) when that folder is writable, else to
 ``<run>-report/`` in the current directory. ``--compare`` writes one comparison of all the bags
-instead (``comparison.csv``, ``comparison.md``, overlaid figures) to ``--out DIR``, default
-``comparison`` in the current directory (never among the inputs: bags under ``bags/`` are the
-repository's reference data). Every output folder is checked before any bag is read
-(:mod:`adcs_sim.app.outputs`): absent, empty, or a report of this tool (only ``report.md`` /
-``comparison.md`` with its CSV and figures: replaced whole, so no figure of an older report stays),
-writable, not a file or a FIFO, neither inside an input nor holding one. With ``--reference FILE``
+instead (``comparison.csv``, ``comparison.md``, overlaid figures) to ``--out DIR``, default a
+new folder ``runs/comparison-<date>-<time>`` (numbered if taken: never an earlier comparison, never
+among the inputs: bags under ``bags/`` are the repository's reference data). Every output folder is
+checked before any bag is read (:mod:`adcs_sim.app.outputs`): absent, empty, or a report of this
+tool (only ``report.md`` / ``comparison.md`` with its CSV and figures: replaced whole, so no figure
+of an older report stays), writable, not a file or a FIFO, neither inside an input nor holding one. With ``--reference FILE``
 (published figures per run, e.g. ``docs/seed004/paper.yaml``) the comparison adds a published-vs-ours
 table with the differences (one bag is enough then: a paper with one run, seed 002). The published
 figures are comparison rows or the metrics a run's report leads with for its kind (e.g. seed 000's
@@ -38,10 +39,11 @@ import sys
 from pathlib import Path
 from types import SimpleNamespace
 
+from adcs_msgs_py.help_text import command_parser
 from adcs_msgs_py.params_file import one_line_warnings
 from adcs_sim.app.analysis.metrics import format_metrics, jsonable_metrics
 from adcs_sim.app.graph.layouts import LayoutError, write_layouts
-from adcs_sim.app.outputs import OutputError, check_folder, writable_folder
+from adcs_sim.app.outputs import OutputError, check_folder, fresh_folder, writable_folder
 from adcs_sim.app.report.kinds import run_kind
 from adcs_sim.app.report.loading import BagError, bag_folder, default_report_dir, load_run, run_name
 from adcs_sim.bag.lock import bag_writer
@@ -78,7 +80,7 @@ def _report_dirs(args) -> dict[str, Path]:
     from adcs_sim.app.report.comparison import unique_names   # (matplotlib: only when a report is written)
     named = [SimpleNamespace(name=run_name(p), path=p) for p in args.bags]
     if args.compare:
-        dirs = dict.fromkeys(args.bags, args.out if args.out is not None else Path('comparison'))
+        dirs = dict.fromkeys(args.bags, args.out if args.out is not None else fresh_folder('comparison'))
     else:
         dirs = {p: _report_dir(args.out, p, name, len(args.bags) > 1)
                 for p, name in zip(args.bags, unique_names(named))}
@@ -158,17 +160,17 @@ def _layouts(args) -> int:
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog='adcs-analyze', description=__doc__.splitlines()[0])
+    parser = command_parser('adcs-analyze', __doc__)
     parser.add_argument('bags', nargs='+', help='bag folder(s) or .mcap file(s)')
     parser.add_argument('--tolerance-deg', type=float, default=0.5,
-                        help='settling band on the 2-1-3 Euler angles (deg; default 0.5, seed 004)')
+                        help='settling band on the 2-1-3 Euler angles (deg; default 0.5)')
     parser.add_argument('--eigen-tolerance-deg', type=float, default=None,
                         help='settling band on the eigenaxis error (deg; default: --tolerance-deg)')
     parser.add_argument('--json', action='store_true', help='print JSON instead of a table')
     parser.add_argument('--out', type=Path, default=None,
                         help='report folder (default <bag>/../report; with several bags, one sub-folder '
-                             'per run; with --compare, the comparison folder, default ./comparison): '
-                             'absent, empty or a report of this tool (replaced)')
+                             'per run; with --compare, the comparison folder, default a new '
+                             'runs/comparison-<time>): absent, empty or a report of this tool (replaced)')
     parser.add_argument('--compare', action='store_true',
                         help='write one comparison of all the bags (CSV, Markdown, overlaid figures)')
     parser.add_argument('--reference', type=Path, default=None,

@@ -16,11 +16,11 @@ on stderr, the bag left as it was.
 """
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 from pathlib import Path
 
+from adcs_msgs_py.help_text import command_parser
 from adcs_sim.app.outputs import OutputError, path_kind, writable_folder
 from adcs_sim.bag.repair import repair
 
@@ -42,7 +42,7 @@ def check_bag_path(path: str) -> None:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog='adcs-bag-repair', description=__doc__.splitlines()[0])
+    parser = command_parser('adcs-bag-repair', __doc__)
     parser.add_argument('bags', nargs='+', help='bag folder(s) (or their .mcap file)')
     parser.add_argument('--force', action='store_true', help='rewrite a bag even if it is complete')
     args = parser.parse_args(argv)

@@ -13,7 +13,7 @@ from pathlib import Path
 from adcs_msgs_py.params import ParameterError
 from adcs_msgs_py.params_file import YamlError, load_params_file, load_yaml
 from adcs_sim.app.scenario.checks import MEMORY_SHARE, physical_memory_bytes
-from adcs_sim.app.scenario.files import RunError, config_dirs, resolve_scenario, validate_scenario
+from adcs_sim.app.scenario.files import RunError, find_shipped, resolve_scenario, validate_scenario
 from adcs_sim.app.scenario.seeding import MAX_RUN_INDEX
 
 CAMPAIGN_KEYS = {'scenario', 'runs', 'seed', 'chunk_size', 'tolerance_deg', 'metrics', 'requirements',
@@ -42,13 +42,13 @@ class CampaignError(ValueError):
 
 
 def resolve_campaign(path: Path) -> Path:
-    """A campaign path, or a bare file name found in the ``campaigns`` folder of the configs."""
-    if path.exists() or path.is_absolute() or len(path.parts) != 1:
-        return path
-    for d in config_dirs():
-        if (d / 'campaigns' / path.name).exists():
-            return d / 'campaigns' / path.name
-    return path
+    """A campaign path, or the name of a shipped campaign (``pd_slew_30deg.yaml``, ``pd_slew_30deg``
+    or ``config/campaigns/pd_slew_30deg.yaml``, from any folder). Raises CampaignError, one line
+    with the close matches, when it is neither."""
+    try:
+        return find_shipped(str(path), 'campaigns', what='campaign')
+    except RunError as exc:
+        raise CampaignError(str(exc)) from None
 
 
 def campaign_section(path: Path) -> dict:

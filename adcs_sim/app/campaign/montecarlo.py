@@ -1,5 +1,6 @@
-"""``adcs-montecarlo <campaign.yaml> [--runs N] [--out DIR] [--scheduler ADDR]``: a Monte Carlo
-campaign on the batch engine, scaled out with Dask.
+"""``adcs-montecarlo <campaign.yaml> [--runs N] [--out DIR] [--scheduler ADDR]``: run a Monte Carlo
+campaign on the batch engine, in this process or scaled out with Dask, and write its results,
+summary and histograms.
 
 The campaign (:mod:`adcs_sim.app.campaign.plan`) is checked whole before anything runs, split into chunks
 of ``chunk_size`` runs, and each chunk is simulated as one batch (:mod:`adcs_sim.app.batch.engine`) by a Dask
@@ -57,6 +58,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
+from adcs_msgs_py.help_text import command_parser
 from adcs_msgs_py.params_file import one_line_warnings
 from adcs_sim.app.campaign.plan import Campaign, CampaignError, run_chunk
 from adcs_sim.app.outputs import OutputError, check_file, check_folder
@@ -291,6 +293,7 @@ def write_histograms(campaign: Campaign, rows: list[dict], out: Path) -> list[Pa
     from matplotlib.figure import Figure
 
     from adcs_sim.app.report.figures import save_figure
+    from adcs_sim.app.report.markdown import metric_label
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     for m in campaign.metrics:
@@ -307,10 +310,10 @@ def write_histograms(campaign: Campaign, rows: list[dict], out: Path) -> list[Pa
         bound = campaign.requirements.get(m, {})
         for k, v in bound.items():
             ax.axvline(v, color='tab:red', linewidth=1.5, label=f'requirement {k} {v:g}')
-        ax.set_xlabel(m)
+        ax.set_xlabel(metric_label(m))   # a readable name and unit; the column's key in the title
         ax.set_ylabel('runs')
         extra = f', {values.size - finite.size} not finite' if values.size > finite.size else ''
-        ax.set_title(f'{m}: {finite.size} runs{extra}', fontsize='medium')
+        ax.set_title(f'{finite.size} runs{extra} (column {m})', fontsize='medium')
         ax.grid(True, alpha=0.35)
         ax.legend(fontsize='small')
         safe = m.replace('[', '_').replace(']', '')
@@ -491,8 +494,8 @@ def _check_outputs(args, campaign: Campaign, out: Path) -> None:
 
 @one_line_warnings('adcs-montecarlo')   # a scenario section written twice, named once per line
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog='adcs-montecarlo', description=__doc__.splitlines()[0])
-    parser.add_argument('campaign', help='campaign YAML file')
+    parser = command_parser('adcs-montecarlo', __doc__)
+    parser.add_argument('campaign', help='campaign YAML file, or the name of a shipped one (e.g. pd_slew_30deg)')
     parser.add_argument('--runs', type=int, default=None, help='number of runs (overrides the file)')
     parser.add_argument('--out', type=Path, default=None, help='output folder (default runs/<campaign>_<time>)')
     parser.add_argument('--scheduler', default='local',

@@ -64,7 +64,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from adcs_msgs_py.params import ParameterError, unflatten
+from adcs_msgs_py.params import PARAMETER_REFERENCE, ParameterError, did_you_mean, unflatten
 from adcs_sim.app.analysis.metrics import RunData, attitude_errors_deg, pointing_error_deg, run_metrics
 from adcs_sim.app.batch.engine import BatchSimulation, run_bytes
 from adcs_sim.app.analysis.batch_metrics import batch_metric_columns, metric_columns
@@ -149,8 +149,10 @@ class Campaign:
         schema = NODES[section].schema
         param = schema.by_name.get(key)
         if param is None:
-            raise CampaignError(f'{where}: unknown parameter {key!r} of node {section!r}; '
-                                f'known: {sorted(schema.by_name)}')
+            hint = did_you_mean(key, schema.by_name)
+            raise CampaignError(f'{where}: unknown parameter {key!r} of node {section!r}'
+                                + (f' ({hint})' if hint else '')
+                                + f'; every parameter of the node is in {PARAMETER_REFERENCE}')
         if not param.batch:
             raise CampaignError(f'{where}: {section}.{key} cannot differ between runs of the batch '
                                 'engine (dispersible: '

@@ -35,7 +35,6 @@ take (:data:`BOUNDS`), the tuning must be finite and a ``--simulate`` run sampla
 """
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from dataclasses import dataclass
@@ -43,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from adcs_msgs_py.help_text import command_parser
 from adcs_sim.app.analysis.metrics import settling_time
 
 PHASE_LOW_GAIN, PHASE_ZERO_TORQUE, PHASE_HIGH_GAIN = 0, 1, 2  # the GSMN mode codes
@@ -277,15 +277,16 @@ def _check_result(r: SingleAxisTuning, J: float, simulate: bool) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog='adcs-tune-gsmn',
-        description='Seed 004 section IV: settling-time limit (eq. 31) and highest high gains of '
-                    'the gain-scheduled min-norm law for a single-axis rest-to-rest manoeuvre.')
-    parser.add_argument('--inertia', type=float, required=True, help='J, kg m^2')
-    parser.add_argument('--angle-deg', type=float, required=True, help='initial eigenaxis angle, deg')
-    parser.add_argument('--kp1', type=float, required=True)
-    parser.add_argument('--kd1', type=float, required=True)
-    parser.add_argument('--gamma', type=float, required=True, help='γ of eq. (22)')
+    parser = command_parser('adcs-tune-gsmn', 'tune the gain-scheduled min-norm law for a single-axis '
+                            'rest-to-rest manoeuvre: its settling-time limit (eq. 31) and highest high gains '
+                            '(section IV of Horri, Palmer & Roberts, Gain scheduled inverse optimal satellite '
+                            'attitude control)')
+    parser.add_argument('--inertia', type=float, required=True, help='the inertia J (kg m^2)')
+    parser.add_argument('--angle-deg', type=float, required=True, help='initial eigenaxis angle (deg)')
+    parser.add_argument('--kp1', type=float, required=True,
+                        help="proportional gain of the low-gain phase, u1 = -kp1/2 θ - kd1 θ'")
+    parser.add_argument('--kd1', type=float, required=True, help='derivative gain of the low-gain phase (kd1 in u1)')
+    parser.add_argument('--gamma', type=float, required=True, help='the weight γ of eq. (22)')
     parser.add_argument('--max-torque', type=float, default=None,
                         help='torque limit for the high-gain peak, N m (default: the benchmark '
                              'initial torque kp1 θ0 / 2)')

@@ -226,19 +226,48 @@ def run_environment(env: dict):
                 os.environ[k] = v
 
 
+class SimTimeBar:
+    """The progress bar in simulated seconds (tqdm, on stderr): :meth:`advance` to the latest
+    simulated time seen, :meth:`complete` when the run reached its end. The runner sees only some
+    ``/clock`` ticks (the latest one, a few times a second), so the last it sees is a step or a
+    few before the end: a completed run is shown at 100 %, an interrupted one where it stopped."""
+
+    def __init__(self, duration: float, enabled: bool = True, file=None) -> None:
+        # lazy: tqdm (0.1 s): only when a progress bar is shown
+        from tqdm import tqdm
+        self.total = float(duration)
+        self.sim_time = 0.0
+        self.bar = tqdm(total=self.total, unit='sim s', disable=not enabled, dynamic_ncols=True, file=file,
+                        bar_format='{l_bar}{bar}| {n:.0f}/{total:.0f} sim s [{elapsed}<{remaining}]')
+
+    def advance(self, t: float) -> None:
+        """The run has reached simulated time ``t`` (s): the bar moves forward to it, never back."""
+        if t > self.sim_time:
+            self.bar.update(t - self.sim_time)
+            self.sim_time = t
+
+    def complete(self) -> None:
+        """The run reached its end: the bar shows the whole duration (100 %)."""
+        self.advance(self.total)
+        self.bar.n = self.total   # exactly: the updates' float sum may fall an ulp short
+        self.bar.refresh()
+
+    def close(self) -> None:
+        self.bar.close()
+
+
 class Progress:
-    """/clock subscriber driving a tqdm bar in simulated seconds. Its participant is one of the
-    run's: the run's domain and discovery range (``env``), not the shell's."""
+    """/clock subscriber driving a :class:`SimTimeBar`. Its participant is one of the run's: the
+    run's domain and discovery range (``env``), not the shell's."""
 
     def __init__(self, duration: float, enabled: bool, env: dict) -> None:
-        # lazy: rclpy and tqdm (0.3 s): only when a progress bar is shown
+        # lazy: rclpy (0.3 s): only when a progress bar is shown
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import QoSProfile, ReliabilityPolicy
         from rclpy.signals import SignalHandlerOptions
         from rosgraph_msgs.msg import Clock
-        from tqdm import tqdm
         self.context = Context()
         with run_environment(env):
             rclpy.init(context=self.context, domain_id=int(env['ROS_DOMAIN_ID']),
@@ -247,17 +276,16 @@ class Progress:
                                           start_parameter_services=False)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
-        self.sim_time = 0.0
-        self.bar = tqdm(total=duration, unit='sim s', disable=not enabled, dynamic_ncols=True,
-                        bar_format='{l_bar}{bar}| {n:.0f}/{total:.0f} sim s [{elapsed}<{remaining}]')
+        self.bar = SimTimeBar(duration, enabled)
         qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
         self.node.create_subscription(Clock, '/clock', self._on_clock, qos)
 
+    @property
+    def sim_time(self) -> float:
+        return self.bar.sim_time
+
     def _on_clock(self, msg) -> None:
-        t = msg.clock.sec + msg.clock.nanosec * 1e-9
-        if t > self.sim_time:
-            self.bar.update(t - self.sim_time)
-            self.sim_time = t
+        self.bar.advance(msg.clock.sec + msg.clock.nanosec * 1e-9)
 
     def spin(self, seconds: float, wait=time.sleep) -> None:
         """Take at most one ``/clock`` message and return after ``seconds``: the bar moves at most
@@ -270,6 +298,10 @@ class Progress:
         remaining = deadline - time.monotonic()
         if remaining > 0:
             wait(remaining)
+
+    def complete(self) -> None:
+        """The run completed (the dynamics node ended it): the bar at 100 %."""
+        self.bar.complete()
 
     def close(self) -> None:
         # lazy: rclpy: only with the progress bar that imported it

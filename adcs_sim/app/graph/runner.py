@@ -1,4 +1,6 @@
-"""``adcs-run [scenario.yaml] [--out DIR] [--duration S] [--explain]``: one scenario, end to end.
+"""``adcs-run [scenario.yaml] [--out DIR] [--duration S] [--explain]``: run one scenario on the ROS 2
+node graph, end to end: check it, start every node as its own process, record the run to a bag and
+print its metrics.
 
 1. Validates every section of the scenario file with its node's schema (nothing starts if one
    is wrong; the message names the key). An unknown section is an error.
@@ -27,22 +29,22 @@ Output folder layout: ``<out>/bag`` (the rosbag2 MCAP bag), ``<out>/logs/<node>.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import shutil
 import signal
 import sys
 import threading
 from dataclasses import dataclass, field
-from datetime import datetime
 from pathlib import Path
+from typing import Callable
 
 from adcs_msgs_py import names
+from adcs_msgs_py.help_text import command_parser
 from adcs_msgs_py.node import EXIT_DISK_FULL, EXIT_FLIGHT_SOFTWARE, EXIT_INTRUSION, INTRUSION_LOG
 from adcs_msgs_py.params import ParameterError
 from adcs_msgs_py.params_file import one_line_warnings
 from adcs_sim.app.graph.processes import PROGRESS_NODE, Graph, Progress, graph_env, lease_domain, recorded_state
-from adcs_sim.app.outputs import OutputError, check_folder
+from adcs_sim.app.outputs import OutputError, check_folder, fresh_folder
 from adcs_sim.app.scenario.registry import NODES
 from adcs_sim.app.scenario.checks import check_disk
 from adcs_sim.app.scenario.files import DEFAULT_SCENARIO, RunError, config_dirs, resolve_scenario, validate_scenario
@@ -281,6 +283,7 @@ def _stop_graph(run: _Run) -> None:
     """The run completed: stop the other nodes, then the recorder (which closes the bag)."""
     graph = run.graph
     if run.progress is not None:
+        run.progress.complete()   # the last ticks it saw were a few steps short of the end
         run.progress.close()
         run.progress = None
     graph.stopping = True   # from here a signal cannot cut the shutdown short
@@ -323,29 +326,55 @@ def _remove_unrecorded(out: Path, given: bool) -> None:
             path.unlink(missing_ok=True)
 
 
-def run_scenario(scenario: Path, out: Path, duration: float | None = None, progress: bool = True,
-                 tol_deg: float = 0.5, allow_network: bool = False, domain_id: int | None = None,
-                 restarts: int = 0) -> dict:
-    """Run one scenario end to end; return its metrics. Raises RunError / ParameterError.
+# What a run's output folder holds (the layout above): a folder holding only these, with its
+# scenario copy, is an earlier run's output, which ``overwrite`` may replace.
+RUN_OUTPUTS = frozenset({'bag', 'logs', 'metrics.json', 'scenario.yaml', 'report'})
 
-    ``restarts``: how many times a controller that dies mid-run is started again (it rejoins
-    the lockstep loop at the next state; the steps without it are missed steps under the
-    dynamics node's timeout policy). 0: a dead node stops the graph."""
-    validated = validate_scenario(scenario, duration)
-    check_disk(validated, out)   # the bag's size against the free disk at --out (issue #31)
-    try:   # absent or empty, writable, not a FIFO or a file, not the scenario's folder
-        check_folder(out, inputs=[scenario])
+
+def is_run_output(folder: Path) -> bool:
+    """``folder`` holds an earlier run's output and nothing else (the runner's own files)."""
+    held = {p.name for p in folder.iterdir()}
+    return 'scenario.yaml' in held and held <= RUN_OUTPUTS
+
+
+def _say(line: str) -> None:
+    print(line, flush=True)
+
+
+def _claim_output(out: Path, scenario: Path, domain_id: int | None, overwrite: bool):
+    """Check ``out`` (absent or empty, or an earlier run's with ``overwrite``; writable, not a FIFO
+    or a file, not the scenario's folder), lease the domain (before anything is written: a refused
+    id leaves the folder as it was), then empty the earlier run's folder. Returns the lease."""
+    try:
+        replace = check_folder(out, inputs=[scenario], owned=is_run_output if overwrite else None)
     except OutputError as exc:
         raise RunError(f'output folder {exc}') from None
+    lease = lease_domain(domain_id)
+    if replace:
+        _remove_unrecorded(out, given=True)   # the earlier run's files: the folder is kept
+    return lease
+
+
+def run_scenario(scenario: Path, out: Path, duration: float | None = None, progress: bool = True,
+                 tol_deg: float = 0.5, allow_network: bool = False, domain_id: int | None = None,
+                 restarts: int = 0, log: Callable[[str], None] = _say, overwrite: bool = False) -> dict:
+    """Run one scenario end to end; return its metrics. Raises RunError / ParameterError.
+
+    ``restarts``: how many times a controller that dies mid-run is started again (it rejoins the
+    lockstep loop at the next state; the steps without it are missed steps under the dynamics
+    node's timeout policy). 0: a dead node stops the graph. ``log``: where the informational lines
+    go (stdout by default). ``overwrite``: ``out`` may be an earlier run's output
+    (:func:`is_run_output`; anything else is refused), emptied before the run starts."""
+    validated = validate_scenario(scenario, duration)
+    check_disk(validated, out)   # the bag's size against the free disk at --out (issue #31)
+    lease = _claim_output(out, scenario, domain_id, overwrite)
     given = out.exists()   # an empty folder of the user's: emptied, not removed, on a failed start
-    lease = lease_domain(domain_id)   # before anything is written: a refused id leaves no folder
     log_dir = out / 'logs'
     log_dir.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(scenario, out / 'scenario.yaml')
     graph = Graph(graph_env(lease, allow_network), log_dir, keep_fds=lease.fds())
     run = _Run(scenario, validated, out / 'bag', graph, duration, restarts)
-    print(f'adcs-run: ROS_DOMAIN_ID={lease.domain_id}, discovery '
-          f'{graph.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]}', flush=True)
+    log(f'adcs-run: ROS_DOMAIN_ID={lease.domain_id}, discovery {graph.env["ROS_AUTOMATIC_DISCOVERY_RANGE"]}')
     old_handlers = {s: signal.signal(s, graph.on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         _supervise(run, _start_graph(run, progress))
@@ -385,9 +414,10 @@ def run_scenario(scenario: Path, out: Path, duration: float | None = None, progr
 
 @one_line_warnings('adcs-run')   # a section written twice, named once per line
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog='adcs-run', description=__doc__.splitlines()[0])
+    parser = command_parser('adcs-run', __doc__)
     parser.add_argument('scenario', nargs='?', default=None,
-                        help=f'scenario params file, or the name of one in config/ (default {DEFAULT_SCENARIO})')
+                        help='scenario params file, or the name of a shipped one, from any folder (e.g. '
+                             f'{Path(DEFAULT_SCENARIO).stem} or config/{DEFAULT_SCENARIO}; default {DEFAULT_SCENARIO})')
     parser.add_argument('--out', type=Path, default=None, help='output folder (default runs/<scenario>-<time>)')
     parser.add_argument('--duration', type=float, default=None, help='override the simulated duration (s)')
     parser.add_argument('--tolerance-deg', type=float, default=0.5,
@@ -416,7 +446,7 @@ def main(argv=None) -> int:
             from adcs_sim.app.scenario.parameters import explain
             print(explain(scenario, args.duration))
             return 0
-        out = args.out or Path('runs') / f'{scenario.stem}-{datetime.now():%Y%m%d-%H%M%S}'
+        out = args.out or fresh_folder(scenario.stem)
         print(f'adcs-run: {scenario} -> {out}', flush=True)
         metrics = run_scenario(scenario, out, args.duration, not args.no_progress and sys.stderr.isatty(),
                                args.tolerance_deg, args.allow_network, args.domain_id, args.restart)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 
@@ -27,9 +28,60 @@ METRIC_NOTES = {
 }
 
 
+# The estimation metrics (adcs_sim/app/analysis/estimation.py estimation_metrics), as campaign columns.
+ESTIMATION_NOTES = {
+    'estimation_attitude_error_rms_deg': 'RMS attitude estimation error (deg)',
+    'estimation_attitude_error_max_deg': 'largest attitude estimation error (deg)',
+    'estimation_attitude_error_final_deg': 'attitude estimation error at the end (deg)',
+    'estimation_rate_error_rms_deg_s': 'RMS rate estimation error (deg/s)',
+    'estimation_attitude_inside_3sigma': "fraction of attitude errors inside the filter's ±3σ (fraction of steps)",
+    'estimation_bias_error_final_deg_s': 'gyro bias estimation error at the end (deg/s)',
+    'nees': 'mean normalised estimation error squared, NEES (χ² degrees of freedom in the name)',
+    'nis_': 'normalised innovation squared of a sensor, NIS: its mean, or the fraction inside the 95 % χ² bounds',
+}
+
+
 def metric_note(key: str, notes: dict = METRIC_NOTES) -> str:
     """The explanation of a metric: the first entry of ``notes`` whose key prefixes ``key``."""
     return next((note for prefix, note in notes.items() if key.startswith(prefix)), '')
+
+
+_COLUMN = re.compile(r'^(?P<key>.+?)(?:\[(?P<index>\d+)\])?$')
+_NOTE = re.compile(r'^(?P<name>.*?)\s*\((?P<unit>[^()]*)\)$')
+_BAND = re.compile(r'_(?P<band>\d+(?:\.\d+)?)deg_s$')
+_PER = {m.name: m.per for m in metric_defs.DEFINED}
+_AXES = 'xyz'
+
+
+def metric_label(column: str, notes: dict = METRIC_NOTES) -> str:
+    """A readable name and unit for a metric or a campaign column (``peak_torque_Nm[0]``), from its
+    note (:data:`METRIC_NOTES`: the metric declarations' notes and units), e.g. ``settling time, all
+    three 2-1-3 Euler angles inside the 0.5° band (s)``; the column itself when it has no note."""
+    m = _COLUMN.match(column)
+    key, index = m['key'], m['index']
+    note = metric_note(key, notes) or metric_note(key, ESTIMATION_NOTES)
+    if not note:
+        return column
+    if key.startswith(('nees', 'nis_')):   # a family: the mean or the fraction inside the χ² bounds
+        what = 'fraction of steps inside the 95 % χ² bounds' if key.endswith('_inside_95') else 'mean'
+        family = key.rsplit('_inside_95', 1)[0].rsplit('_mean', 1)[0]
+        of = (f'NEES ({family[4:]} states)' if family.startswith('nees')
+              else f'NIS of the {family[4:].replace("_", " ")}')
+        return f'{of}, {what}'
+    parts = _NOTE.match(note)
+    name, unit = (parts['name'], parts['unit'].split(';', 1)[0].strip()) if parts else (note, '')
+    band = _BAND.search(key)
+    if band:
+        name = name.replace('the band', f'the {band["band"]}° band')
+    if key.startswith('settling_') and not name.startswith(('time', 'seed')):
+        name = f'settling time, {name}'
+    if index is not None:
+        per, i = _PER.get(key), int(index)
+        if per == 'axis' and i < 3:
+            name = f'{name.replace(" per body axis x, y, z", "")} about body axis {_AXES[i]}'
+        else:
+            name = f'{per or "element"} {i}: {name.replace("per wheel (wheels.names order), ", "")}'
+    return f'{name} ({unit})' if unit else name
 
 
 def fmt(value, digits: int = 6) -> str:

@@ -182,6 +182,7 @@ def _lead_lines(report: Report) -> list[str]:
     if ctx.events:
         lines.append('| faults | ' + '; '.join(f'`{name}` at t = {t:g} s' for t, name, _ in ctx.events) + ' |')
     lines.append('')
+    lines += findings(ctx)
     if kind.kind == UNKNOWN:
         return lines + ['The report cannot tell what this run is meant to do, so it leads with nothing: the '
                         'generic metrics and figures below measure the attitude against the scenario\'s '
@@ -201,6 +202,20 @@ def _lead_lines(report: Report) -> list[str]:
         lines.append(f'| `{m.key}` | {fmt(m.value)} | {fmt(m.paper) if m.paper is not None else "–"} | '
                      + ('–' if math.isnan(diff) else f'{100 * diff:+.1f} %') + f' | {m.unit} | {md_escape(m.meaning)} |')
     return lines + [''] + ['### Its figures', ''] + draw_figures(report, lead_figures(ctx), level='####')
+
+
+def findings(ctx: Context) -> list[str]:
+    """What a reader must not miss, whatever the kind of run, said before its quantities: each
+    wheel that spent time at its speed limit (``wheel_time_at_speed_limit_s`` > 0: there its motor
+    torque is cut, so the applied torque is not the commanded one)."""
+    at_limit = ctx.metrics.get(AT_SPEED_LIMIT) or []
+    names = ctx.run.wheel_names
+    limits = metric_defs.run_context(ctx.run)['wheel_max_speed'][0] if names else []
+    found = [f'**wheel `{name}` at its speed limit** ({limit:g} rad/s, `wheels.max_speed`) for {fmt(s, 4)} s '
+             f'of the run: its motor torque is cut there, so the applied torque is not the commanded one '
+             f'(`{AT_SPEED_LIMIT}`)'
+             for name, limit, s in zip(names, limits, at_limit) if isinstance(s, (int, float)) and s > 0]
+    return ['> Findings: ' + '; '.join(found) + '.', ''] if found else []
 
 
 def lead_figures(ctx: Context) -> list:
@@ -227,6 +242,7 @@ def run_figures(data: RunData, name: str = '', tol_deg: float = 0.5, eigen_tol_d
 
 
 WHEEL_METRICS = {m.name for m in metric_defs.DEFINED if 'wheel_speed' in m.needs}
+AT_SPEED_LIMIT = metric_defs.TimeAtWheelSpeedLimit.name
 
 
 def _metric_lines(report: Report) -> list[str]:

@@ -1,8 +1,9 @@
 """The controller-status figure: the values a controller publishes on ``controller/status``,
 grouped so that the figure stays readable.
 
-* text values (``mode``, ``phase``, ...) share one timeline panel, one row per key, each value a
-  colour (the legend, outside the plot, names them); a text key with more than
+* text values (``mode``, ``phase``, ...) share one timeline panel, one lane per value of each
+  key, named on the left with its share of the run, the spans where the key holds it coloured (a
+  mode held one step in a thousand stays visible); a text key with more than
   :data:`MAX_TIMELINE_LEVELS` values (a message) is left out and named in the caption;
 * ``<name>_x``, ``<name>_y``, ``<name>_z`` (and ``J_hat_11`` ... alike: one prefix) share a panel;
 * other numeric values with the same unit share a panel, up to three;
@@ -77,22 +78,39 @@ def group_numeric(keys: list[str], scale: dict | None = None) -> list[tuple[str,
             for label, ks in panels]
 
 
+def _lanes(series: dict, text: list[str]) -> list[tuple[str, object]]:
+    """(key, value) of each lane of the timeline panel, top to bottom: each text key's values in
+    the order they first occur."""
+    return [(key, value) for key in text for value in dict.fromkeys(series[key][1].tolist())]
+
+
 def _timelines(ax, series: dict, text: list[str]) -> None:
-    """One row per text key, one colour per value (legend outside)."""
-    colour = 0
-    for row, key in enumerate(reversed(text)):
+    """One lane per value of each text key (its name and its share of the run on the left), the
+    spans where the key holds that value drawn in the value's colour: a value held for one step
+    among thousands of another (a law switching modes at every step) stays visible in its own
+    lane instead of being painted over. Keys are separated by a line."""
+    lanes = _lanes(series, text)
+    row = len(lanes) - 1
+    ticks, labels = [], []
+    for colour, (key, value) in enumerate(lanes):
         t, v = series[key]
         t_end = float(t[-1])
         change = np.flatnonzero(v[1:] != v[:-1]) + 1
-        starts = np.r_[0, change]
-        ends = np.r_[change, len(v) - 1]
-        for value in dict.fromkeys(v.tolist()):
-            spans = [(float(t[a]), max(float(t[b]) - float(t[a]), 1e-9 * max(abs(t_end), 1.0)))
-                     for a, b in zip(starts, ends) if v[a] == value]
-            ax.broken_barh(spans, (row - 0.35, 0.7), color=f'C{colour % 10}', label=f'{key} = {value}')
-            colour += 1
-    ax.set_yticks(range(len(text)), list(reversed(text)))
-    ax.set_ylim(-0.6, len(text) - 0.4)
+        starts, ends = np.r_[0, change], np.r_[change, len(v) - 1]
+        held = [(float(t[a]), float(t[b]) - float(t[a])) for a, b in zip(starts, ends) if v[a] == value]
+        span = max(t_end - float(t[0]), 1e-9)
+        share = sum(d for _, d in held) / span
+        # a span of one step is narrower than a pixel: an edge of the same colour keeps it drawn
+        ax.broken_barh([(a, max(d, 1e-9 * max(abs(t_end), 1.0))) for a, d in held], (row - 0.35, 0.7),
+                       facecolor=f'C{colour % 10}', edgecolor=f'C{colour % 10}', linewidth=0.6)
+        ticks.append(row)
+        labels.append(f'{key} = {value}  ({100 * share:.0f} %, {len(held)}×)')
+        row -= 1
+    first_of_key = [i for i, (key, _) in enumerate(lanes) if i and lanes[i - 1][0] != key]
+    for i in first_of_key:
+        ax.axhline(len(lanes) - i - 0.5, color='0.4', linewidth=0.8)
+    ax.set_yticks(ticks, labels, fontsize='small')
+    ax.set_ylim(-0.6, len(lanes) - 0.4)
 
 
 def fig_controller_status(c: Context):
@@ -116,7 +134,7 @@ def fig_controller_status(c: Context):
                 + ', '.join([f'{k} constant ({v:g})' for k, v in constant.items()]
                             + [f'{k} constant ({v})' for k, v in constant_text.items()]
                             + [f'{k} ({n} distinct text values)' for k, n in chatty.items()]))
-    ratios = ([0.35 + 0.3 * len(text)] if text else []) + [1.0] * len(panels)
+    ratios = ([0.3 + 0.16 * len(_lanes(series, text))] if text else []) + [1.0] * len(panels)
     fig, axes = new_figure(rows=len(ratios), height=1.7, width=10.0, ratios=ratios)
     numeric_axes = axes[len(axes) - len(panels):]
     if text:
