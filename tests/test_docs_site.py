@@ -20,6 +20,8 @@ from support.paths import ROOT
 
 DOCS = ROOT / 'docs'
 PAGES = sorted(DOCS.rglob('*.md'))
+# Pages the site generates (docs/tools/readme_home.py): the home page is the README.
+GENERATED = {DOCS / 'index.md'}
 MARKDOWN = [ROOT / 'README.md', ROOT / 'CHANGELOG.md', ROOT / 'bags' / 'README.md', *PAGES]
 # What a user reads as the description of the tool as it is; the CHANGELOG is its history.
 USER_DOCS = [p for p in MARKDOWN if p.name != 'CHANGELOG.md']
@@ -77,7 +79,7 @@ def test_every_relative_link_resolves_in_the_repository(path):
     broken = []
     for target in relative_links(path):
         file = target.split('#')[0]
-        if file and not (path.parent / file).resolve().exists():
+        if file and not (path.parent / file).resolve().exists() and (path.parent / file).resolve() not in GENERATED:
             broken.append(target)
     assert not broken, f'{path.relative_to(ROOT)}: links to nothing: {broken}'
 
@@ -126,7 +128,7 @@ def test_every_page_is_in_the_navigation_or_linked_from_one():
             for item in entry:
                 yield from pages(item)
     in_nav = {DOCS / p for p in pages(nav)}
-    assert all(p.exists() for p in in_nav), sorted(str(p) for p in in_nav if not p.exists())
+    assert all(p.exists() or p in GENERATED for p in in_nav), sorted(str(p) for p in in_nav if not p.exists())
     linked = {(page.parent / t.split('#')[0]).resolve() for page in PAGES for t in relative_links(page)}
     orphans = [str(p.relative_to(ROOT)) for p in PAGES if p not in in_nav and p.resolve() not in linked]
     assert not orphans, f'pages no reader can reach: {orphans}'
@@ -143,3 +145,19 @@ def test_the_site_builds_without_a_warning(tmp_path):
     api = (tmp_path / 'site' / 'api.html').read_text(encoding='utf-8')
     for name in ('Scenario.run_batch', 'Scenario.run_graph', 'RunResult.metrics', 'load_run', 'campaign_results'):
         assert f'id="adcs_sim.app.api.{name}"' in api, f'the API reference lacks {name}'
+
+
+def test_the_home_page_is_the_readme_with_its_links_made_the_sites():
+    """The site's home page is generated from the README (no copy to drift): links into docs/ become
+    page links, a link to another repository file its path in code."""
+    sys.path.insert(0, str(DOCS / 'tools'))
+    try:
+        from readme_home import home_markdown
+    finally:
+        sys.path.remove(str(DOCS / 'tools'))
+    readme = (ROOT / 'README.md').read_text(encoding='utf-8')
+    home = home_markdown(readme)
+    assert '](docs/' not in home and '[LICENSE](LICENSE)' not in home
+    assert home_markdown('[the papers](docs/papers.md#seed-000) and [LICENSE](LICENSE) and [x](https://a.b/c)') == (
+        '[the papers](papers.md#seed-000) and `LICENSE` (in the repository) and [x](https://a.b/c)')
+    assert len(home.splitlines()) == len(readme.splitlines())
