@@ -134,9 +134,10 @@ def _can_meet(offered, requested) -> bool:
     transient-local reader of a volatile one. Anything else (an unknown policy included) may match.
     (rclpy's ``qos_check_compatible`` is no use here: an endpoint's own profile holds "default"
     durations where the graph lists "infinite", which it reports as incompatible.)"""
-    return not ((offered.reliability == ReliabilityPolicy.BEST_EFFORT and requested.reliability == ReliabilityPolicy.RELIABLE)
-                or (offered.durability == DurabilityPolicy.VOLATILE
-                    and requested.durability == DurabilityPolicy.TRANSIENT_LOCAL))
+    best_effort = offered.reliability == ReliabilityPolicy.BEST_EFFORT
+    volatile = offered.durability == DurabilityPolicy.VOLATILE
+    return not ((best_effort and requested.reliability == ReliabilityPolicy.RELIABLE)
+                or (volatile and requested.durability == DurabilityPolicy.TRANSIENT_LOCAL))
 
 
 def can_match(pub) -> Callable[[object], bool]:

@@ -64,7 +64,8 @@ def test_a_controller_sends_nothing_until_the_recorders_readers_matched_it(ros_d
             stand_in.create_subscription(s.msg_type, name, lambda _m: None, s.qos)
         announce = stand_in.create_publisher(String, names.RECORDER_MATCHED, topics.spec(names.RECORDER_MATCHED).qos)
         announce.publish(cv.matched_to_msg({'/wheels/cmd': ['/dynamics']}))
-        with pytest.raises(GraphTimeout, match='the recorder matching its publishers on /controller/status, /wheels/cmd'):
+        waited = 'the recorder matching its publishers on /controller/status, /wheels/cmd'
+        with pytest.raises(GraphTimeout, match=waited):
             pd.connect(graph.executor)
         assert getattr(pd, 'sub_state', None) is None
         announce.publish(cv.matched_to_msg({'/wheels/cmd': ['/pd_controller', '/dynamics'],

@@ -21,7 +21,9 @@ def home_markdown(readme: str) -> str:
         text, target, anchor = m.group(1), m.group(2), m.group(3) or ''
         if target.startswith('docs/'):
             return f'[{text}]({target[len("docs/"):]}{anchor})'
-        return f'`{target}` (in the repository)' if text.strip('`') == target else f'{text} (`{target}` in the repository)'
+        if text.strip('`') == target:
+            return f'`{target}` (in the repository)'
+        return f'{text} (`{target}` in the repository)'
     return LINK.sub(link, readme)
 
 
