@@ -153,7 +153,7 @@ def test_markers_show_target_wheel_momentum_and_the_firing_thrusters(decoded, ru
         quiet += not len(on)
         firing += len(on)
     assert firing == 608   # seed 002's firings over the recording (test_seed002_reproduction)
-    assert 0 < quiet < len(arrays)
+    assert quiet == 2710   # steps without a firing: a DELETE each
 
 
 # --- layouts -------------------------------------------------------------------------------------
@@ -285,3 +285,20 @@ def test_a_hostile_status_name_stays_out_of_the_layouts_paths():
     layout = layout_for(SimpleNamespace(name='foreign', data=data), {'/state': 'nav_msgs/msg/Odometry'})
     assert [s.path for s in layout.modes] == [('status', 'pd_controller', 'mode')]
     assert not layout.scene_topics and 'evil' not in json.dumps(foxglove_layout(layout))
+
+
+def test_a_step_without_firing_deletes_the_plume_instead_of_an_empty_line_list():
+    """Lichtblick flags a LINE_LIST without points on its topic; a DELETE of the same marker clears
+    the last plume instead. The CDR bytes the dynamics node and the recorder send say the same."""
+    from rclpy.serialization import deserialize_message
+    from visualization_msgs.msg import MarkerArray
+
+    from adcs_msgs_py.visual import VisualMessages
+    visual = VisualMessages([0.0, 0.0, 0.0, 1.0], 1.0, np.eye(3), [0.01] * 3, [100.0] * 3,
+                            [[1.0, 0.0, 0.0]] * 2, [[0.0, 1.0, 0.0]] * 2)
+    for on_time, action, points in (([0.0, 0.0], DELETE, 0), ([0.1, 0.0], ADD, 2), ([0.0, 0.0], DELETE, 0),
+                                    ([0.1, 0.1], ADD, 4)):
+        data = visual.marker_array_cdr(5, [1.0, 2.0, 3.0], on_time)
+        plume = _by_ns(deserialize_message(bytes(data), MarkerArray).markers)[('thrusters', 0)]
+        assert (plume.action, len(plume.points)) == (action, points), on_time
+        assert plume.type == plume.LINE_LIST and plume.points or plume.action == DELETE
