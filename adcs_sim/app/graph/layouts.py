@@ -66,10 +66,10 @@ PANEL_TITLE = 'foxglovePanelTitle'
 # A left legend's width: its grid gives the label and the (hidden) value column equal shares, beside
 # the swatch and the remove button; a label is ~7 px a character
 LEGEND_BASE_PX, LEGEND_CHAR_PX, LEGEND_MIN_PX, LEGEND_MAX_PX = 40, 14, 80, 200
-ORBIT_AXES_OFFSET = (0.0, 0.0, -2.5)
-# The frames' axes (Lichtblick's are 0.2 m) as long as the body-axes markers at the default
-# visualization.axis_length of 1 m
-AXIS_SCALE = 5.0   # m, inertial: where the orbit frame's axes are drawn (module doc)
+ORBIT_AXES_OFFSET = (0.0, 0.0, -2.5)   # m, inertial: where the orbit frame's axes are drawn (module doc)
+# The frames' axes: Lichtblick's 0.2 m scaled to 0.4 m, inside the body-axes markers (1 m at the
+# default visualization.axis_length) and thin enough not to hide them
+AXIS_SCALE = 2.0
 COLORS = ('#1f77b4', '#d62728', '#2ca02c', '#ff7f0e', '#9467bd', '#8c564b', '#e377c2', '#17becf')
 
 
