@@ -16,7 +16,10 @@ What Foxglove's 3D panel and RViz draw, and what a plot panel plots without comp
   the scene): the wheels' momentum ``sum_i Js_i Omega_i a_i`` (an arrow in body axes; length
   ``axis_length * |h| / sum_i Js_i max_speed_i``, or ``axis_length`` per N m s with unlimited
   wheels) and one LINE_LIST with a segment for each thruster firing in the step, from the
-  thruster against its force (its plume; no segment while it is off).
+  thruster against its force (its plume; no segment while it is off). In a step where no
+  thruster fires the plume marker is a DELETE of that marker (same ``ns`` and ``id``, no points):
+  a LINE_LIST without points is an invalid marker to viewers (Lichtblick and Foxglove flag the
+  topic), and an omitted marker would leave the last plume drawn.
 * ``error/eigenaxis`` (``x``: the eigenaxis angle, deg; y, z: 0) and ``error/euler_213`` (the
   2-1-3 Euler angles of the error, deg, stored by axis: x, y, z = the rotations about body x, y,
   z), of ``q_e = q_ref* (x) q``: :func:`adcs_core.attitude.error_quaternion`,
@@ -252,6 +255,7 @@ class VisualMessages:
             self.momentum.points[1] = _point(self.momentum_scale * h)
         if self.plumes is not None:
             self.plumes.points = [p for ends, on in zip(self._plume_ends, on_time) if on > 0 for p in ends]
+            self.plumes.action = Marker.ADD if self.plumes.points else Marker.DELETE   # module doc
         return self.markers
 
     def marker_array_cdr(self, t_ns: int, wheel_speed=None, on_time: Sequence[float] = ()):

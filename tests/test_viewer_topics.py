@@ -39,6 +39,7 @@ from adcs_sim.bag.storage import typestore
 from adcs_sim.bag.writer import BagWriter, qos_dicts
 
 BAG = ROOT / 'bags' / 'eseo_backstepping_slew'
+ADD, DELETE = 0, 2   # visualization_msgs/Marker actions
 TYPES = {'/tf': 'tf2_msgs/msg/TFMessage', '/frames/body': 'geometry_msgs/msg/TransformStamped',
          '/frames/orbit': 'geometry_msgs/msg/TransformStamped', '/markers': 'visualization_msgs/msg/MarkerArray',
          '/markers/static': 'visualization_msgs/msg/MarkerArray',
@@ -137,7 +138,7 @@ def test_markers_show_target_wheel_momentum_and_the_firing_thrusters(decoded, ru
     for i, (p, d) in enumerate(zip(np.reshape(dyn['thrusters']['positions'], (4, 3)),
                                    np.reshape(dyn['thrusters']['directions'], (4, 3)))):
         ends[i] = np.concatenate([p, p - 0.35 * d / np.linalg.norm(d)])
-    firing = 0
+    firing = quiet = 0
     for k, (stamp, msg) in enumerate(arrays):
         m = _by_ns(msg.markers)
         assert stamp == round(run.t_thrusters[k] * 1e9) and set(m) == {('wheel_momentum', 0), ('thrusters', 0)}
@@ -147,8 +148,12 @@ def test_markers_show_target_wheel_momentum_and_the_firing_thrusters(decoded, ru
         on = np.flatnonzero(run.thruster_on_time[k] > 0)
         points = np.array([[q.x, q.y, q.z] for q in m[('thrusters', 0)].points]).reshape(-1, 6)
         assert_allclose(points, np.array([ends[i] for i in on]).reshape(-1, 6), atol=1e-12)
+        # no firing: a DELETE of the plume (a LINE_LIST without points is an error to viewers)
+        assert m[('thrusters', 0)].action == (ADD if len(on) else DELETE), k
+        quiet += not len(on)
         firing += len(on)
     assert firing == 608   # seed 002's firings over the recording (test_seed002_reproduction)
+    assert quiet == 2710   # steps without a firing: a DELETE each
 
 
 # --- layouts -------------------------------------------------------------------------------------
@@ -187,7 +192,8 @@ def _resolve_foxglove(path: str, types: dict, run: RunData) -> None:
 
 
 def _resolve_plotjuggler(name: str, types: dict, run: RunData) -> None:
-    """A PlotJuggler series name = a bag topic + the fields plotjuggler_ros' parsers name."""
+    """A PlotJuggler series name = a bag topic + the fields PlotJuggler's ROS 2 parser names (every
+    field by its full path, /state/twist/twist/angular/x; joints and status values by name)."""
     topic = max((t for t in types if name.startswith(t + '/')), key=len)
     parts = name[len(topic) + 1:].split('/')
     type_name = types[topic]
@@ -199,8 +205,6 @@ def _resolve_plotjuggler(name: str, types: dict, run: RunData) -> None:
         status, key = parts
         assert any(n == status and key in v for _, n, v in run.controller_status), name
         return
-    if type_name == 'nav_msgs/msg/Odometry':
-        parts = [parts[0], *parts]   # /pose/..., /twist/...: the inner pose / twist
     node = (Nodetype.NAME, type_name)
     for part in parts:
         node = _field(node[1], part)
@@ -281,3 +285,20 @@ def test_a_hostile_status_name_stays_out_of_the_layouts_paths():
     layout = layout_for(SimpleNamespace(name='foreign', data=data), {'/state': 'nav_msgs/msg/Odometry'})
     assert [s.path for s in layout.modes] == [('status', 'pd_controller', 'mode')]
     assert not layout.scene_topics and 'evil' not in json.dumps(foxglove_layout(layout))
+
+
+def test_a_step_without_firing_deletes_the_plume_instead_of_an_empty_line_list():
+    """Lichtblick flags a LINE_LIST without points on its topic; a DELETE of the same marker clears
+    the last plume instead. The CDR bytes the dynamics node and the recorder send say the same."""
+    from rclpy.serialization import deserialize_message
+    from visualization_msgs.msg import MarkerArray
+
+    from adcs_msgs_py.visual import VisualMessages
+    visual = VisualMessages([0.0, 0.0, 0.0, 1.0], 1.0, np.eye(3), [0.01] * 3, [100.0] * 3,
+                            [[1.0, 0.0, 0.0]] * 2, [[0.0, 1.0, 0.0]] * 2)
+    for on_time, action, points in (([0.0, 0.0], DELETE, 0), ([0.1, 0.0], ADD, 2), ([0.0, 0.0], DELETE, 0),
+                                    ([0.1, 0.1], ADD, 4)):
+        data = visual.marker_array_cdr(5, [1.0, 2.0, 3.0], on_time)
+        plume = _by_ns(deserialize_message(bytes(data), MarkerArray).markers)[('thrusters', 0)]
+        assert (plume.action, len(plume.points)) == (action, points), on_time
+        assert plume.type == plume.LINE_LIST and plume.points or plume.action == DELETE

@@ -77,6 +77,24 @@ class SectionLaw:
         log; most laws do not care (allocation alone follows the wheels)."""
         return None
 
+    def mode_codes(self) -> dict[str, dict[str, int]]:
+        """The number of each mode name the law publishes, by status key: ``mode`` from
+        :attr:`mode_names` (a law with more mode keys, such as ``phase``, adds its own)."""
+        return {'mode': {name: code for code, name in self.mode_names.items()}}
+
+    def with_mode_index(self, published: dict) -> dict:
+        """``published`` (:meth:`published_status`) with ``<key>_index``, the mode's number
+        (:meth:`mode_codes`), right after each mode key whose name the law numbers: status values
+        travel as text, and a viewer plots a value that parses as a number (PlotJuggler's ROS 2
+        parser, Lichtblick's Plot panel), not a name."""
+        codes, out = self.mode_codes(), {}
+        for key, value in published.items():
+            out[key] = value
+            code = codes.get(key, {}).get(value) if isinstance(value, str) else None
+            if code is not None:
+                out[f'{key}_index'] = code
+        return out
+
     def published_status(self, status: dict) -> dict:
         """One run's status as the node publishes it: mode codes as names, arrays as floats,
         3-vectors as ``key_x``, ``key_y``, ``key_z``."""

@@ -38,6 +38,11 @@ PD_SHORTEST_PATH = shortest_path_param(
     'flip q when q4 < 0 (not in seed 004 eq. 13, which is applied as printed by default)')
 
 
+# PD's one mode, numbered apart from the other laws' codes (0-6): seed 000's reconfiguration flies PD
+# before the two-wheel laws, and the published mode_index tells them apart
+MODE_PD = 10
+
+
 class PdLaw(SectionLaw):
     """Eq. (13) bound to a validated ``pd_controller`` section (values may carry a batch axis).
 
@@ -45,6 +50,7 @@ class PdLaw(SectionLaw):
     """
 
     params = (*TARGET_PARAMS, PD_SHORTEST_PATH)
+    mode_names = {MODE_PD: 'pd'}
 
     def __init__(self, p) -> None:
         p = self.section(p)

@@ -22,10 +22,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from adcs_controllers.laws.base import SectionLaw
 from adcs_controllers.laws.pd import PdLaw
 from adcs_controllers.laws.underactuated import unactuated_body_axis
 
 THREE_WHEEL, TWO_WHEEL, UNSUPPORTED = 'three_wheel', 'two_wheel', 'unsupported'
+PHASE_CODES = {THREE_WHEEL: 3, TWO_WHEEL: 2, UNSUPPORTED: 0}   # phase_index: the wheels the phase's law uses
 
 
 def pd_section(p) -> dict:
@@ -103,3 +105,8 @@ class TwoWheelReconfiguration:
 
     def published_status(self, status: dict) -> dict:
         return self.active.published_status(status)
+
+    def mode_codes(self) -> dict[str, dict[str, int]]:
+        return {**self.active.mode_codes(), 'phase': PHASE_CODES}
+
+    with_mode_index = SectionLaw.with_mode_index   # the one implementation, on these codes

@@ -249,7 +249,7 @@ class ControllerNode(FlightSoftwareStop, WheelStatePairing, AdcsNode):
         else:
             self.publish_commands(t_ns, self.actuation.command_messages(values))
         if self.pub_status.get_subscription_count():  # after the command: off the critical path
-            status = self.law.published_status(status)
+            status = self.law.with_mode_index(self.law.published_status(status))
             if output == MOMENTUM:  # h_x..: the wheel momentum commanded (speed mode)
                 status.update({'h_x': value[0], 'h_y': value[1], 'h_z': value[2]})
             else:  # u_x.. what the actuators are commanded (saturated); demand_max: the law's |u|_inf

@@ -12,17 +12,25 @@ Each plotted line is a :class:`Series`: topic, message type and the field path i
 (``('twist', 'twist', 'angular', 'x')``, ``('velocity', 0)``, a status key); the two writers turn
 it into the viewer's own naming:
 
-* **Foxglove** (JSON, the layout file "Import from file..." reads: ``configById`` panel configs
-  keyed ``<Type>!<id>``, ``layout`` a binary tree of ``first`` / ``second`` / ``direction`` /
-  ``splitPercentage``): message paths ``/topic.field.sub[0]`` for Plot panels, a
-  ``{key=="mode"}`` filter for the State Transitions panel; the 3D panel follows the ``inertial``
-  frame and shows the markers.
+* **Foxglove / Lichtblick** (JSON, the layout file "Import from file..." reads: ``configById``
+  panel configs keyed ``<Type>!<id>``, ``layout`` a binary tree of ``first`` / ``second`` /
+  ``direction`` / ``splitPercentage``): message paths ``/topic.field.sub[0]`` for Plot panels, a
+  ``{key=="mode"}`` filter for the State Transitions panel. A panel's title is its
+  ``foxglovePanelTitle``; each plot's legend sits at its left (``legendDisplay: 'left'``, one row
+  of 30 px per series), never over the data, and the plots are laid out in two columns so that
+  every row of a legend fits at 1280 x 800. The 3D panel follows the ``inertial`` frame and shows
+  the markers; every frame shares one origin (attitude only), so the inertial frame's axes are
+  hidden (the grid and the target's axes show it) and the orbit frame's axes and label are drawn
+  :data:`ORBIT_AXES_OFFSET` beside the origin (the panel's frame offset), not on the body's.
 * **PlotJuggler** (XML ``<root><tabbed_widget>``, tabs of ``DockSplitter`` / ``DockArea`` /
-  ``plot`` / ``curve name=...``): the series names of plotjuggler_ros' ROS 2 parsers, which flatten
-  fields with ``/`` (``/error/euler_213/vector/x``), name a JointState's values by joint
-  (``/wheels/state/rw_x/velocity``), an Odometry's twist without the inner ``twist``
-  (``/state/twist/angular/x``) and a DiagnosticArray's values by status and key
-  (``/controller/status/<name>/mode``).
+  ``plot`` / ``curve name=...``): the series names of PlotJuggler's ROS 2 parser
+  (``plotjuggler_plugins/ParserROS``), which flattens fields with ``/`` (``/error/euler_213/vector/x``,
+  an Odometry's rates ``/state/twist/twist/angular/x``), names a JointState's values by joint
+  (``/wheels/state/rw_x/velocity``) and a DiagnosticArray's values by status and key
+  (``/controller/status/<name>/mode``), a value that parses as a number becoming a numeric series.
+  The mode is plotted by its number: ``mode_index`` (and ``phase_index``) beside the name in the
+  status (:meth:`adcs_controllers.laws.base.Law.with_mode_index`), or a mode key whose values are
+  numbers (``stage``); a bag recorded before the indices gets no mode plot (named in ``left_out``).
 
 A bag that is not a bag of the graph (not a bag, damaged beyond use, no ``state``) is a
 :class:`LayoutError` with a one-line message, as is an output that cannot be written. The outputs
@@ -50,8 +58,18 @@ JOINT_STATE = 'sensor_msgs/msg/JointState'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 MARKER_ARRAY = 'visualization_msgs/msg/MarkerArray'
 MODE_KEYS = ('mode', 'phase', 'stage')   # controller status keys that name a law's mode
+INDEX_SUFFIX = '_index'   # beside a mode key: its number (adcs_controllers.laws.base.Law.with_mode_index)
 ROS_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_/]{0,200}')   # node names (what a controller's status is named)
 AXES = ('x', 'y', 'z')
+# Foxglove / Lichtblick: the panel title's config key (Lichtblick's util/layout.ts PANEL_TITLE_CONFIG_KEY)
+PANEL_TITLE = 'foxglovePanelTitle'
+# A left legend's width: its grid gives the label and the (hidden) value column equal shares, beside
+# the swatch and the remove button; a label is ~7 px a character
+LEGEND_BASE_PX, LEGEND_CHAR_PX, LEGEND_MIN_PX, LEGEND_MAX_PX = 40, 14, 80, 200
+ORBIT_AXES_OFFSET = (0.0, 0.0, -2.5)   # m, inertial: where the orbit frame's axes are drawn (module doc)
+# The frames' axes: Lichtblick's 0.2 m scaled to 0.4 m, inside the body-axes markers (1 m at the
+# default visualization.axis_length) and thin enough not to hide them
+AXIS_SCALE = 2.0
 COLORS = ('#1f77b4', '#d62728', '#2ca02c', '#ff7f0e', '#9467bd', '#8c564b', '#e377c2', '#17becf')
 
 
@@ -79,7 +97,8 @@ class Layout:
     frames: list[str] = field(default_factory=list)         # child frames of /tf
     scene_topics: list[str] = field(default_factory=list)   # /tf, markers
     plots: list[tuple[str, list[Series]]] = field(default_factory=list)
-    modes: list[Series] = field(default_factory=list)
+    modes: list[Series] = field(default_factory=list)          # the mode names (State Transitions)
+    mode_numbers: list[Series] = field(default_factory=list)   # the modes as numbers (a plot)
     left_out: list[str] = field(default_factory=list)
 
 
@@ -93,12 +112,14 @@ def bag_types(path) -> dict[str, str]:
     return dict(reader.topics)
 
 
-def _vector(topic: str, type_name: str, prefix: tuple, label: str) -> list[Series]:
-    return [Series(topic, type_name, (*prefix, a), f'{label} {a}') for a in AXES]
+def _vector(topic: str, type_name: str, prefix: tuple, label: str = '') -> list[Series]:
+    """x, y, z of a vector field; labelled by the axis (the panel's title says what), after ``label``
+    where a panel shows two vectors."""
+    return [Series(topic, type_name, (*prefix, a), f'{label} {a}'.strip()) for a in AXES]
 
 
-def _joint(topic: str, names_: list[str], field_name: str, unit: str) -> list[Series]:
-    return [Series(topic, JOINT_STATE, (field_name, i, name), f'{name} ({unit})') for i, name in enumerate(names_)]
+def _joint(topic: str, names_: list[str], field_name: str) -> list[Series]:
+    return [Series(topic, JOINT_STATE, (field_name, i, name), name) for i, name in enumerate(names_)]
 
 
 def _scene(layout: Layout, ns: str, types: dict, counts: dict) -> None:
@@ -116,14 +137,49 @@ def _scene(layout: Layout, ns: str, types: dict, counts: dict) -> None:
 def _error_plots(layout: Layout, ns: str, types: dict, counts: dict, truth: bool) -> None:
     eig, eul = ns + names.ERROR_EIGENAXIS, ns + names.ERROR_EULER_213
     if types.get(eig) == VECTOR3_STAMPED and counts.get(names.ERROR_EIGENAXIS):
-        layout.plots.append(('eigenaxis error (deg)', [Series(eig, VECTOR3_STAMPED, ('vector', 'x'), 'eigenaxis')]))
+        layout.plots.append(('eigenaxis error (deg)', [Series(eig, VECTOR3_STAMPED, ('vector', 'x'), 'angle')]))
     if types.get(eul) == VECTOR3_STAMPED and counts.get(names.ERROR_EULER_213):
-        layout.plots.append(('2-1-3 Euler errors (deg)', _vector(eul, VECTOR3_STAMPED, ('vector',), 'about')))
+        layout.plots.append(('2-1-3 Euler errors (deg)', _vector(eul, VECTOR3_STAMPED, ('vector',))))
     if not counts.get(names.ERROR_EIGENAXIS) and not counts.get(names.ERROR_EULER_213):
         state = ns + (names.TRUTH_STATE if truth else names.STATE)
         layout.plots.append(('attitude quaternion (body in inertial)',
-                             [Series(state, ODOMETRY, ('pose', 'pose', 'orientation', c), f'q {c}') for c in 'xyzw']))
+                             [Series(state, ODOMETRY, ('pose', 'pose', 'orientation', c), c) for c in 'xyzw']))
         layout.left_out.append(f'attitude error (no {eig} / {eul}): the quaternion instead')
+
+
+def _is_number(text) -> bool:
+    try:
+        float(text)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def _modes(layout: Layout, ns: str, records) -> None:
+    """The controller's mode keys (:data:`MODE_KEYS`) by name, and by number where the status has one:
+    ``<key>_index``, or the key itself when its values are numbers."""
+    keys, numbers = {}, {}
+    for _, status_name, values in records:
+        if not ROS_NAME.fullmatch(status_name):   # a foreign bag's status name goes into a path filter
+            continue
+        for key in MODE_KEYS:
+            if key in values:
+                keys.setdefault((status_name, key), None)
+                index = key + INDEX_SUFFIX
+                number = index if index in values else key if _is_number(values[key]) else None
+                if number is not None:
+                    numbers.setdefault((status_name, key), number)
+    topic = ns + names.CONTROLLER_STATUS
+    one = len({status for status, _ in keys}) == 1   # the usual: one controller (then the key names the row)
+    label = {(status, key): key if one else f'{status} {key}' for status, key in keys}
+    layout.modes = [Series(topic, DIAGNOSTIC_ARRAY, ('status', status, key), label[status, key]) for status, key in keys]
+    layout.mode_numbers = [Series(topic, DIAGNOSTIC_ARRAY, ('status', status, numbers[status, key]), label[status, key])
+                           for status, key in keys if (status, key) in numbers]
+    if not layout.modes:
+        layout.left_out.append(f'controller mode (no {"/".join(MODE_KEYS)} on {topic})')
+    elif len(layout.mode_numbers) < len(layout.modes):
+        layout.left_out.append(f'the mode as a number for PlotJuggler (no mode{INDEX_SUFFIX} on {topic}: '
+                               'a recording older than the mode numbers)')
 
 
 def layout_for(run, types: dict[str, str]) -> Layout:
@@ -140,35 +196,26 @@ def layout_for(run, types: dict[str, str]) -> Layout:
     _scene(layout, ns, types, counts)
     _error_plots(layout, ns, types, counts, truth)
     state = ns + (names.TRUTH_STATE if truth else names.STATE)
-    layout.plots.append(('body rate (rad/s)', _vector(state, ODOMETRY, ('twist', 'twist', 'angular'), 'w')))
+    layout.plots.append(('body rate (rad/s)', _vector(state, ODOMETRY, ('twist', 'twist', 'angular'))))
     if data.wheel_names:
         wheels = ns + names.WHEELS_STATE
         layout.plots.append(('wheel speed (rad/s, relative to the body)',
-                             _joint(wheels, data.wheel_names, 'velocity', 'rad/s')))
-        layout.plots.append(('wheel motor torque (N m)', _joint(wheels, data.wheel_names, 'effort', 'N m')))
+                             _joint(wheels, data.wheel_names, 'velocity')))
+        layout.plots.append(('wheel motor torque (N m)', _joint(wheels, data.wheel_names, 'effort')))
+    both = bool(counts.get(names.APPLIED_TORQUE) and counts.get(names.TORQUE_CMD))
     torques = []
     if counts.get(names.APPLIED_TORQUE):
-        torques += _vector(ns + names.APPLIED_TORQUE, VECTOR3_STAMPED, ('vector',), 'applied')
+        torques += _vector(ns + names.APPLIED_TORQUE, VECTOR3_STAMPED, ('vector',), 'applied' if both else '')
     if counts.get(names.TORQUE_CMD):
-        torques += _vector(ns + names.TORQUE_CMD, VECTOR3_STAMPED, ('vector',), 'commanded')
+        torques += _vector(ns + names.TORQUE_CMD, VECTOR3_STAMPED, ('vector',), 'cmd')
     if torques:
         layout.plots.append(('body torque (N m)', torques))
     else:
         layout.left_out.append(f'torques (no {ns + names.APPLIED_TORQUE})')
     if data.thruster_names:
         layout.plots.append(('thruster on-time per step (s)',
-                             _joint(ns + names.THRUSTERS_STATE, data.thruster_names, 'velocity', 's')))
-    keys = {}
-    for _, status_name, values in data.controller_status:
-        if not ROS_NAME.fullmatch(status_name):   # a foreign bag's status name goes into a path filter
-            continue
-        for key in MODE_KEYS:
-            if key in values:
-                keys.setdefault((status_name, key), None)
-    layout.modes = [Series(ns + names.CONTROLLER_STATUS, DIAGNOSTIC_ARRAY, ('status', status, key), f'{status} {key}')
-                    for status, key in keys]
-    if not layout.modes:
-        layout.left_out.append(f'controller mode (no {"/".join(MODE_KEYS)} on {ns + names.CONTROLLER_STATUS})')
+                             _joint(ns + names.THRUSTERS_STATE, data.thruster_names, 'velocity')))
+    _modes(layout, ns, data.controller_status)
     return layout
 
 
@@ -206,14 +253,29 @@ def _split(ids: list[str], direction: str):
             'direction': direction, 'splitPercentage': round(100.0 * half / len(ids), 3)}
 
 
+def _grid(ids: list[str]):
+    """The panels in two columns (the first the longer), each split in equal rows: at 1280 x 800
+    a panel of a column of four is about 170 px high, room for a legend of four rows."""
+    if len(ids) < 3:
+        return _split(ids, 'column')
+    half = (len(ids) + 1) // 2
+    return {'first': _split(ids[:half], 'column'), 'second': _split(ids[half:], 'column'),
+            'direction': 'row', 'splitPercentage': 50}
+
+
 def _three_d(layout: Layout) -> dict:
+    transforms = {'frame:inertial': {'visible': False}, 'frame:body': {'visible': True}}
+    if 'orbit' in layout.frames:
+        transforms['frame:orbit'] = {'visible': True, 'xyzOffset': list(ORBIT_AXES_OFFSET)}
     return {
-        'cameraState': {'distance': 4.0, 'perspective': True, 'phi': 60.0, 'thetaOffset': 45.0,
+        'cameraState': {'distance': 7.0, 'perspective': True, 'phi': 60.0, 'thetaOffset': 45.0,
                         'target': [0, 0, 0], 'targetOffset': [0, 0, 0], 'targetOrientation': [0, 0, 0, 1],
                         'fovy': 45, 'near': 0.01, 'far': 1000},
         'followMode': 'follow-pose', 'followTf': 'inertial',
-        'scene': {'enableStats': False, 'backgroundColor': '#15181c'},
-        'transforms': {'showLabel': True, **{f'frame:{f}': {'visible': True} for f in ['inertial', *layout.frames]}},
+        # editable: the frames' offsets apply (the orbit frame's axes beside the body's, module doc)
+        'scene': {'enableStats': False, 'backgroundColor': '#15181c',
+                  'transforms': {'showLabel': True, 'editable': True, 'labelSize': 0.15, 'axisScale': AXIS_SCALE}},
+        'transforms': transforms,
         'topics': {t: {'visible': True} for t in layout.scene_topics if not t.endswith('/' + names.TF)},
         'layers': {'grid': {'layerId': 'foxglove.Grid', 'visible': True, 'frameId': 'inertial', 'size': 4,
                             'divisions': 8, 'lineWidth': 1, 'color': '#248eff40', 'position': [0, 0, 0],
@@ -221,26 +283,33 @@ def _three_d(layout: Layout) -> dict:
     }
 
 
+def _legend_width(series: list[Series]) -> int:
+    """The left legend's width (px): the longest label, the colour swatch and the value column."""
+    return min(LEGEND_MAX_PX, max(LEGEND_MIN_PX, LEGEND_BASE_PX + LEGEND_CHAR_PX * max(len(s.label) for s in series)))
+
+
 def foxglove_layout(layout: Layout) -> dict:
     """The Foxglove layout (a JSON-able dict) of ``layout``."""
     config, plots = {}, []
     for i, (title, series) in enumerate(layout.plots):
         pid = f'Plot!adcs{i}'
-        config[pid] = {'title': title, 'paths': [{'value': foxglove_path(s), 'enabled': True, 'label': s.label,
-                                                  'timestampMethod': 'receiveTime'} for s in series],
-                       'showLegend': True, 'legendDisplay': 'floating', 'showXAxisLabels': True,
+        config[pid] = {PANEL_TITLE: title,
+                       'paths': [{'value': foxglove_path(s), 'enabled': True, 'label': s.label,
+                                  'timestampMethod': 'receiveTime'} for s in series],
+                       'showLegend': True, 'legendDisplay': 'left', 'sidebarDimension': _legend_width(series),
+                       'showPlotValuesInLegend': False, 'showXAxisLabels': True,
                        'showYAxisLabels': True, 'isSynced': True, 'xAxisVal': 'timestamp'}
         plots.append(pid)
     if layout.modes:
         config['StateTransitions!adcsmode'] = {
-            'title': 'controller mode', 'isSynced': True,
+            PANEL_TITLE: 'controller mode', 'isSynced': True,
             'paths': [{'value': foxglove_path(s), 'label': s.label, 'timestampMethod': 'receiveTime'}
                       for s in layout.modes]}
         plots.append('StateTransitions!adcsmode')
-    right = _split(plots, 'column')
+    right = _grid(plots)
     if layout.scene_topics:
         config['3D!adcsscene'] = _three_d(layout)
-        tree = {'first': '3D!adcsscene', 'second': right, 'direction': 'row', 'splitPercentage': 45}
+        tree = {'first': '3D!adcsscene', 'second': right, 'direction': 'row', 'splitPercentage': 34}
     else:
         tree = right
     return {'configById': config, 'globalVariables': {}, 'userNodes': {}, 'linkedGlobalVariables': [],
@@ -250,17 +319,14 @@ def foxglove_layout(layout: Layout) -> dict:
 # --- PlotJuggler ----------------------------------------------------------------------------------
 
 def plotjuggler_name(s: Series) -> str:
-    """The series name plotjuggler_ros' ROS 2 parsers give the field (module doc)."""
+    """The series name PlotJuggler's ROS 2 parser gives the field (module doc)."""
     if s.type_name == JOINT_STATE:
         field_name, _, joint = s.path
         return f'{s.topic}/{joint}/{field_name}'
     if s.type_name == DIAGNOSTIC_ARRAY:
         _, status, key = s.path
         return f'{s.topic}/{status}/{key}'
-    path = s.path
-    if s.type_name == ODOMETRY and path[:2] in (('twist', 'twist'), ('pose', 'pose')):
-        path = path[1:]   # the builtin Odometry parser: /pose/..., /twist/... (no inner pose / twist)
-    return '/'.join((s.topic, *map(str, path)))
+    return '/'.join((s.topic, *map(str, s.path)))
 
 
 def _dock(title: str, series: list[Series]) -> ET.Element:
@@ -286,8 +352,8 @@ def plotjuggler_layout(layout: Layout) -> ET.ElementTree:
     widget = ET.SubElement(root, 'tabbed_widget', name='Main Window', parent='main_window')
     attitude = [p for p in layout.plots if 'torque' not in p[0] and 'wheel' not in p[0] and 'thruster' not in p[0]]
     actuators = [p for p in layout.plots if p not in attitude]
-    if layout.modes:
-        actuators.append(('controller mode', layout.modes))
+    if layout.mode_numbers:
+        actuators.append(('controller mode (number)', layout.mode_numbers))
     for name, docks in (('attitude', attitude), ('actuators', actuators)):
         if docks:
             _tab(widget, name, docks)
