@@ -8,7 +8,7 @@ grouped so that the figure stays readable.
 * ``<name>_x``, ``<name>_y``, ``<name>_z`` (and ``J_hat_11`` ... alike: one prefix) share a panel;
 * other numeric values with the same unit share a panel, up to three;
 * a value that never changes (``rejected_messages`` = 0 all along) is not drawn: the caption
-  gives its value;
+  gives its value; nor the number of a text value (``mode_index`` beside ``mode``: for viewers);
 * each panel's label carries the unit (:data:`STATUS_UNITS`; "unit not declared" otherwise).
 """
 from __future__ import annotations
@@ -124,7 +124,11 @@ def fig_controller_status(c: Context):
     text = [k for k in text if k not in chatty]
     constant_text = {k: series[k][1][0] for k in text if len(set(series[k][1].tolist())) == 1}
     text = [k for k in text if k not in constant_text]
-    numeric = [k for k, (_, v) in series.items() if v.dtype != object]
+    # ``mode_index`` / ``phase_index``: the number of a text value, for viewers that plot numbers only;
+    # the timeline already shows the value by name
+    named = {k for k, (_, v) in series.items() if v.dtype == object}
+    numeric = [k for k, (_, v) in series.items() if v.dtype != object
+               and not (k.endswith('_index') and k[:-len('_index')] in named)]
     constant = {k: series[k][1][0] for k in numeric
                 if series[k][1].size and np.all(series[k][1] == series[k][1][0])}
     scale = {k: float(np.nanmax(np.abs(series[k][1]))) if np.isfinite(series[k][1]).any() else 0.0 for k in numeric}
