@@ -1,19 +1,18 @@
-"""A run's metrics computed while its bag is read: :func:`analyse_bag` (issue #18 item 5).
+"""A run's metrics computed while its bag is read: :func:`analyse_bag`.
 
 :func:`~adcs_sim.app.analysis.metrics.run_metrics` on :meth:`RunData.from_bag` holds every series of the
 run in memory (and the controller status, which no metric uses): its peak grows by ~620 B a step
-(+539 MiB over the runner's imports for 24 h at 10 Hz). Here one streaming pass over the bag feeds,
-chunk by chunk, what each metric needs:
+(+539 MiB over the runner's imports for 24 h at 10 Hz). Here one streaming pass over the bag feeds
+each metric's one definition chunk by chunk (:mod:`~adcs_sim.app.analysis.metric_defs`,
+:mod:`~adcs_sim.app.analysis.metric_defs_attitude`, :mod:`~adcs_sim.app.analysis.metric_defs_thrusters`):
 
 * settling and first-entry times: per error series and band, the last sample outside the band
-  and the one after it, the first inside and the one before it (:class:`BandTrack`);
-* peaks (running maxima), final values, counts;
-* the metrics defined once (:data:`adcs_sim.app.analysis.metric_defs.DEFINED`: torque integrals and
-  peaks, wheel metrics), fed chunk by chunk to their definitions; the torque integrals keep their
-  per-sample terms ``‖u_k‖ Δt_k`` and ``u_kᵀu_k Δt_k`` (8 B a step each) and sum them once at the
-  end, so that numpy's pairwise summation sees the very array it sees in :func:`run_metrics` (its
-  split points depend on the length, unknown until the end: a running sum would differ in the
-  last bits); the torque stamps (8 B a step) for the integral after a fault;
+  and the one after it, the first inside and the one before it; final values, peaks, counts;
+* the torque integrals keep their per-sample terms ``‖u_k‖ Δt_k`` and ``u_kᵀu_k Δt_k`` (8 B a
+  step each) and sum them once at the end, so that numpy's pairwise summation sees the very array
+  it sees in :func:`run_metrics` (its split points depend on the length, unknown until the end: a
+  running sum would differ in the last bits); the after-fault integral keeps the torque stamps
+  (8 B a step) and takes the first integral's terms after the fault (its state, not a copy);
 * the state stamps (8 B a step): the settling after a fault needs the first sample after the
   fault's time, known only once the ``faults`` topic is read, and the missed-step gaps the median
   step; thruster on-times (one float per thruster and step, thruster runs only).
@@ -153,9 +152,11 @@ class TorqueStream(_Ordered):
 
     def __init__(self, topic: str) -> None:
         super().__init__(topic)
-        self.defined = metric_defs.StreamedValues('torque')
+        # the after-fault integral keeps IntegratedTorque's state (its terms) and the stamps: the
+        # run's integral is taken from that state, not kept twice (8 B a step)
         self.after_fault = mda.IntegratedTorqueAfterFault()
         self.fault_state = self.after_fault.init({'runs': 1})
+        self.defined = metric_defs.StreamedValues('torque', skip=(self.after_fault.integral.name,))
 
     def add(self, t: np.ndarray, stamp_ns: np.ndarray, u: np.ndarray) -> None:
         self.check(stamp_ns)
@@ -163,6 +164,12 @@ class TorqueStream(_Ordered):
             return
         self.defined.add((), np.zeros(0), t, u)
         self.fault_state = self.after_fault.update(self.fault_state, {'t_s': t, 'torque': u[None]})
+
+    def defined_values(self, t_end: float) -> dict:
+        """The defined metrics (metric_defs.DEFINED) of the applied torque."""
+        integral = self.after_fault.integral
+        return {**self.defined.values((), 0, t_end),
+                integral.name: float(integral.finish(self.fault_state['integral'], t_end)[0])}
 
 
 class JointStream:
@@ -330,7 +337,8 @@ class _Pass:
         if torque is not None and not torque.rows:
             torque = None
         # the metrics defined once (metric_defs.DEFINED), in their order
-        defined = (torque.defined if torque is not None else metric_defs.StreamedValues('torque')).values((), 0, t_end)
+        defined = (torque.defined_values(t_end) if torque is not None else
+                   metric_defs.StreamedValues('torque').values((), 0, t_end))
         defined.update(wheels.defined_values() if wheels is not None else
                        metric_defs.StreamedValues().values(None, 0))
         out.update({m.name: defined[m.name] for m in metric_defs.DEFINED})
