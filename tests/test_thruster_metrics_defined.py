@@ -60,7 +60,8 @@ def test_any_chunking_and_merge_equal_the_whole_run_formulas(n, k, seed, cuts, s
                 repr(reference(on[r], impulse[r])[m.name]), m.name
         if n > 1:
             s = min(split, n - 1)
-            a = m.update(m.init({'runs': 3}), {'t_s': t[:s], 'thruster_on_time': on[:, :s], 'thruster_impulse': impulse[:, :s]})
+            a = m.update(m.init({'runs': 3}), {'t_s': t[:s], 'thruster_on_time': on[:, :s],
+                                               'thruster_impulse': impulse[:, :s]})
             b = m.update(m.init({'runs': 3}), {'t_s': t[s:], 'thruster_on_time': on[:, s:],
                                                'thruster_impulse': impulse[:, s:]})
             assert repr(m.finish(m.merge(a, b)).tolist()) == repr(whole.tolist()), m.name

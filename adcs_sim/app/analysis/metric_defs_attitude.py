@@ -46,55 +46,50 @@ def crossing(t0, e0, t1, e1, tol):
         return np.where(np.isfinite(e0), t0 + (e0 - tol) / (e0 - e1) * (t1 - t0), t1)
 
 
-def _samples_last(chunk: dict, series: str) -> np.ndarray:
-    """The series with its sample axis last: (runs[, 3], samples)."""
-    return np.moveaxis(np.asarray(chunk[series], dtype=float), 1, -1)
+def _rows(chunk: dict, series: str) -> np.ndarray:
+    """The series as rows of samples: (runs, samples), or (runs·3, samples) for one per axis."""
+    e = np.asarray(chunk[series], dtype=float)
+    return e if e.ndim == 2 else np.moveaxis(e, 1, -1).reshape(-1, e.shape[1])
 
 
-def _pick(e: np.ndarray, index: np.ndarray) -> np.ndarray:
-    """``e[..., index[...]]``: each row's sample ``index``."""
-    return np.take_along_axis(e, index[..., None], axis=-1)[..., 0]
-
-
-def _lead(context: dict, per: str | None) -> tuple:
-    return (context['runs'], 3) if per else (context['runs'],)
+def _shaped(values: np.ndarray, per: str | None) -> np.ndarray:
+    return values.reshape(-1, 3) if per else values
 
 
 class SettlingTime(Metric):
-    """The last exit from the band ``<= tol`` (module docstring)."""
+    """The last exit from the band ``<= tol`` (module docstring). State per row (run, or run and
+    axis): whether a sample was outside, whether the latest was, and ``(t, e)`` of the last one
+    outside and of the sample after it."""
 
     def __init__(self, name: str, series: str, tol: float, per: str | None = None) -> None:
         self.name, self.needs, self.tol, self.per = name, (series,), float(tol), per
         self.unit = 's'
 
     def init(self, context: dict):
-        lead = _lead(context, self.per)
-        return {'t0': None, 'first': None, 'seen': np.zeros(lead, bool), 'pending': np.zeros(lead, bool),
-                'out_t': np.full(lead, math.nan), 'out_e': np.full(lead, math.nan),
-                'next_t': np.full(lead, math.nan), 'next_e': np.full(lead, math.nan)}
+        rows = context['runs'] * (3 if self.per else 1)
+        return {'t0': None, 'first': None, 'seen': np.zeros(rows, bool), 'pending': np.zeros(rows, bool),
+                'exit': np.full((4, rows), math.nan)}   # out_t, out_e, next_t, next_e
 
     def update(self, state, chunk: dict):
         t = np.asarray(chunk['t_s'], dtype=float)
         if not t.size:
             return state
-        e = _samples_last(chunk, self.needs[0])
+        e = _rows(chunk, self.needs[0])
         if state['t0'] is None:
-            state['t0'], state['first'] = t[0], (t[0], e[..., 0].copy())
-        pending = state['pending']
+            state['t0'], state['first'] = t[0], (t[0], e[:, 0].copy())
+        pending, ex = state['pending'], state['exit']
         if pending.any():                      # the sample after the previous chunk's last exit
-            state['next_t'][pending], state['next_e'][pending] = t[0], e[..., 0][pending]
-            state['pending'] = np.zeros(pending.shape, bool)
+            ex[2, pending], ex[3, pending] = t[0], e[pending, 0]
+            state['pending'] = pending = np.zeros(pending.shape, bool)
         outside = ~(e <= self.tol)
-        now = outside.any(axis=-1)
+        now = outside.any(axis=1)
         if now.any():
             m = t.size
-            last = m - 1 - np.argmax(outside[..., ::-1], axis=-1)
+            rows = np.flatnonzero(now)
+            last = m - 1 - np.argmax(outside[rows, ::-1], axis=1)
             after = np.minimum(last + 1, m - 1)
-            state['out_t'] = np.where(now, t[last], state['out_t'])
-            state['out_e'] = np.where(now, _pick(e, last), state['out_e'])
-            state['next_t'] = np.where(now, t[after], state['next_t'])
-            state['next_e'] = np.where(now, _pick(e, after), state['next_e'])
-            state['pending'] = now & (last == m - 1)
+            ex[:, rows] = (t[last], e[rows, last], t[after], e[rows, after])
+            pending[rows] = last == m - 1
             state['seen'] = state['seen'] | now
         return state
 
@@ -103,57 +98,60 @@ class SettlingTime(Metric):
             return b
         if b['t0'] is None:
             return a
-        out = {key: np.where(b['seen'], b[key], a[key]) for key in ('out_t', 'out_e', 'next_t', 'next_e')}
+        ex = np.where(b['seen'], b['exit'], a['exit'])
         fill = a['pending'] & ~b['seen']        # a's last exit, then b's first sample after it
-        out['next_t'] = np.where(fill, b['first'][0], out['next_t'])
-        out['next_e'] = np.where(fill, b['first'][1], out['next_e'])
-        out.update(t0=a['t0'], first=a['first'], pending=b['pending'])
-        out['seen'] = a['seen'] | b['seen']
-        return out
+        ex[2, fill], ex[3, fill] = b['first'][0], b['first'][1][fill]
+        return {'t0': a['t0'], 'first': a['first'], 'seen': a['seen'] | b['seen'], 'pending': b['pending'],
+                'exit': ex}
 
     def finish(self, state, t_end_s: float | None = None) -> np.ndarray:
         if state['t0'] is None:
-            return np.full(state['seen'].shape, math.nan)
-        value = crossing(state['out_t'], state['out_e'], state['next_t'], state['next_e'], self.tol)
-        return np.where(state['seen'], np.where(state['pending'], math.inf, value), state['t0'])
+            return _shaped(np.full(state['seen'].shape, math.nan), self.per)
+        value = crossing(*state['exit'], self.tol)
+        value[state['pending']] = math.inf
+        value[~state['seen']] = state['t0']
+        return _shaped(value, self.per)
 
 
 class FirstEntryTime(Metric):
-    """The first sample ``<= tol``, the crossing interpolated from the one before (module docstring)."""
+    """The first sample ``<= tol``, the crossing interpolated from the one before (module docstring).
+    State per row: whether found, whether at the first sample, ``(t, e)`` of the sample before and
+    of the first inside, and the latest sample (the one before the next chunk's first)."""
 
     def __init__(self, name: str, series: str, tol: float, per: str | None = None) -> None:
         self.name, self.needs, self.tol, self.per = name, (series,), float(tol), per
         self.unit = 's'
 
     def init(self, context: dict):
-        lead = _lead(context, self.per)
-        return {'t0': None, 'found': np.zeros(lead, bool), 'at_start': np.zeros(lead, bool),
-                'in_t': np.full(lead, math.nan), 'in_e': np.full(lead, math.nan),
-                'before_t': np.full(lead, math.nan), 'before_e': np.full(lead, math.nan),
-                'last_t': None, 'last_e': None}
+        rows = context['runs'] * (3 if self.per else 1)
+        return {'t0': None, 'found': np.zeros(rows, bool), 'at_start': np.zeros(rows, bool),
+                'entry': np.full((4, rows), math.nan), 'last_t': math.nan, 'last_e': None}   # before t, e; in t, e
 
     def update(self, state, chunk: dict):
         t = np.asarray(chunk['t_s'], dtype=float)
         if not t.size:
             return state
-        e = _samples_last(chunk, self.needs[0])
+        e = _rows(chunk, self.needs[0])
         started = state['t0'] is not None
         if not started:
             state['t0'] = t[0]
-        if not state['found'].all():
+        found = state['found']
+        if not found.all():
             inside = e <= self.tol
-            new = inside.any(axis=-1) & ~state['found']
+            new = inside.any(axis=1) & ~found
             if new.any():
-                first = np.argmax(inside, axis=-1)
+                rows = np.flatnonzero(new)
+                first = np.argmax(inside[rows], axis=1)
                 before = np.maximum(first - 1, 0)
-                at_start = first == 0
-                before_t = np.where(at_start, state['last_t'] if started else math.nan, t[before])
-                before_e = np.where(at_start, state['last_e'] if started else math.nan, _pick(e, before))
-                for key, value in (('in_t', t[first]), ('in_e', _pick(e, first)), ('before_t', before_t),
-                                   ('before_e', before_e), ('at_start', at_start & (not started))):
-                    state[key] = np.where(new, value, state[key])
-                state['found'] = state['found'] | new
-        state['last_t'], state['last_e'] = t[-1], e[..., -1].copy()
+                entry = np.array((t[before], e[rows, before], t[first], e[rows, first]))
+                start = first == 0               # the sample before is the previous chunk's last
+                if start.any():
+                    entry[0, start] = state['last_t']
+                    entry[1, start] = state['last_e'][rows[start]] if started else math.nan
+                state['entry'][:, rows] = entry
+                state['at_start'][rows] = start & (not started)
+                state['found'] = found | new
+        state['last_t'], state['last_e'] = t[-1], e[:, -1].copy()
         return state
 
     def merge(self, a, b):
@@ -161,21 +159,20 @@ class FirstEntryTime(Metric):
             return b
         if b['t0'] is None:
             return a
-        out = dict(a, last_t=b['last_t'], last_e=b['last_e'])
         take = b['found'] & ~a['found']
-        for key in ('in_t', 'in_e', 'before_t', 'before_e'):
-            out[key] = np.where(take, b[key], a[key])
+        entry = np.where(take, b['entry'], a['entry'])
         start = take & b['at_start']            # b's first sample: the one before it is a's last
-        out['before_t'] = np.where(start, a['last_t'], out['before_t'])
-        out['before_e'] = np.where(start, a['last_e'], out['before_e'])
-        out['found'] = a['found'] | b['found']
-        return out
+        entry[0, start], entry[1, start] = a['last_t'], a['last_e'][start]
+        return {'t0': a['t0'], 'found': a['found'] | b['found'], 'at_start': np.where(take, False, a['at_start']),
+                'entry': entry, 'last_t': b['last_t'], 'last_e': b['last_e']}
 
     def finish(self, state, t_end_s: float | None = None) -> np.ndarray:
         if state['t0'] is None:
-            return np.full(state['found'].shape, math.inf)
-        value = crossing(state['before_t'], state['before_e'], state['in_t'], state['in_e'], self.tol)
-        return np.where(state['found'], np.where(state['at_start'], state['t0'], value), math.inf)
+            return _shaped(np.full(state['found'].shape, math.inf), self.per)
+        value = crossing(*state['entry'], self.tol)
+        value[state['at_start']] = state['t0']
+        value[~state['found']] = math.inf
+        return _shaped(value, self.per)
 
 
 class FinalValue(Metric):
@@ -260,7 +257,8 @@ def attitude_series(run, needs=('eigen_error_deg', 'euler_error_deg', 'euler_wor
     if {'eigen_error_deg', 'euler_error_deg', 'euler_worst_deg', 'q4_error'} & set(needs):
         qe, eigen, euler = attitude_errors(run)
         euler = np.abs(euler)
-        out = {'eigen_error_deg': eigen[None], 'euler_error_deg': euler[None], 'euler_worst_deg': euler.max(axis=1)[None]}
+        out = {'eigen_error_deg': eigen[None], 'euler_error_deg': euler[None],
+               'euler_worst_deg': euler.max(axis=1)[None]}
         if 'q4_error' in needs:
             out['q4_error'] = (1.0 - np.abs(qe[:, 3]))[None]
     if 'pointing_error_deg' in needs:
@@ -374,7 +372,7 @@ class Q4SettlingAfterFault(_AfterFault):
         after = t[t >= t0]
         if not after.size:
             return np.full(ex['seen'].shape, math.nan)
-        inside = ~(ex['seen'] & (ex['out_t'] >= t0))   # no sample after t0 outside
+        inside = ~(ex['seen'] & (ex['exit'][0] >= t0))   # no sample after t0 outside
         return np.where(inside, after[0], self.last_exit.finish(ex)) - t0
 
 

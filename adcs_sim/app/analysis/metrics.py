@@ -169,7 +169,8 @@ def pointing_error_deg(run: RunData) -> np.ndarray:
 def pointing_metrics(t: np.ndarray, error_deg: np.ndarray, bands=POINTING_BANDS_DEG) -> dict:
     """First-entry and settling (staying below) times of the pointing error at each band (deg),
     and the final error: ``pointing_first_<b>deg_s``, ``pointing_settling_<b>deg_s``,
-    ``final_pointing_error_deg`` (their definitions: :func:`~adcs_sim.app.analysis.metric_defs_attitude.pointing_band_metrics`)."""
+    ``final_pointing_error_deg`` (their definitions:
+    :func:`~adcs_sim.app.analysis.metric_defs_attitude.pointing_band_metrics`)."""
     chunk = {'t_s': np.asarray(t, dtype=float), 'pointing_error_deg': np.asarray(error_deg, dtype=float)[None]}
     return mda.listed(mda.values_of(mda.pointing_band_metrics(bands), {'runs': 1}, chunk))
 
@@ -209,7 +210,8 @@ def q4_settling_after(run: RunData, band: float, t0: float) -> float:
     :class:`~adcs_sim.app.analysis.metric_defs_attitude.Q4SettlingAfterFault`."""
     qe = error_quaternion(run.q, run.q_ref)
     chunks = [{'faults': np.array([[t0, 2.0]])}, {'t_s': run.t, 'q4_error': (1.0 - np.abs(qe[:, 3]))[None]}]
-    return float(mda.values_of([mda.Q4SettlingAfterFault(band)], {'runs': 1}, chunks)[f'settling_q4_{band:g}_after_fault_s'][0])
+    metric = mda.Q4SettlingAfterFault(band)
+    return float(mda.values_of([metric], {'runs': 1}, chunks)[metric.name][0])
 
 
 def fault_metrics(run: RunData, bands=mda.FAULT_BANDS) -> dict:

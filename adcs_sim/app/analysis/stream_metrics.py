@@ -26,7 +26,6 @@ the in-memory path instead: ``StreamResult.streamed`` says which was used.
 """
 from __future__ import annotations
 
-import math
 from collections import defaultdict
 from dataclasses import dataclass, field
 from types import SimpleNamespace
