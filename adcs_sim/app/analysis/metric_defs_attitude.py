@@ -86,7 +86,8 @@ class SettlingTime(Metric):
         if now.any():
             m = t.size
             rows = np.flatnonzero(now)
-            last = m - 1 - np.argmax(outside[rows, ::-1], axis=1)
+            sub = outside if rows.size == now.size else outside[rows]   # every row: no copy
+            last = m - 1 - np.argmax(sub[:, ::-1], axis=1)
             after = np.minimum(last + 1, m - 1)
             ex[:, rows] = (t[last], e[rows, last], t[after], e[rows, after])
             pending[rows] = last == m - 1
@@ -141,7 +142,7 @@ class FirstEntryTime(Metric):
             new = inside.any(axis=1) & ~found
             if new.any():
                 rows = np.flatnonzero(new)
-                first = np.argmax(inside[rows], axis=1)
+                first = np.argmax(inside if rows.size == new.size else inside[rows], axis=1)   # every row: no copy
                 before = np.maximum(first - 1, 0)
                 entry = np.array((t[before], e[rows, before], t[first], e[rows, first]))
                 start = first == 0               # the sample before is the previous chunk's last
