@@ -227,7 +227,7 @@ def test_streams_under_any_chunk_boundaries(name, cuts, u_cuts):
     u_ns = np.round(run.t_u * 1e9).astype(np.int64)
     for a, b in _pieces(u_cuts, run.t_u.size):
         torque.add(run.t_u[a:b], u_ns[a:b], run.u[a:b])
-    got = torque.defined.values((), 0, run.t_end)   # the torque metrics of metric_defs.DEFINED
+    got = torque.defined_values(run.t_end)   # the torque metrics of metric_defs.DEFINED
     assert set(got) == {'integrated_torque_Nms', 'control_energy_N2m2s', 'peak_torque_Nm'}
     assert text(got) == text({k: expected[k] for k in got})
     assert text({'s': [got['integrated_torque_Nms'], got['control_energy_N2m2s']]}) == \

@@ -15,57 +15,40 @@ applies it to all), so the fault metrics of the full runs are vectorised too.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from adcs_core.attitude import euler_213, pointing_error
 from adcs_sim.app.analysis import metric_defs
+from adcs_sim.app.analysis import metric_defs_attitude as mda
 from adcs_sim.app.analysis import metrics_kernel as mk
-from adcs_sim.app.analysis.metrics import POINTING_BANDS_DEG, run_metrics, zoh_durations
+from adcs_sim.app.analysis.metrics import run_metrics, zoh_durations
 from adcs_sim.app.analysis.estimation import estimation_metrics, series_from_batch
 from adcs_sim.app.analysis.metrics_kernel import error_quaternions
+
+
+def _band_times(metric, t: np.ndarray, error: np.ndarray) -> np.ndarray:
+    chunk = {'t_s': t, metric.needs[0]: error}
+    return metric.finish(metric.update(metric.init({'runs': error.shape[0]}), chunk))
 
 
 def settling_times(t: np.ndarray, error: np.ndarray, tol: float) -> np.ndarray:
     """:func:`adcs_sim.app.analysis.metrics.settling_time` of each row of ``error`` (runs, samples) on the
     common times ``t`` (samples,): the last exit from ``<= tol``, interpolated; ``t[0]`` if never
-    outside, ``inf`` if the last sample is outside, the next sample's time after a non-finite one."""
-    n = error.shape[-1]
-    outside = ~(error <= tol)
-    last = n - 1 - np.argmax(outside[:, ::-1], axis=1)
-    rows = np.arange(error.shape[0])
-    nxt = np.minimum(last + 1, n - 1)
-    e0, e1 = error[rows, last], error[rows, nxt]
-    with np.errstate(all='ignore'):
-        crossing = t[last] + (e0 - tol) / (e0 - e1) * (t[nxt] - t[last])
-    out = np.where(np.isfinite(e0), crossing, t[nxt])
-    out = np.where(last == n - 1, math.inf, out)
-    return np.where(outside.any(axis=1), out, t[0])
+    outside, ``inf`` if the last sample is outside, the next sample's time after a non-finite one
+    (its one definition, :class:`~adcs_sim.app.analysis.metric_defs_attitude.SettlingTime`)."""
+    return _band_times(mda.SettlingTime('settling', 'error', tol), t, error)
 
 
 def first_entry_times(t: np.ndarray, error: np.ndarray, tol: float) -> np.ndarray:
-    """:func:`adcs_sim.app.analysis.metrics.first_entry_time` of each row of ``error`` (runs, samples)."""
-    inside = error <= tol
-    first = np.argmax(inside, axis=1)
-    rows = np.arange(error.shape[0])
-    prev = np.maximum(first - 1, 0)
-    e0, e1 = error[rows, prev], error[rows, first]
-    with np.errstate(all='ignore'):
-        crossing = t[prev] + (e0 - tol) / (e0 - e1) * (t[first] - t[prev])
-    out = np.where(np.isfinite(e0), crossing, t[first])
-    out = np.where(first == 0, t[0], out)
-    return np.where(inside.any(axis=1), out, math.inf)
+    """:func:`adcs_sim.app.analysis.metrics.first_entry_time` of each row of ``error`` (runs, samples)
+    (:class:`~adcs_sim.app.analysis.metric_defs_attitude.FirstEntryTime`)."""
+    return _band_times(mda.FirstEntryTime('first_entry', 'error', tol), t, error)
 
 
-def _pointing_columns(t: np.ndarray, error_deg: np.ndarray, bands) -> dict[str, np.ndarray]:
+def _pointing_columns(t: np.ndarray, error_deg: np.ndarray) -> dict[str, np.ndarray]:
     """:func:`adcs_sim.app.analysis.metrics.pointing_metrics` over the batch axis (one array per metric)."""
-    out = {}
-    for b in bands:
-        out[f'pointing_first_{b:g}deg_s'] = first_entry_times(t, error_deg, b)
-        out[f'pointing_settling_{b:g}deg_s'] = settling_times(t, error_deg, b)
-    out['final_pointing_error_deg'] = error_deg[:, -1]
-    return out
+    return mda.values_of(mda.pointing_band_metrics(), {'runs': error_deg.shape[0]},
+                         {'t_s': t, 'pointing_error_deg': error_deg})
 
 
 def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.ndarray]:
@@ -110,10 +93,10 @@ def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.
     if result.faults:
         qe = np.empty(q.shape)
         error_quaternions(q, q_ref, qe, np.empty(q.shape[:2]))
-        out.update(_fault_columns(result, t, qe, (u[..., 0], u[..., 1], u[..., 2]), t_end))
+        out.update(_fault_columns(result, t, qe, u, t_end))
     if result.pointing is not None:
         sigma, tau = result.pointing
-        out.update(_pointing_columns(t, np.degrees(pointing_error(q, sigma, tau)), POINTING_BANDS_DEG))
+        out.update(_pointing_columns(t, np.degrees(pointing_error(q, sigma, tau))))
     return out
 
 
@@ -129,48 +112,30 @@ def full_run_columns_numpy(result, rows: np.ndarray, tol_deg: float) -> dict[str
     eigen = np.degrees(2.0 * np.arctan2(vnorm, np.abs(qe[..., 3])))   # eigenaxis_angle(qe)
     euler = np.abs(np.degrees(euler_213(qe)))
     u = result.u[take]
-    u0, u1, u2 = u[..., 0], u[..., 1], u[..., 2]
-    # The reductions over the 3 components written out: numpy reduces a length-3 axis in sequence
-    # ((a0 + a1) + a2; max is exact) but 20-50x slower than these element-wise passes.
+    # the attitude metrics' series over the batch axis, fed to their definitions (metric_defs_attitude);
+    # the largest Euler error written out: numpy reduces a length-3 axis in sequence (max is exact)
+    # but 20-50x slower than these element-wise passes
+    series = {'t_s': t, 'eigen_error_deg': eigen, 'euler_error_deg': euler,
+              'euler_worst_deg': np.maximum(np.maximum(euler[..., 0], euler[..., 1]), euler[..., 2])}  # max(axis=2)
     out = {
-        'duration_s': np.full(rows.size, t_end),
-        f'settling_eigenaxis_{tol_deg:g}deg_s': settling_times(t, eigen, tol_deg),
-        f'settling_euler213_{tol_deg:g}deg_s': settling_times(
-            t, np.maximum(np.maximum(euler[..., 0], euler[..., 1]), euler[..., 2]), tol_deg),   # euler.max(axis=2)
-        'settling_euler213_per_axis_s': np.stack([settling_times(t, euler[:, :, i], tol_deg)
-                                                  for i in range(3)], axis=1),
-        'final_eigenaxis_error_deg': eigen[:, -1],
+        **mda.values_of(mda.head_metrics(tol_deg), {'runs': rows.size}, series, t_end),
         **metric_defs.batch_values(result, rows),   # the metrics defined once (metric_defs.DEFINED)
     }
-    out.update(_fault_columns(result, t, qe, (u0, u1, u2), t_end))
+    out.update(_fault_columns(result, t, qe, u, t_end))
     if result.pointing is not None:
         sigma, tau = result.pointing
-        out.update(_pointing_columns(t, np.degrees(pointing_error(q, sigma, tau)), POINTING_BANDS_DEG))
+        out.update(_pointing_columns(t, np.degrees(pointing_error(q, sigma, tau))))
     return out
 
 
-
-def _fault_columns(result, t: np.ndarray, qe: np.ndarray, u: tuple, t_end: float) -> dict[str, np.ndarray]:
+def _fault_columns(result, t: np.ndarray, qe: np.ndarray, u: np.ndarray, t_end: float) -> dict[str, np.ndarray]:
     """:func:`adcs_sim.app.analysis.metrics.fault_metrics` of full runs (the batch's fault schedule is every
-    run's): q4 settling after the first fault in each band and the torque integral after it."""
+    run's, those up to the end as a bag records them): their definitions over the batch axis
+    (:func:`~adcs_sim.app.analysis.metric_defs_attitude.fault_metrics_defs`)."""
     K = t.size - 1
-    times = [f[0] for f in result.faults if f[0] <= t[K] and f[1] >= 2]   # run_data's faults, level ERROR
-    if not times:
-        return {}
-    t0 = float(min(times))
-    after = t >= t0
-    out = {'first_fault_time_s': np.full(qe.shape[0], t0)}
-    for band in (0.02, 0.01):
-        out[f'settling_q4_{band:g}_after_fault_s'] = settling_times(t[after], 1.0 - np.abs(qe[:, after, 3]), band) - t0
-    t_u = t[:K]
-    late = t_u >= t0
-    u0, u1, u2 = u
-    norm = np.sqrt((u0 * u0 + u1 * u1) + u2 * u2)
-    # C order: each row summed as one run's 1-D array (pairwise); a masked column selection's
-    # product may come out in another order, which numpy would sum column by column
-    held = np.ascontiguousarray(norm[:, late] * zoh_durations(t_u[late], t_end))
-    out['integrated_torque_after_fault_Nms'] = np.sum(held, axis=-1)
-    return out
+    faults = np.array([(f[0], f[1]) for f in result.faults if f[0] <= t[K]], dtype=float).reshape(-1, 2)
+    chunks = [{'faults': faults}, {'t_s': t, 'q4_error': 1.0 - np.abs(qe[..., 3])}, {'t_s': t[:K], 'torque': u}]
+    return mda.values_of(mda.fault_metrics_defs(), {'runs': qe.shape[0]}, chunks, t_end)
 
 
 def batch_run_metrics(result, tol_deg: float = 0.5) -> list[dict]:

@@ -370,11 +370,12 @@ def batch_values(result, rows: np.ndarray, twins: dict | None = None) -> dict[st
 class StreamedValues:
     """The defined metrics that read ``series`` of one run, fed chunk by chunk (the streamed path),
     per joint-name list (:class:`~adcs_sim.app.analysis.stream_metrics.JointStream` keeps those named in the
-    last message; ``()`` for a topic without names, the applied torque)."""
+    last message; ``()`` for a topic without names, the applied torque). ``skip``: names of metrics a
+    driver takes from another state (the torque integral, from the after-fault integral's)."""
 
-    def __init__(self, series: str = 'wheel_speed') -> None:
+    def __init__(self, series: str = 'wheel_speed', skip: tuple = ()) -> None:
         self.series = series
-        self.metrics = [m for m in DEFINED if m.needs == (series,)]
+        self.metrics = [m for m in DEFINED if m.needs == (series,) and m.name not in skip]
         self.states: dict = {}      # names -> [state per metric]
         self.limits: dict = {}      # names -> the limits used
 

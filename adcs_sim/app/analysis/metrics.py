@@ -45,12 +45,14 @@ several (e.g. 0.5° and 1° for a comparison table). :func:`k0_metric` is seed 0
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
-from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213, pointing_error
+from adcs_core.attitude import error_quaternion, pointing_error
 from adcs_sim.app.analysis import metric_defs
+from adcs_sim.app.analysis import metric_defs_attitude as mda
+from adcs_sim.app.analysis.metric_defs_attitude import POINTING_BANDS_DEG, attitude_errors  # noqa: F401
+from adcs_sim.app.analysis.metric_defs_thrusters import THRUSTERS
 
 # The run's time series and what its scenario asks for (re-exported: this module's historical API).
 from adcs_sim.app.analysis.run_data import (  # noqa: F401
@@ -72,43 +74,33 @@ NS = 1e-9
 
 # --- metrics on arrays ------------------------------------------------------------------------
 
+def _band_time(metric, t: np.ndarray, error: np.ndarray) -> float:
+    """``metric`` (a band time of :mod:`~adcs_sim.app.analysis.metric_defs_attitude`) of one series."""
+    chunk = {'t_s': np.asarray(t, dtype=float), metric.needs[0]: np.asarray(error, dtype=float)[None]}
+    return float(metric.finish(metric.update(metric.init({'runs': 1}), chunk))[0])
+
+
 def settling_time(t: np.ndarray, error: np.ndarray, tol: float) -> float:
-    """Time after which ``error`` stays ``<= tol`` to the end (last exit, interpolated).
+    """Time after which ``error`` stays ``<= tol`` to the end (last exit, interpolated): its one
+    definition, :class:`~adcs_sim.app.analysis.metric_defs_attitude.SettlingTime`.
 
     ``t[0]`` if every sample is inside, ``inf`` if the last one is outside, NaN if there are no
     samples. ``t`` ascending; a NaN error counts as outside.
     """
-    t = np.asarray(t, dtype=float)
-    e = np.asarray(error, dtype=float)
-    outside = np.flatnonzero(~(e <= tol))
-    if outside.size == 0:
-        return float(t[0]) if t.size else math.nan
-    i = outside[-1]
-    if i == e.size - 1:
-        return math.inf
-    return band_crossing(t[i], e[i], t[i + 1], e[i + 1], tol)
+    return _band_time(mda.SettlingTime('settling', 'error', tol), t, error)
 
 
 def first_entry_time(t: np.ndarray, error: np.ndarray, tol: float) -> float:
     """First time ``error`` reaches ``tol`` (interpolated): ``t[0]`` if it starts inside, ``inf`` if
-    never. Unlike :func:`settling_time`, later exits from the band do not count."""
-    t = np.asarray(t, dtype=float)
-    e = np.asarray(error, dtype=float)
-    inside = np.flatnonzero(e <= tol)
-    if inside.size == 0:
-        return math.inf
-    i = inside[0]
-    if i == 0:
-        return float(t[0])
-    return band_crossing(t[i - 1], e[i - 1], t[i], e[i], tol)
+    never. Unlike :func:`settling_time`, later exits from the band do not count. Its one
+    definition: :class:`~adcs_sim.app.analysis.metric_defs_attitude.FirstEntryTime`."""
+    return _band_time(mda.FirstEntryTime('first_entry', 'error', tol), t, error)
 
 
 def band_crossing(t0, e0, t1, e1, tol: float) -> float:
     """When the error crosses ``tol`` between the samples ``(t0, e0)`` and ``(t1, e1)``, linearly
-    interpolated; ``t1`` when ``e0`` is not finite (settling and first-entry times, streamed or not)."""
-    if not math.isfinite(e0):
-        return float(t1)
-    return float(t0 + (e0 - tol) / (e0 - e1) * (t1 - t0))
+    interpolated; ``t1`` when ``e0`` is not finite (:func:`~adcs_sim.app.analysis.metric_defs_attitude.crossing`)."""
+    return float(mda.crossing(t0, e0, t1, e1, tol))
 
 
 def zoh_durations(t: np.ndarray, t_end: float) -> np.ndarray:
@@ -161,15 +153,11 @@ def k0_metric(e: np.ndarray, window: int = 200, threshold: float = 0.03, reduce:
 
 def thruster_metrics(run: RunData) -> dict:
     """Total thruster impulse at the end (N s), firings (thruster-periods with a non-zero
-    on-time) and total on-time (s); empty without ``thrusters/state``."""
-    if not run.thruster_on_time.size:
-        return {}
-    return {'thruster_impulse_Ns': float(run.thruster_impulse[-1].sum()),
-            'thruster_firings': int(np.count_nonzero(run.thruster_on_time > 0.0)),
-            'thruster_on_time_s': float(run.thruster_on_time.sum())}
-
-
-POINTING_BANDS_DEG = (1.0, 0.1, 0.01)   # seed 003 Table 1
+    on-time) and total on-time (s); empty without ``thrusters/state``: their one definition,
+    :data:`adcs_sim.app.analysis.metric_defs_thrusters.THRUSTERS`."""
+    chunk = {'t_s': run.t_thrusters, 'thruster_on_time': np.asarray(run.thruster_on_time)[None],
+             'thruster_impulse': np.asarray(run.thruster_impulse)[None]}
+    return mda.listed(mda.values_of(THRUSTERS, {'runs': 1}, chunk))
 
 
 def pointing_error_deg(run: RunData) -> np.ndarray:
@@ -181,25 +169,10 @@ def pointing_error_deg(run: RunData) -> np.ndarray:
 def pointing_metrics(t: np.ndarray, error_deg: np.ndarray, bands=POINTING_BANDS_DEG) -> dict:
     """First-entry and settling (staying below) times of the pointing error at each band (deg),
     and the final error: ``pointing_first_<b>deg_s``, ``pointing_settling_<b>deg_s``,
-    ``final_pointing_error_deg``."""
-    out = {}
-    for b in bands:
-        out[f'pointing_first_{b:g}deg_s'] = first_entry_time(t, error_deg, b)
-        out[f'pointing_settling_{b:g}deg_s'] = settling_time(t, error_deg, b)
-    out['final_pointing_error_deg'] = float(error_deg[-1]) if len(error_deg) else math.nan
-    return out
-
-
-def attitude_errors(run: RunData, q_ref: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(error quaternion (N, 4), eigenaxis error (N,) deg, signed 2-1-3 Euler errors (N, 3) deg in
-    sequence order y, x, z) to ``q_ref`` ((4,) or (N, 4) at the state samples; default the run's
-    target ``run.q_ref``). At gimbal lock (θ1 = ±90°) the 2-1-3 angles are not unique: scipy sets
-    the third to zero (its warning is not repeated here: the angles are what the docstring says)."""
-    qe = error_quaternion(run.q, run.q_ref if q_ref is None else q_ref)
-    with warnings.catch_warnings():
-        warnings.filterwarnings('ignore', message='Gimbal lock detected', category=UserWarning)
-        euler = euler_213(qe)
-    return qe, np.degrees(eigenaxis_angle(qe)), np.degrees(euler)
+    ``final_pointing_error_deg`` (their definitions:
+    :func:`~adcs_sim.app.analysis.metric_defs_attitude.pointing_band_metrics`)."""
+    chunk = {'t_s': np.asarray(t, dtype=float), 'pointing_error_deg': np.asarray(error_deg, dtype=float)[None]}
+    return mda.listed(mda.values_of(mda.pointing_band_metrics(bands), {'runs': 1}, chunk))
 
 
 def attitude_errors_deg(run: RunData) -> tuple[np.ndarray, np.ndarray]:
@@ -219,54 +192,58 @@ def settling_times(run: RunData, tols_deg=(0.5, 1.0)) -> dict[float, dict]:
             for tol in tols_deg}
 
 
+def fault_chunk(faults) -> dict:
+    """A run's ``faults`` statuses ``(stamp, level, ...)`` as the chunk the fault metrics read."""
+    return {'faults': np.array([(t, level) for t, level, *_ in faults], dtype=float).reshape(-1, 2)}
+
+
 def first_fault_time(run: RunData) -> float:
-    """Stamp of the first fault (a ``faults`` status of level ERROR), NaN if the run had none."""
-    times = [t for t, level, _, _ in run.faults if level >= 2]
-    return float(min(times)) if times else math.nan
+    """Stamp of the first fault (a ``faults`` status of level ERROR), NaN if the run had none
+    (:func:`~adcs_sim.app.analysis.metric_defs_attitude.first_fault`)."""
+    return mda.first_fault(fault_chunk(run.faults))
 
 
 def q4_settling_after(run: RunData, band: float, t0: float) -> float:
     """Seed 000's settling time: the time after ``t0`` from which the scalar part of the error
     quaternion stays within ``1 ± band`` (``1 - |q4| <= band``; last exit, interpolated); counted
-    from ``t0`` (0 if already inside at ``t0``)."""
+    from ``t0`` (0 if already inside at ``t0``): its one definition,
+    :class:`~adcs_sim.app.analysis.metric_defs_attitude.Q4SettlingAfterFault`."""
     qe = error_quaternion(run.q, run.q_ref)
-    after = run.t >= t0
-    return settling_time(run.t[after], 1.0 - np.abs(qe[after, 3]), band) - t0
+    chunks = [{'faults': np.array([[t0, 2.0]])}, {'t_s': run.t, 'q4_error': (1.0 - np.abs(qe[:, 3]))[None]}]
+    metric = mda.Q4SettlingAfterFault(band)
+    return float(mda.values_of([metric], {'runs': 1}, chunks)[metric.name][0])
 
 
-def fault_metrics(run: RunData, bands=(0.02, 0.01)) -> dict:
+def fault_metrics(run: RunData, bands=mda.FAULT_BANDS) -> dict:
     """Recovery after the first fault ``t0`` (seed 000 VI.A): q4 settling times in each band and
-    ``∫‖u‖dt`` over ``[t0, end]``; empty if the run had no fault."""
-    t0 = first_fault_time(run)
-    if not math.isfinite(t0):
+    ``∫‖u‖dt`` over ``[t0, end]`` (:func:`~adcs_sim.app.analysis.metric_defs_attitude.fault_metrics_defs`);
+    empty if the run had no fault."""
+    chunks = [fault_chunk(run.faults)]
+    if not chunks[0]['faults'].size:
         return {}
-    out = {'first_fault_time_s': t0}
-    for band in bands:
-        out[f'settling_q4_{band:g}_after_fault_s'] = q4_settling_after(run, band, t0)
+    qe = error_quaternion(run.q, run.q_ref)
+    chunks.append({'t_s': run.t, 'q4_error': (1.0 - np.abs(qe[:, 3]))[None]})
     if run.u.size:
-        after = run.t_u >= t0
-        out['integrated_torque_after_fault_Nms'] = integrated_norm(run.t_u[after], run.u[after], run.t_end)
-    return out
+        chunks.append({'t_s': run.t_u, 'torque': np.asarray(run.u).reshape(1, -1, 3)})
+    return mda.listed(mda.values_of(mda.fault_metrics_defs(bands), {'runs': 1}, chunks, run.t_end))
 
 
 def run_metrics(run: RunData, tol_deg: float = 0.5, eigen_tol_deg: float | None = None) -> dict:
     """The run's metrics (see the module docstring for each definition)."""
-    eigen_tol_deg = tol_deg if eigen_tol_deg is None else eigen_tol_deg
-    eigen, euler = attitude_errors_deg(run)
+    head = mda.head_metrics(tol_deg, eigen_tol_deg)   # duration, settling times, final error
+    pointing = mda.pointing_band_metrics() if run.pointing is not None else ()
+    series = mda.attitude_series(run, {n for m in (*head, *pointing) for n in m.needs})
+    chunk = {'t_s': np.asarray(run.t, dtype=float), **series}
     out = {
-        'duration_s': run.t_end,
-        f'settling_eigenaxis_{eigen_tol_deg:g}deg_s': settling_time(run.t, eigen, eigen_tol_deg),
-        f'settling_euler213_{tol_deg:g}deg_s': settling_time(run.t, euler.max(axis=1), tol_deg),
-        'settling_euler213_per_axis_s': [settling_time(run.t, euler[:, i], tol_deg) for i in range(3)],
-        'final_eigenaxis_error_deg': float(eigen[-1]),
+        **mda.listed(mda.values_of(head, {'runs': 1}, chunk, run.t_end)),
         **metric_defs.run_values(run),   # the metrics defined once (metric_defs.DEFINED)
         'missed_steps': run.missed_steps,
     }
     out.update(missed_step_gaps(run))
     out.update(fault_metrics(run))
     out.update(thruster_metrics(run))
-    if run.pointing is not None:
-        out.update(pointing_metrics(run.t, pointing_error_deg(run)))
+    if pointing:
+        out.update(mda.listed(mda.values_of(pointing, {'runs': 1}, chunk, run.t_end)))
     return out
 
 

@@ -1,19 +1,18 @@
-"""A run's metrics computed while its bag is read: :func:`analyse_bag` (issue #18 item 5).
+"""A run's metrics computed while its bag is read: :func:`analyse_bag`.
 
 :func:`~adcs_sim.app.analysis.metrics.run_metrics` on :meth:`RunData.from_bag` holds every series of the
 run in memory (and the controller status, which no metric uses): its peak grows by ~620 B a step
-(+539 MiB over the runner's imports for 24 h at 10 Hz). Here one streaming pass over the bag feeds,
-chunk by chunk, what each metric needs:
+(+539 MiB over the runner's imports for 24 h at 10 Hz). Here one streaming pass over the bag feeds
+each metric's one definition chunk by chunk (:mod:`~adcs_sim.app.analysis.metric_defs`,
+:mod:`~adcs_sim.app.analysis.metric_defs_attitude`, :mod:`~adcs_sim.app.analysis.metric_defs_thrusters`):
 
 * settling and first-entry times: per error series and band, the last sample outside the band
-  and the one after it, the first inside and the one before it (:class:`BandTrack`);
-* peaks (running maxima), final values, counts;
-* the metrics defined once (:data:`adcs_sim.app.analysis.metric_defs.DEFINED`: torque integrals and
-  peaks, wheel metrics), fed chunk by chunk to their definitions; the torque integrals keep their
-  per-sample terms ``‖u_k‖ Δt_k`` and ``u_kᵀu_k Δt_k`` (8 B a step each) and sum them once at the
-  end, so that numpy's pairwise summation sees the very array it sees in :func:`run_metrics` (its
-  split points depend on the length, unknown until the end: a running sum would differ in the
-  last bits); the torque stamps (8 B a step) for the integral after a fault;
+  and the one after it, the first inside and the one before it; final values, peaks, counts;
+* the torque integrals keep their per-sample terms ``‖u_k‖ Δt_k`` and ``u_kᵀu_k Δt_k`` (8 B a
+  step each) and sum them once at the end, so that numpy's pairwise summation sees the very array
+  it sees in :func:`run_metrics` (its split points depend on the length, unknown until the end: a
+  running sum would differ in the last bits); the after-fault integral keeps the torque stamps
+  (8 B a step) and takes the first integral's terms after the fault (its state, not a copy);
 * the state stamps (8 B a step): the settling after a fault needs the first sample after the
   fault's time, known only once the ``faults`` topic is read, and the missed-step gaps the median
   step; thruster on-times (one float per thruster and step, thruster runs only).
@@ -27,7 +26,6 @@ the in-memory path instead: ``StreamResult.streamed`` says which was used.
 """
 from __future__ import annotations
 
-import math
 from collections import defaultdict
 from dataclasses import dataclass, field
 from types import SimpleNamespace
@@ -36,21 +34,18 @@ import numpy as np
 
 from adcs_msgs_py import names as topics
 from adcs_sim.app.analysis import metric_defs
+from adcs_sim.app.analysis import metric_defs_attitude as mda
+from adcs_sim.app.analysis.metric_defs_thrusters import THRUSTERS
 from adcs_sim.app.analysis import run_data as rd
 from adcs_sim.app.analysis.metrics import (
-    POINTING_BANDS_DEG,
     RunData,
-    attitude_errors,
-    band_crossing,
-    first_fault_time,
+    fault_chunk,
     missed_step_gaps,
-    pointing_error_deg,
     run_metrics,
 )
 from adcs_sim.bag.batches import ColumnReader
 from adcs_sim.bag.columns import decode_batch, decode_diagnostics
 
-FAULT_BANDS = (0.02, 0.01)   # fault_metrics' default bands
 # Storage bytes per batch: RunData's 16 MiB batches cost ~50 MB more peak memory on a 24 h bag
 # (the batch and its concatenation) and were not faster here (benchmarks/analysis_speed.py --memory).
 STREAM_BATCH_BYTES = 4 << 20
@@ -76,52 +71,23 @@ class StreamResult:
 
 class BandTrack:
     """:func:`~adcs_sim.app.analysis.metrics.settling_time` and ``first_entry_time`` of one error series
-    at one tolerance, fed in order chunk by chunk; keeps four samples."""
+    at one tolerance, fed in order chunk by chunk: the states of their one definition
+    (:class:`~adcs_sim.app.analysis.metric_defs_attitude.SettlingTime`, ``FirstEntryTime``) for one run."""
 
     def __init__(self, tol: float) -> None:
         self.tol = tol
-        self.t0 = None                 # the first sample's time
-        self.last_out = None           # (t, e) of the last sample outside the band so far
-        self.after_out = None          # (t, e) of the sample after it (None: it is the latest)
-        self.first_in = None           # (t, e) of the first sample inside
-        self.before_in = None          # (t, e) of the sample before that one (None: it was the first)
-        self.prev = None               # (t, e) of the latest sample
+        self.metrics = (mda.SettlingTime('settling', 'error', tol), mda.FirstEntryTime('first_entry', 'error', tol))
+        self.states = [m.init({'runs': 1}) for m in self.metrics]
 
     def add(self, t: np.ndarray, e: np.ndarray) -> None:
-        if not t.size:
-            return
-        if self.t0 is None:
-            self.t0 = t[0]
-        if self.last_out is not None and self.after_out is None:
-            self.after_out = (t[0], e[0])
-        outside = np.flatnonzero(~(e <= self.tol))
-        if outside.size:
-            i = outside[-1]
-            self.last_out = (t[i], e[i])
-            self.after_out = (t[i + 1], e[i + 1]) if i + 1 < t.size else None
-        if self.first_in is None:
-            inside = np.flatnonzero(e <= self.tol)
-            if inside.size:
-                i = inside[0]
-                self.first_in = (t[i], e[i])
-                self.before_in = (t[i - 1], e[i - 1]) if i > 0 else self.prev
-        self.prev = (t[-1], e[-1])
+        chunk = {'t_s': t, 'error': e[None]}
+        self.states = [m.update(s, chunk) for m, s in zip(self.metrics, self.states)]
 
     def settling(self) -> float:
-        if self.t0 is None:
-            return math.nan
-        if self.last_out is None:
-            return float(self.t0)
-        if self.after_out is None:
-            return math.inf
-        return band_crossing(*self.last_out, *self.after_out, self.tol)
+        return float(self.metrics[0].finish(self.states[0])[0])
 
     def first_entry(self) -> float:
-        if self.first_in is None:
-            return math.inf
-        if self.before_in is None:
-            return float(self.t0)
-        return band_crossing(*self.before_in, *self.first_in, self.tol)
+        return float(self.metrics[1].finish(self.states[1])[0])
 
 
 class _Ordered:
@@ -143,80 +109,66 @@ class _Ordered:
 
 
 class AttitudeStream(_Ordered):
-    """The attitude metrics of one state topic (q_ref, pointing request and bands fixed at the start)."""
+    """The attitude metrics of one state topic (q_ref, pointing request and bands fixed at the start):
+    their definitions (:mod:`~adcs_sim.app.analysis.metric_defs_attitude`) fed chunk by chunk."""
 
     def __init__(self, topic: str, q_ref: np.ndarray, pointing, tol_deg: float, eigen_tol_deg: float) -> None:
         super().__init__(topic)
         self.q_ref, self.pointing = q_ref, pointing
-        self.eigen = BandTrack(eigen_tol_deg)
-        self.worst = BandTrack(tol_deg)
-        self.axes = [BandTrack(tol_deg) for _ in range(3)]
-        self.bands = [BandTrack(b) for b in POINTING_BANDS_DEG] if pointing is not None else []
+        self.head = mda.head_metrics(tol_deg, eigen_tol_deg)
+        self.bands = mda.pointing_band_metrics() if pointing is not None else ()
+        self.defined = (*self.head, *self.bands)
+        self.states = [m.init({'runs': 1}) for m in self.defined]
+        self.needs = {n for m in self.defined for n in m.needs} | {'q4_error'}
         self.t_parts: list[np.ndarray] = []     # state stamps (s)
-        self.q4 = [BandTrack(b) for b in FAULT_BANDS]   # 1 - |q_e,4| (fault metrics)
-        self.final_eigen = math.nan
-        self.final_pointing = math.nan
+        self.after_fault = [m for m in mda.fault_metrics_defs() if 'q4_error' in m.needs]
+        self.fault_states = [m.init({'runs': 1}) for m in self.after_fault]
 
     def add(self, t: np.ndarray, stamp_ns: np.ndarray, q: np.ndarray) -> None:
         self.check(stamp_ns)
         if not t.size:
             return
-        chunk = SimpleNamespace(q=q, q_ref=self.q_ref, pointing=self.pointing)
-        qe, eigen, euler = attitude_errors(chunk)
-        euler = np.abs(euler)
-        self.eigen.add(t, eigen)
-        self.worst.add(t, euler.max(axis=1))
-        for i, track in enumerate(self.axes):
-            track.add(t, euler[:, i])
-        self.final_eigen = float(eigen[-1])
-        if self.bands:
-            error = pointing_error_deg(chunk)
-            for track in self.bands:
-                track.add(t, error)
-            self.final_pointing = float(error[-1])
+        run = SimpleNamespace(q=q, q_ref=self.q_ref, pointing=self.pointing)
+        chunk = {'t_s': t, **mda.attitude_series(run, self.needs)}
+        self.states = [m.update(s, chunk) for m, s in zip(self.defined, self.states)]
         self.t_parts.append(t)
-        q4 = 1.0 - np.abs(qe[:, 3])
-        for track in self.q4:
-            track.add(t, q4)
+        self.fault_states = [m.update(s, chunk) for m, s in zip(self.after_fault, self.fault_states)]
+
+    def _values(self, metrics) -> dict:
+        return mda.listed({m.name: m.finish(s) for m, s in zip(self.defined, self.states) if m in metrics})
 
     def metrics(self, tol_deg: float, eigen_tol_deg: float) -> dict:
         """run_metrics' attitude entries, in its order."""
-        return {'duration_s': float(self.t_parts[-1][-1]),
-                f'settling_eigenaxis_{eigen_tol_deg:g}deg_s': self.eigen.settling(),
-                f'settling_euler213_{tol_deg:g}deg_s': self.worst.settling(),
-                'settling_euler213_per_axis_s': [track.settling() for track in self.axes],
-                'final_eigenaxis_error_deg': self.final_eigen}
+        return self._values(self.head)
 
     def pointing_metrics(self) -> dict:
-        out = {}
-        for b, track in zip(POINTING_BANDS_DEG, self.bands):
-            out[f'pointing_first_{b:g}deg_s'] = track.first_entry()
-            out[f'pointing_settling_{b:g}deg_s'] = track.settling()
-        out['final_pointing_error_deg'] = self.final_pointing
-        return out
+        return self._values(self.bands)
 
 
 class TorqueStream(_Ordered):
     """Applied torque: its defined metrics (metric_defs.DEFINED: the integrals keep their terms,
-    summed at the end) and its stamps (the integral after a fault)."""
+    summed at the end) and the integral after a fault (its terms and stamps)."""
 
     def __init__(self, topic: str) -> None:
         super().__init__(topic)
-        self.t_parts: list[np.ndarray] = []
-        self.defined = metric_defs.StreamedValues('torque')
+        # the after-fault integral keeps IntegratedTorque's state (its terms) and the stamps: the
+        # run's integral is taken from that state, not kept twice (8 B a step)
+        self.after_fault = mda.IntegratedTorqueAfterFault()
+        self.fault_state = self.after_fault.init({'runs': 1})
+        self.defined = metric_defs.StreamedValues('torque', skip=(self.after_fault.integral.name,))
 
     def add(self, t: np.ndarray, stamp_ns: np.ndarray, u: np.ndarray) -> None:
         self.check(stamp_ns)
         if not t.size:
             return
-        self.t_parts.append(t)
         self.defined.add((), np.zeros(0), t, u)
+        self.fault_state = self.after_fault.update(self.fault_state, {'t_s': t, 'torque': u[None]})
 
-    def norm_terms(self, t_end: float) -> tuple[np.ndarray, np.ndarray]:
-        """(stamps, ``‖u‖ Δt`` of every sample, the last held to ``t_end``): the terms of
-        :class:`~adcs_sim.app.analysis.metric_defs.IntegratedTorque` (its state, not a copy of its rule)."""
-        metric = metric_defs.IntegratedTorque()
-        return np.concatenate(self.t_parts), metric.terms(self.defined.state(metric.name, ()), t_end)[0]
+    def defined_values(self, t_end: float) -> dict:
+        """The defined metrics (metric_defs.DEFINED) of the applied torque."""
+        integral = self.after_fault.integral
+        return {**self.defined.values((), 0, t_end),
+                integral.name: float(integral.finish(self.fault_state['integral'], t_end)[0])}
 
 
 class JointStream:
@@ -229,8 +181,7 @@ class JointStream:
         self.limits = limits                           # names -> the wheels' speed limits (metric_defs)
         self.defined = metric_defs.StreamedValues()    # the metrics defined once, per names
         self.last_names = None
-        self.on_time: dict = defaultdict(list)         # names -> [on-time parts] (thrusters)
-        self.impulse: dict = {}                        # names -> latest impulse row (thrusters)
+        self.thruster_states: dict = {}                # names -> [state per THRUSTERS metric]
 
     def add(self, parts: list, row0: int) -> None:
         """``parts``: one batch's decoded Columns (one per layout), its first message the topic's
@@ -242,14 +193,17 @@ class JointStream:
         stamp_ns = np.concatenate([c.stamp_ns for c in parts])
         self.order.check(stamp_ns[np.argsort(rows, kind='stable')])
         self.last_names = max(parts, key=lambda c: c.rows[-1]).extra
-        for c in parts:
-            n = len(c.extra)
-            if self.thrusters:
-                if all(c.fields[k].shape[1] == n for k in ('position', 'velocity', 'effort')):
-                    self.on_time[c.extra].append(c.fields['velocity'])
-                    last = (row0 + int(c.rows[-1]), c.fields['position'][-1])
-                    if c.extra not in self.impulse or last[0] > self.impulse[c.extra][0]:
-                        self.impulse[c.extra] = last
+        if self.thrusters:       # the thruster metrics in file order, per names
+            for names in dict.fromkeys(c.extra for c in parts):
+                same = [c for c in parts if c.extra == names
+                        and all(c.fields[k].shape[1] == len(names) for k in ('position', 'velocity', 'effort'))]
+                if not same:
+                    continue
+                t, _, on_time = _in_file_order(same, 'velocity')
+                impulse = _in_file_order(same, 'position')[2]
+                chunk = {'t_s': t, 'thruster_on_time': on_time[None], 'thruster_impulse': impulse[None]}
+                states = self.thruster_states.get(names) or [m.init({'runs': 1}) for m in THRUSTERS]
+                self.thruster_states[names] = [m.update(s, chunk) for m, s in zip(THRUSTERS, states)]
         if not self.thrusters:   # the defined metrics in file order (several layouts: interleaved rows)
             for names in dict.fromkeys(c.extra for c in parts):
                 same = [c for c in parts if c.extra == names and c.fields['velocity'].shape[1] == len(names)]
@@ -263,14 +217,11 @@ class JointStream:
         return self.defined.values(self.last_names, len(self.last_names or ()))
 
     def thruster_metrics(self) -> dict:
-        parts = self.on_time.get(self.last_names)
-        if not parts or not sum(p.size for p in parts):
+        """The thruster metrics (metric_defs_thrusters.THRUSTERS) of the thrusters named in the last message."""
+        states = self.thruster_states.get(self.last_names)
+        if states is None:
             return {}
-        on_time = np.concatenate(parts)
-        impulse = self.impulse[self.last_names][1]
-        return {'thruster_impulse_Ns': float(impulse.sum()),
-                'thruster_firings': int(np.count_nonzero(on_time > 0.0)),
-                'thruster_on_time_s': float(on_time.sum())}
+        return mda.listed({m.name: v for m, s in zip(THRUSTERS, states) if (v := m.finish(s)) is not None})
 
 
 # Topics the streamed pass reads: RunData's, without the controller status (no metric uses it,
@@ -385,7 +336,8 @@ class _Pass:
         if torque is not None and not torque.rows:
             torque = None
         # the metrics defined once (metric_defs.DEFINED), in their order
-        defined = (torque.defined if torque is not None else metric_defs.StreamedValues('torque')).values((), 0, t_end)
+        defined = (torque.defined_values(t_end) if torque is not None else
+                   metric_defs.StreamedValues('torque').values((), 0, t_end))
         defined.update(wheels.defined_values() if wheels is not None else
                        metric_defs.StreamedValues().values(None, 0))
         out.update({m.name: defined[m.name] for m in metric_defs.DEFINED})
@@ -406,31 +358,16 @@ class _Pass:
 
 
 def _fault_metrics(faults: list, att: AttitudeStream, torque: TorqueStream | None, t_end: float) -> dict:
-    """fault_metrics (seed 000 VI.A) from what was kept: the state stamps, the last exit of
-    1 - |q_e,4| from each band, the torque stamps and ``‖u‖ Δt`` terms."""
-    t0 = first_fault_time(SimpleNamespace(faults=faults))
-    if not math.isfinite(t0):
-        return {}
-    out = {'first_fault_time_s': t0}
-    t = np.concatenate(att.t_parts)
-    t = t[t >= t0]
-    for band, track in zip(FAULT_BANDS, att.q4):
-        out[f'settling_q4_{band:g}_after_fault_s'] = _settling_from(track, t, t0) - t0
-    if torque is not None:
-        t_u, terms = torque.norm_terms(t_end)
-        out['integrated_torque_after_fault_Nms'] = float(np.sum(terms[t_u >= t0]))
+    """fault_metrics (seed 000 VI.A): their definitions' states, given the faults read."""
+    chunk = fault_chunk(faults)
+    metrics = [mda.FirstFaultTime(), *att.after_fault] + ([torque.after_fault] if torque is not None else [])
+    states = [metrics[0].init({'runs': 1}), *att.fault_states] + ([torque.fault_state] if torque is not None else [])
+    out = {}
+    for m, state in zip(metrics, states):
+        value = m.finish(m.update(state, chunk), t_end)
+        if value is not None:
+            out[m.name] = float(value[0])
     return out
-
-
-def _settling_from(track: BandTrack, t_after: np.ndarray, t0: float) -> float:
-    """settling_time of the samples at ``t_after`` (those at or after ``t0``) from ``track``
-    (every sample): the last sample outside is among them if it is at or after ``t0``; else none
-    of them is outside."""
-    if not t_after.size:
-        return math.nan
-    if track.last_out is None or not track.last_out[0] >= t0:
-        return float(t_after[0])
-    return track.settling()
 
 
 def analyse_bag(path, tol_deg: float = 0.5, eigen_tol_deg: float | None = None, namespace: str | None = None,
