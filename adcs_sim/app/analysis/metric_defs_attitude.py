@@ -319,6 +319,26 @@ class _AfterFault(Metric):
         return True
 
 
+class _OverSamplesAfterFault(_AfterFault):
+    """An ``inner`` metric of every sample, with the stamps kept: :meth:`finish` keeps what is at or
+    after ``t0`` (the state: ``t0``, the stamps ``t`` and the inner metric's state ``inner``)."""
+
+    inner: Metric
+
+    def init(self, context: dict):
+        return {'t0': math.nan, 't': [], 'inner': self.inner.init(context)}
+
+    def update(self, state, chunk: dict):
+        if not self._fault(state, chunk) and len(chunk['t_s']):
+            state['t'].append(np.asarray(chunk['t_s'], dtype=float))
+            state['inner'] = self.inner.update(state['inner'], chunk)
+        return state
+
+    def merge(self, a, b):
+        return {'t0': float(np.fmin(a['t0'], b['t0'])), 't': [*a['t'], *b['t']],
+                'inner': self.inner.merge(a['inner'], b['inner'])}
+
+
 class FirstFaultTime(_AfterFault):
     """The first fault's stamp ``t0`` (s)."""
 
@@ -338,7 +358,7 @@ class FirstFaultTime(_AfterFault):
         return None if math.isnan(state['t0']) else np.full(state['runs'], state['t0'])
 
 
-class Q4SettlingAfterFault(_AfterFault):
+class Q4SettlingAfterFault(_OverSamplesAfterFault):
     """Seed 000's settling time: the time after ``t0`` from which ``1 - |q_e,4|`` stays ``<= band``
     (the last exit of the samples at or after ``t0``, interpolated), counted from ``t0``; NaN without
     samples after ``t0``. Kept: the last exit over every sample (:class:`SettlingTime`) and the
@@ -350,23 +370,10 @@ class Q4SettlingAfterFault(_AfterFault):
     def __init__(self, band: float) -> None:
         self.band = band
         self.name, self.needs = f'settling_q4_{band:g}_after_fault_s', ('q4_error', 'faults')
-        self.last_exit = SettlingTime('q4', 'q4_error', band)
-
-    def init(self, context: dict):
-        return {'t0': math.nan, 't': [], 'exit': self.last_exit.init(context)}
-
-    def update(self, state, chunk: dict):
-        if not self._fault(state, chunk) and len(chunk['t_s']):
-            state['t'].append(np.asarray(chunk['t_s'], dtype=float))
-            state['exit'] = self.last_exit.update(state['exit'], chunk)
-        return state
-
-    def merge(self, a, b):
-        return {'t0': float(np.fmin(a['t0'], b['t0'])), 't': [*a['t'], *b['t']],
-                'exit': self.last_exit.merge(a['exit'], b['exit'])}
+        self.inner = SettlingTime('q4', 'q4_error', band)   # the last exit
 
     def finish(self, state, t_end_s: float | None = None):
-        t0, ex = state['t0'], state['exit']
+        t0, ex = state['t0'], state['inner']
         if math.isnan(t0):
             return None
         t = np.concatenate(state['t']) if state['t'] else np.zeros(0)
@@ -374,10 +381,10 @@ class Q4SettlingAfterFault(_AfterFault):
         if not after.size:
             return np.full(ex['seen'].shape, math.nan)
         inside = ~(ex['seen'] & (ex['exit'][0] >= t0))   # no sample after t0 outside
-        return np.where(inside, after[0], self.last_exit.finish(ex)) - t0
+        return np.where(inside, after[0], self.inner.finish(ex)) - t0
 
 
-class IntegratedTorqueAfterFault(_AfterFault):
+class IntegratedTorqueAfterFault(_OverSamplesAfterFault):
     """``∫‖u‖ dt`` over ``[t0, end]``: the terms of :class:`~adcs_sim.app.analysis.metric_defs.IntegratedTorque`
     of the torque samples at or after ``t0`` (each held to the next sample, the last to the run's
     end), summed once (numpy's pairwise sum of the row). No value without torque samples."""
@@ -385,25 +392,12 @@ class IntegratedTorqueAfterFault(_AfterFault):
     name, unit, needs = 'integrated_torque_after_fault_Nms', 'N·m·s', ('torque', 'faults')
 
     def __init__(self) -> None:
-        self.integral = IntegratedTorque()
-
-    def init(self, context: dict):
-        return {'t0': math.nan, 't': [], 'integral': self.integral.init(context)}
-
-    def update(self, state, chunk: dict):
-        if not self._fault(state, chunk) and len(chunk['t_s']):
-            state['t'].append(np.asarray(chunk['t_s'], dtype=float))
-            state['integral'] = self.integral.update(state['integral'], chunk)
-        return state
-
-    def merge(self, a, b):
-        return {'t0': float(np.fmin(a['t0'], b['t0'])), 't': [*a['t'], *b['t']],
-                'integral': self.integral.merge(a['integral'], b['integral'])}
+        self.inner = IntegratedTorque()
 
     def finish(self, state, t_end_s: float | None = None):
         if math.isnan(state['t0']) or not state['t']:
             return None
-        terms = self.integral.terms(state['integral'], t_end_s)
+        terms = self.inner.terms(state['inner'], t_end_s)
         late = np.concatenate(state['t']) >= state['t0']
         return np.sum(np.ascontiguousarray(terms[:, late]), axis=-1)   # each run's row: its pairwise sum
 

@@ -155,7 +155,7 @@ class TorqueStream(_Ordered):
         # run's integral is taken from that state, not kept twice (8 B a step)
         self.after_fault = mda.IntegratedTorqueAfterFault()
         self.fault_state = self.after_fault.init({'runs': 1})
-        self.defined = metric_defs.StreamedValues('torque', skip=(self.after_fault.integral.name,))
+        self.defined = metric_defs.StreamedValues('torque', skip=(self.after_fault.inner.name,))
 
     def add(self, t: np.ndarray, stamp_ns: np.ndarray, u: np.ndarray) -> None:
         self.check(stamp_ns)
@@ -166,9 +166,9 @@ class TorqueStream(_Ordered):
 
     def defined_values(self, t_end: float) -> dict:
         """The defined metrics (metric_defs.DEFINED) of the applied torque."""
-        integral = self.after_fault.integral
+        integral = self.after_fault.inner
         return {**self.defined.values((), 0, t_end),
-                integral.name: float(integral.finish(self.fault_state['integral'], t_end)[0])}
+                integral.name: float(integral.finish(self.fault_state['inner'], t_end)[0])}
 
 
 class JointStream:
