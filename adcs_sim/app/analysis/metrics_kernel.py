@@ -41,6 +41,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from adcs_core import compile_log  # noqa: F401 - a compilation prints one line (kernel, types, seconds)
 from adcs_core.euler_kernel import euler_213_row
 from adcs_sim.truth.kernel import _max as _nanmax   # np.maximum: a NaN operand wins (the first one)
 
