@@ -8,8 +8,10 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 $(VENV)/.installed: requirements.txt requirements-dev.txt setup.py setup.cfg pyproject.toml package.xml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-dev.txt
-	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps -e . && test -x $(VENV)/bin/dynamics
-	# compile every numba kernel into its cache beside its module (adcs_sim/app/batch/kernels.py; minutes once, then ~1 s)
+	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e . \
+		&& test -x $(VENV)/bin/dynamics
+	# compile every numba kernel into its cache beside its module, two at a time, one line each
+	# (adcs_sim/app/batch/kernels.py; about a minute once, then ~2 s)
 	$(PY) -m adcs_sim.app.batch.kernels
 	touch $@
 

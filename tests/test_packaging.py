@@ -44,9 +44,12 @@ CONSOLE_SCRIPTS = {**NODES, **TOOLS}
 # --- helpers ------------------------------------------------------------------------------------
 
 def _copy_source(dest: Path) -> Path:
-    """Copy the checkout to ``dest`` without environments, VCS data and build products."""
+    """Copy the checkout to ``dest`` without environments, VCS data and build products, but with
+    numba's cache of the kernels (``__pycache__/*.nbi``, ``*.nbc``): the build compiles nothing then."""
     def ignore(directory, names):
-        skip = {n for n in names if n == '__pycache__' or n.endswith('.egg-info')}
+        if Path(directory).name == '__pycache__':
+            return {n for n in names if not n.endswith(('.nbi', '.nbc'))}
+        skip = {n for n in names if n.endswith('.egg-info')}
         if Path(directory).resolve() == ROOT:
             skip |= COPY_EXCLUDE & set(names)
         return skip
