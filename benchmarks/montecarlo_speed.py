@@ -43,11 +43,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import math
 import os
+import resource
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -156,8 +159,6 @@ def print_comparison(times: dict[str, list[dict]], old: Path, bsk: dict | None) 
 def end_to_end(campaign: Path, repeat: int) -> dict[str, list[tuple[float, float]]]:
     """(wall, CPU) of ``adcs-montecarlo <campaign> --quiet --scheduler S`` in a child process, for S
     auto, none and local, alternated ``repeat`` times (outputs in a temporary folder)."""
-    import tempfile
-    import resource
     out: dict[str, list[tuple[float, float]]] = {'auto': [], 'none': [], 'local': []}
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     with tempfile.TemporaryDirectory() as tmp:
@@ -178,8 +179,8 @@ def end_to_end(campaign: Path, repeat: int) -> dict[str, list[tuple[float, float
 def cluster_start(campaign_path: Path) -> float:
     """Seconds from LocalCluster(2 workers) to the result of a one-run chunk, that chunk's time in
     this process taken off."""
+    # lazy: Dask (1.2 s) only for --end-to-end
     from dask.distributed import Client, LocalCluster
-    import logging
     one = Campaign.load(campaign_path, runs=1)
     run_chunk(one, [0])
     t0 = time.perf_counter()
