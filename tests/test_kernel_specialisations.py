@@ -11,10 +11,14 @@ compilation is never silent (adcs_core/compile_log.py).
 from __future__ import annotations
 
 import importlib
+import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 from numba import njit
+from support.paths import ROOT
 from support.scenarios import make_scenario
 
 from adcs_core import compile_log
@@ -125,3 +129,29 @@ def test_kernel_rows_copies_a_read_only_view_only():
     rows = kernel_rows(view)
     assert rows.flags.writeable and rows.flags.c_contiguous and rows is not view
     assert np.array_equal(rows, view) and rows.dtype == np.float64
+
+
+PROBE = r"""
+import importlib, json, sys
+from adcs_sim.app.analysis.analyze import main
+from adcs_sim.app.batch import kernels
+from adcs_sim.app.scenario.files import DEFAULT_SCENARIO, resolve_scenario, validate_scenario
+from adcs_sim.truth.step import TruthStep
+sections = validate_scenario(resolve_scenario(DEFAULT_SCENARIO))
+TruthStep(sections['dynamics'])   # what the dynamics node builds (its plant warms the kernel)
+assert main([sys.argv[1], '--out', sys.argv[2]]) == 0         # the report of the default scenario's bag
+used = [name for name, _, _ in kernels.SPECIALISATIONS
+        if importlib.import_module(name.rsplit('.', 1)[0]).__dict__[name.rsplit('.', 1)[1]].signatures]
+print(json.dumps(used))
+"""
+
+
+@pytest.mark.slow
+def test_a_graph_run_and_its_report_use_only_the_run_kernels(tmp_path):
+    """What ``make run`` compiles before its run (``RUN_KERNELS``) is what the dynamics node's plant
+    and the report of the default scenario call (in a fresh interpreter: nothing else loaded)."""
+    bag = ROOT / 'bags' / DEFAULT_SCENARIO.removesuffix('.yaml') / 'bag'
+    proc = subprocess.run([sys.executable, '-c', PROBE, str(bag), str(tmp_path / 'report')], capture_output=True,
+                          text=True, cwd=tmp_path, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert sorted(json.loads(proc.stdout.splitlines()[-1])) == sorted(kernels.RUN_KERNELS)

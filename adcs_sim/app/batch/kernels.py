@@ -58,6 +58,12 @@ SPECIALISATIONS: tuple[tuple[str, str, float], ...] = (
 )
 
 
+# What a graph run and its report use (the dynamics node's plant, the report's Euler angles): `make run`
+# compiles these before the run and the others after it (`make install` all of them at once).
+RUN_KERNELS = ('adcs_sim.truth.kernel.rk4_runs', 'adcs_sim.truth.kernel.torque_runs',
+               'adcs_core.euler_kernel.euler_213_rows')
+
+
 def argument_types(codes: str) -> tuple:
     """numba's types of ``codes`` (``'F2 f b'``: a 2-D float64 C array, a float64, a bool)."""
     # lazy: numba (0.4-0.7 s) only where kernels are compiled or checked
@@ -83,11 +89,12 @@ def compile_here(kernels: list[str]) -> None:
         dispatcher(kernel).compile(argument_types(listed[kernel]))
 
 
-def plan(jobs: int) -> list[list[str]]:
-    """The kernels split into ``jobs`` lists of about equal compilation time (longest first, each to
-    the least loaded list)."""
+def plan(jobs: int, kernels: list[str] | None = None) -> list[list[str]]:
+    """``kernels`` (default: all listed) split into ``jobs`` lists of about equal compilation time
+    (longest first, each to the least loaded list)."""
     bins: list[tuple[float, list[str]]] = [(0.0, []) for _ in range(max(1, jobs))]
-    for name, _, seconds in sorted(SPECIALISATIONS, key=lambda s: -s[2]):
+    chosen = [s for s in SPECIALISATIONS if kernels is None or s[0] in kernels]
+    for name, _, seconds in sorted(chosen, key=lambda s: -s[2]):
         load, names = min(bins, key=lambda b: b[0])
         bins[bins.index((load, names))] = (load + seconds, names + [name])
     return [names for _, names in bins if names]
@@ -98,21 +105,23 @@ def default_jobs() -> int:
     return max(1, min(2, os.cpu_count() or 1))
 
 
-def compile_all(progress: Callable[[str], None] | None = print, jobs: int | None = None) -> dict[str, float]:
-    """Compile (or, on a warm cache, load) every listed kernel in ``jobs`` processes (default:
-    :func:`default_jobs`; 1: in this process); ``{'total': seconds}``. Each compilation prints its
-    line on stderr as it ends; ``progress`` gets the summary line."""
+def compile_all(progress: Callable[[str], None] | None = print, jobs: int | None = None,
+                kernels: list[str] | None = None) -> dict[str, float]:
+    """Compile (or, on a warm cache, load) ``kernels`` (default: every listed one) in ``jobs``
+    processes (default: :func:`default_jobs`; 1: in this process); ``{'total': seconds}``. Each
+    compilation prints its line on stderr as it ends; ``progress`` gets the summary line."""
     jobs = default_jobs() if jobs is None else jobs
+    kernels = [name for name, _, _ in SPECIALISATIONS] if kernels is None else kernels
     start = time.perf_counter()
     if jobs <= 1:
-        compile_here([name for name, _, _ in SPECIALISATIONS])
+        compile_here(kernels)
     else:
         children = [subprocess.Popen([sys.executable, '-m', MODULE, '--jobs', '1', '--only', ','.join(names)])
-                    for names in plan(jobs)]
+                    for names in plan(jobs, kernels)]
         failed = [child.args[-1].replace(',', ', ') for child in children if child.wait() != 0]
         if failed:
             raise RuntimeError(f'kernels: compiling {"; ".join(failed)} failed (the error is printed above)')
-    times = {'total': time.perf_counter() - start}
+    times = {'total': time.perf_counter() - start, 'kernels': len(kernels)}
     if progress is not None:
         progress(summary(times))
     return times
@@ -120,13 +129,15 @@ def compile_all(progress: Callable[[str], None] | None = print, jobs: int | None
 
 def summary(times: dict[str, float]) -> str:
     """``adcs_sim kernels: 12 compiled or loaded in 41.2 s``."""
-    return f'adcs_sim kernels: {len(SPECIALISATIONS)} compiled or loaded in {times["total"]:.1f} s'
+    return f'adcs_sim kernels: {times.get("kernels", len(SPECIALISATIONS))} compiled or loaded in {times["total"]:.1f} s'
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog='python -m adcs_sim.app.batch.kernels', description=__doc__.splitlines()[0])
     parser.add_argument('--jobs', type=int, default=None, help='processes compiling at once (default: cores, at most 2)')
     parser.add_argument('--only', default=None, help='comma-separated kernels (module.function) instead of all')
+    parser.add_argument('--run', action='store_true', help="only what a graph run and its report use (RUN_KERNELS)")
+    parser.add_argument('--not-run', action='store_true', help='all but those')
     args = parser.parse_args(argv)
     listed = [name for name, _, _ in SPECIALISATIONS]
     if args.only is not None:
@@ -136,7 +147,8 @@ def main(argv=None) -> int:
             return 2
         compile_here(args.only.split(','))
         return 0
-    compile_all(jobs=args.jobs)
+    chosen = [name for name in listed if not (args.run or args.not_run) or (name in RUN_KERNELS) == args.run]
+    compile_all(jobs=args.jobs, kernels=chosen)
     return 0
 
 
