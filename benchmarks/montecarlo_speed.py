@@ -233,7 +233,7 @@ def basilisk_per_run(campaign: Campaign, sample: int) -> tuple[dict | None, str]
     return answer, ''
 
 
-def main() -> int:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--campaign', type=Path, default=DEFAULT)
     parser.add_argument('--runs', type=int, default=None, help='first N runs only (default: all)')
@@ -241,12 +241,16 @@ def main() -> int:
     parser.add_argument('--bsk-sample', type=int, default=5)
     parser.add_argument('--compare', type=Path, default=None, metavar='OLD_TREE',
                         help='also time the campaign in an old tree, alternated with this one')
-    parser.add_argument('--repeat', type=int, default=5, help='--compare: measurements of each tree')
+    parser.add_argument('--repeat', type=int, default=5, help='--compare, --end-to-end: measurements of each')
     parser.add_argument('--fused-only', action='store_true', help='skip the (b) kernel and (c) numpy paths')
     parser.add_argument('--end-to-end', action='store_true',
                         help='time the adcs-montecarlo command itself (auto, none, local schedulers) and a '
                              "LocalCluster's start-up, then stop")
-    args = parser.parse_args()
+    return parser
+
+
+def main() -> int:
+    args = _parser().parse_args()
     if args.end_to_end:
         bsk = None
         if args.basilisk:
