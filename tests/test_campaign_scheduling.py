@@ -13,11 +13,12 @@ from adcs_sim.app.campaign.plan import Campaign
 
 
 def test_a_pd_campaign_of_a_millisecond_a_run_stays_in_the_process():
-    # the default PD campaign: 1000 runs in chunks of 500, ~1.5 ms a run: 0.75 s left against 3 s + 0.375 s
+    # the default PD campaign: 1000 runs in chunks of 500, ~1.5 ms a run: 0.75 s left against the
+    # start-up + 0.375 s
     assert scheduling.choose(1.5e-3, [500], workers=2) == 'none'
-    # on 2 workers the cluster wins past 4000 runs left (1.5 ms x r / 2 > 3 s)
-    assert scheduling.choose(1.5e-3, [500] * 7, workers=2) == 'none'    # 5.25 s here against 3 + 2.625 s
-    assert scheduling.choose(1.5e-3, [500] * 9, workers=2) == 'local'   # 6.75 s here against 3 + 3.375 s
+    # with a 3 s start-up on 2 workers the cluster wins past 4000 runs left (1.5 ms x r / 2 > 3 s)
+    assert scheduling.choose(1.5e-3, [500] * 7, workers=2, start_s=3.0) == 'none'    # 5.25 s against 3 + 2.625 s
+    assert scheduling.choose(1.5e-3, [500] * 9, workers=2, start_s=3.0) == 'local'   # 6.75 s against 3 + 3.375 s
 
 
 def test_long_runs_go_to_the_cluster_and_one_chunk_or_one_worker_never_does():

@@ -9,7 +9,9 @@ arrays: :func:`adcs_sim.truth.kernel.kernel_rows`), and :func:`compile_all` comp
 so that neither a run, nor a node at start-up, nor a test pays a compilation
 (``tests/test_kernel_specialisations.py`` checks that the runs call nothing else). Who calls it:
 
-* ``make install`` (``python -m adcs_sim.app.batch.kernels``);
+* ``make install`` (``python -m adcs_sim.app.batch.kernels``); ``make run`` compiles what a graph run
+  and its report use (:data:`RUN_KERNELS`, ``--run``: ~33 of the 132 CPU seconds) before its run and
+  the others (``--not-run``) after it, once its result is on the screen;
 * building the package (``pip install .``: ``setup.py``'s ``build_py`` compiles the built copy, so
   the wheel carries the cache: the first ``adcs-run`` after ``pip install`` compiles nothing on the
   machine that built it);

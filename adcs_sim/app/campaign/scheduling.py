@@ -17,10 +17,11 @@ has its own random stream and the rows are sorted by run index).
 """
 from __future__ import annotations
 
-# Seconds from LocalCluster(...) to the first chunk's result of a one-run chunk (2 workers, the
-# kernels' cache warm), measured by `benchmarks/montecarlo_speed.py --end-to-end` on the 2-core
-# machine: 3.1-3.6 s quiet, more under load (the cluster's processes compete with the runs).
-CLUSTER_START_S = 3.0
+# Seconds from LocalCluster(...) to the result of a one-run chunk, that run's own time taken off (2
+# workers, the kernels' cache warm): 4.8 s measured by `benchmarks/montecarlo_speed.py --end-to-end` on
+# the 2-core machine under a load of 6-7 (less on a quiet machine: the choice then errs towards this
+# process, which costs at most the start-up's difference).
+CLUSTER_START_S = 4.8
 
 
 def choose(per_run_s: float, chunk_sizes: list[int], workers: int, start_s: float = CLUSTER_START_S) -> str:
