@@ -28,7 +28,7 @@ import pytest
 import yaml
 from support.packaging import NODES, TOOLS
 
-from adcs_sim.app.batch.kernels import SPECIALISATIONS
+from adcs_sim.app.batch.kernels import SPECIALISATIONS, dispatcher
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = 'adcs_sim'
@@ -383,8 +383,9 @@ def test_the_wheel_carries_numbas_cache_of_every_kernel(wheel):
     so the first run after ``pip install`` compiles nothing."""
     tag = f'py{sys.version_info.major}{sys.version_info.minor}'
     for kernel, _, _ in SPECIALISATIONS:
-        module, function = kernel.rsplit('.', 1)
+        module = kernel.rsplit('.', 1)[0]
         folder, name = module.rsplit('.', 1)
+        function = dispatcher(kernel).py_func.__qualname__   # numba names the files after it (_rk4_runs)
         prefix = f'{folder.replace(".", "/")}/__pycache__/{name}.{function}-'
         cached = [n for n in wheel.names if n.startswith(prefix) and n.endswith(f'.{tag}.nbi')]
         assert cached, f'{kernel}: no {prefix}*.{tag}.nbi in {wheel.path.name}'
