@@ -26,7 +26,7 @@ install: $(VENV)/.kernels
 
 run: $(VENV)/.installed
 	$(VENV)/bin/adcs-run $(SCENARIO) --report
-	@$(MAKE) --no-print-directory $(VENV)/.kernels
+	@$(MAKE) -s --no-print-directory $(VENV)/.kernels
 
 test: $(VENV)/.kernels
 	$(PY) -m pytest -q -n 2 --dist loadfile --durations=25 tests
