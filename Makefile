@@ -18,6 +18,7 @@ $(VENV)/.installed: requirements.txt requirements-dev.txt setup.py setup.cfg pyp
 # the other kernels (fused PD loop, campaign metrics, the law's rows): `make run` compiles them after
 # its run, `make install`, `make test` and `make bench` before anything else
 $(VENV)/.kernels: $(VENV)/.installed
+	@echo 'compiling the other numba kernels, once (fused PD loop, campaign metrics, the law rows):'
 	$(PY) -m adcs_sim.app.batch.kernels --not-run
 	touch $@
 
