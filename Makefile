@@ -7,7 +7,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 
 $(VENV)/.installed: requirements.txt requirements-dev.txt setup.py setup.cfg pyproject.toml package.xml
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-dev.txt
+	$(PY) -m pip install --quiet --no-compile --disable-pip-version-check -r requirements-dev.txt
 	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e . \
 		&& test -x $(VENV)/bin/dynamics
 	# compile the numba kernels a run uses (plant, Euler angles) into numba's cache beside their modules,
