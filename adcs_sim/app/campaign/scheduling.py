@@ -18,10 +18,10 @@ has its own random stream and the rows are sorted by run index).
 from __future__ import annotations
 
 # Seconds from LocalCluster(...) to the result of a one-run chunk, that run's own time taken off (2
-# workers, the kernels' cache warm): 4.8 s measured by `benchmarks/montecarlo_speed.py --end-to-end` on
-# the 2-core machine under a load of 6-7 (less on a quiet machine: the choice then errs towards this
-# process, which costs at most the start-up's difference).
-CLUSTER_START_S = 4.8
+# workers, the kernels' cache warm), measured by `benchmarks/montecarlo_speed.py --end-to-end` on the
+# 2-core machine: 2.66 s at a load of ~1.5, 4.79 s at a load of 6-7 (the cluster's processes then wait
+# for the cores too).
+CLUSTER_START_S = 2.7
 
 
 def choose(per_run_s: float, chunk_sizes: list[int], workers: int, start_s: float = CLUSTER_START_S) -> str:
