@@ -1,8 +1,13 @@
 """ament_python package ``adcs_sim``: installable by ``colcon build`` and by ``pip install``."""
+import os
+import shutil
+import subprocess
+import sys
 from glob import glob
 from pathlib import Path
 
 from setuptools import find_packages, setup
+from setuptools.command.build_py import build_py
 
 PACKAGE = 'adcs_sim'
 HERE = Path(__file__).resolve().parent
@@ -14,6 +19,30 @@ def runtime_requirements() -> list[str]:
     a later ROS distribution)."""
     lines = (HERE / 'requirements.txt').read_text().splitlines()
     return [line.split('#', 1)[0].strip() for line in lines if line.split('#', 1)[0].strip()]
+
+
+class BuildWithKernels(build_py):
+    """``build_py``, then every numba kernel compiled into the built copy (``python -m
+    adcs_sim.app.batch.kernels``, one line per compilation), so that the wheel carries numba's cache
+    and the first run after ``pip install`` compiles nothing (numba checks a cached kernel against the
+    hash of its source file, which installing does not change; the cache holds machine code for the
+    CPU that built it, another CPU compiles on first use, printing what). The source tree's own cache
+    (``make install``) is copied first: then nothing compiles. Not for an editable install (the tree
+    itself is imported: ``make install`` compiles there); ``ADCS_BUILD_KERNELS=0`` skips it."""
+
+    def run(self):
+        super().run()
+        if getattr(self, 'editable_mode', False) or os.environ.get('ADCS_BUILD_KERNELS', '1') == '0':
+            return
+        build_lib = Path(self.build_lib).resolve()
+        for cached in [*HERE.glob('adcs_*/**/__pycache__/*.nbi'), *HERE.glob('adcs_*/**/__pycache__/*.nbc')]:
+            target = build_lib / cached.relative_to(HERE)
+            if target.parent.parent.is_dir():
+                target.parent.mkdir(exist_ok=True)
+                shutil.copy2(cached, target)
+        path = os.pathsep.join([str(build_lib), *filter(None, [os.environ.get('PYTHONPATH')])])
+        subprocess.run([sys.executable, '-m', 'adcs_sim.app.batch.kernels'], env=dict(os.environ, PYTHONPATH=path),
+                       cwd=build_lib, check=True)
 
 
 # Node executables: the name is also the node name and the scenario-file section name.
@@ -57,6 +86,7 @@ setup(
         ('share/' + PACKAGE + '/config/campaigns', sorted(glob('config/campaigns/*.yaml'))),
     ],
     install_requires=runtime_requirements(),
+    cmdclass={'build_py': BuildWithKernels},
     zip_safe=True,
     maintainer='adcs_sim developers',
     maintainer_email='adcs-sim@example.org',

@@ -35,6 +35,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from adcs_core import compile_log  # noqa: F401 - a compilation prints one line (kernel, types, seconds)
+
 _HALF_PI = math.pi / 2
 _TWO_PI = 2 * math.pi
 GIMBAL_EPS = 1e-7   # scipy's threshold on the second angle's distance from 0 or pi

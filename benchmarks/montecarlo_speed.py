@@ -23,6 +23,14 @@ attTrackingError, mrpFeedback as PD, rwMotorTorque at the control period), a tim
 a minute apart can differ several-fold, the CPU times much less); the Basilisk ratio also with
 ``Campaign.load`` (reading the files and validating every run's draw, once per campaign) added to ours.
 
+``--end-to-end``: the whole command a user types, ``adcs-montecarlo <campaign> --quiet`` (its own
+process: start-up, imports, ``Campaign.load``, the runs, the outputs and figures), with the default
+``--scheduler auto`` and with ``none`` and ``local`` forced, alternated ``--repeat`` times (wall
+time and the CPU time of the process and its children); and the start-up of a Dask LocalCluster (2
+workers) to its first one-run chunk, the cost ``--scheduler auto`` weighs
+(:data:`adcs_sim.app.campaign.scheduling.CLUSTER_START_S`). With ``--basilisk``, Basilisk's time
+over each.
+
 ``--compare OLD_TREE`` (e.g. ``git archive <commit> | tar -x -C /tmp/old``): the campaign as
 ``adcs-montecarlo --scheduler none`` runs it (``Campaign.load``, then every chunk), this tree and the
 old one alternately ``--repeat`` times, each in its own persistent child process (cwd and
@@ -35,11 +43,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import math
 import os
+import resource
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -53,6 +64,7 @@ from bsk_support import basilisk_python, run_child  # noqa: E402
 
 from adcs_sim.app.batch import fused as fused_loop  # noqa: E402
 from adcs_sim.app.campaign.plan import Campaign, run_chunk  # noqa: E402
+from adcs_sim.app.campaign.scheduling import CLUSTER_START_S  # noqa: E402
 from adcs_sim.truth import kernel  # noqa: E402
 
 DEFAULT = ROOT / 'config' / 'campaigns' / 'pd_slew_30deg.yaml'
@@ -144,6 +156,59 @@ def print_comparison(times: dict[str, list[dict]], old: Path, bsk: dict | None) 
     return len(same) == 1
 
 
+def end_to_end(campaign: Path, repeat: int) -> dict[str, list[tuple[float, float]]]:
+    """(wall, CPU) of ``adcs-montecarlo <campaign> --quiet --scheduler S`` in a child process, for S
+    auto, none and local, alternated ``repeat`` times (outputs in a temporary folder)."""
+    out: dict[str, list[tuple[float, float]]] = {'auto': [], 'none': [], 'local': []}
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(repeat):
+            for scheduler in (list(out) if i % 2 == 0 else list(out)[::-1]):
+                before = resource.getrusage(resource.RUSAGE_CHILDREN)
+                t0 = time.perf_counter()
+                subprocess.run([sys.executable, '-m', 'adcs_sim.app.campaign.montecarlo', str(campaign), '--quiet',
+                                '--scheduler', scheduler, '--out', f'{tmp}/{scheduler}{i}'], env=env, check=True,
+                               stdout=subprocess.DEVNULL)
+                wall = time.perf_counter() - t0
+                after = resource.getrusage(resource.RUSAGE_CHILDREN)
+                cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+                out[scheduler].append((wall, cpu))
+    return out
+
+
+def cluster_start(campaign_path: Path) -> float:
+    """Seconds from LocalCluster(2 workers) to the result of a one-run chunk, that chunk's time in
+    this process taken off."""
+    # lazy: Dask (1.2 s) only for --end-to-end
+    from dask.distributed import Client, LocalCluster
+    one = Campaign.load(campaign_path, runs=1)
+    run_chunk(one, [0])
+    t0 = time.perf_counter()
+    run_chunk(one, [0])
+    here = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host='127.0.0.1', dashboard_address=None,
+                      silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+        client.submit(run_chunk, one, [0], pure=False).result()
+        return time.perf_counter() - t0 - here
+
+
+def print_end_to_end(campaign: Path, repeat: int, bsk: dict | None) -> None:
+    times = end_to_end(campaign, repeat)
+    runs = Campaign.load(campaign).runs
+    print(f'adcs-montecarlo {campaign.name} --quiet, end to end ({runs} runs; median of {repeat}, [min-max]):')
+    for scheduler, ts in times.items():
+        wall, cpu = statistics.median(t[0] for t in ts), statistics.median(t[1] for t in ts)
+        line = (f'  --scheduler {scheduler:5s}: {wall:.2f} s [{min(t[0] for t in ts):.2f}-{max(t[0] for t in ts):.2f}]'
+                f' wall, {cpu:.2f} s CPU')
+        if bsk is not None:
+            line += (f';  Basilisk / this: {bsk["s_per_run"] * runs / wall:.0f}x wall, '
+                     f'{bsk.get("cpu_s_per_run", math.nan) * runs / cpu:.0f}x CPU  (target >= 100)')
+        print(line)
+    print(f'  LocalCluster (2 workers) start-up to a first one-run chunk: {cluster_start(campaign):.2f} s '
+          f'(scheduling.CLUSTER_START_S: {CLUSTER_START_S} s)')
+
+
 def basilisk_per_run(campaign: Campaign, sample: int) -> tuple[dict | None, str]:
     python, why = basilisk_python()
     if python is None:
@@ -168,7 +233,7 @@ def basilisk_per_run(campaign: Campaign, sample: int) -> tuple[dict | None, str]
     return answer, ''
 
 
-def main() -> int:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--campaign', type=Path, default=DEFAULT)
     parser.add_argument('--runs', type=int, default=None, help='first N runs only (default: all)')
@@ -176,9 +241,24 @@ def main() -> int:
     parser.add_argument('--bsk-sample', type=int, default=5)
     parser.add_argument('--compare', type=Path, default=None, metavar='OLD_TREE',
                         help='also time the campaign in an old tree, alternated with this one')
-    parser.add_argument('--repeat', type=int, default=5, help='--compare: measurements of each tree')
+    parser.add_argument('--repeat', type=int, default=5, help='--compare, --end-to-end: measurements of each')
     parser.add_argument('--fused-only', action='store_true', help='skip the (b) kernel and (c) numpy paths')
-    args = parser.parse_args()
+    parser.add_argument('--end-to-end', action='store_true',
+                        help='time the adcs-montecarlo command itself (auto, none, local schedulers) and a '
+                             "LocalCluster's start-up, then stop")
+    return parser
+
+
+def main() -> int:
+    args = _parser().parse_args()
+    if args.end_to_end:
+        bsk = None
+        if args.basilisk:
+            bsk, why = basilisk_per_run(Campaign.load(args.campaign, runs=args.runs), args.bsk_sample)
+            if bsk is None:
+                print(f'Basilisk: not measured ({why})')
+        print_end_to_end(args.campaign, args.repeat, bsk)
+        return 0
     if args.compare is not None:
         times = compare_trees(args.campaign, args.runs, args.compare, args.repeat)
         bsk = None

@@ -28,6 +28,8 @@ import pytest
 import yaml
 from support.packaging import NODES, TOOLS
 
+from adcs_sim.app.batch.kernels import SPECIALISATIONS, dispatcher
+
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = 'adcs_sim'
 VENV_BIN = Path(sys.prefix) / 'bin'
@@ -44,9 +46,12 @@ CONSOLE_SCRIPTS = {**NODES, **TOOLS}
 # --- helpers ------------------------------------------------------------------------------------
 
 def _copy_source(dest: Path) -> Path:
-    """Copy the checkout to ``dest`` without environments, VCS data and build products."""
+    """Copy the checkout to ``dest`` without environments, VCS data and build products, but with
+    numba's cache of the kernels (``__pycache__/*.nbi``, ``*.nbc``): the build compiles nothing then."""
     def ignore(directory, names):
-        skip = {n for n in names if n == '__pycache__' or n.endswith('.egg-info')}
+        if Path(directory).name == '__pycache__':
+            return {n for n in names if not n.endswith(('.nbi', '.nbc'))}
+        skip = {n for n in names if n.endswith('.egg-info')}
         if Path(directory).resolve() == ROOT:
             skip |= COPY_EXCLUDE & set(names)
         return skip
@@ -372,6 +377,21 @@ def test_wheel_contains_each_console_script_target(wheel, script):
 
 
 @pytest.mark.slow
+def test_the_wheel_carries_numbas_cache_of_every_kernel(wheel):
+    """setup.py's build compiles every listed kernel into the built copy: the wheel holds numba's index
+    and machine code of each (``<module>.<function>-<line>.pyXY.nbi`` + ``.nbc`` beside its module),
+    so the first run after ``pip install`` compiles nothing."""
+    tag = f'py{sys.version_info.major}{sys.version_info.minor}'
+    for kernel, _, _ in SPECIALISATIONS:
+        module = kernel.rsplit('.', 1)[0]
+        folder, name = module.rsplit('.', 1)
+        function = dispatcher(kernel).py_func.__qualname__   # numba names the files after it (_rk4_runs)
+        prefix = f'{folder.replace(".", "/")}/__pycache__/{name}.{function}-'
+        cached = [n for n in wheel.names if n.startswith(prefix) and n.endswith(f'.{tag}.nbi')]
+        assert cached, f'{kernel}: no {prefix}*.{tag}.nbi in {wheel.path.name}'
+        assert any(n.startswith(prefix) and n.endswith('.nbc') for n in wheel.names), kernel
+
+
 def test_setup_nodes_match_colcon_and_wheel_executables(colcon_build, wheel, monkeypatch):
     colcon_build.require_success()
     found = _installed_executables(_package_prefix(colcon_build, monkeypatch))

@@ -25,6 +25,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from adcs_core import compile_log  # noqa: F401 - a compilation prints one line (kernel, types, seconds)
+
 _INNER = dict(cache=True, error_model='numpy', nogil=True, inline='always')
 CLIP, SCALE = 0, 1   # saturation modes of wheel_command_row
 

@@ -42,6 +42,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from adcs_core import compile_log  # noqa: F401 - a compilation prints one line (kernel, types, seconds)
 from adcs_sim.truth.kernel_kinds import THRUSTERS, TORQUERS, WHEELS
 
 # ADCS_PLANT_KERNEL=0 builds plants without the kernel (numpy path; same numbers, for comparison).
@@ -320,6 +321,13 @@ _ITEM_NDIMS = {WHEELS: (1,) * 6, TORQUERS: (1,), THRUSTERS: (2, 1)}
 # 2.9 s on one thread against 5-19 s threaded, benchmarks/montecarlo_speed.py).
 PARALLEL_MIN_RUNS = 256
 PARALLEL_MIN_WORK = 8192
+
+
+def kernel_rows(a) -> np.ndarray:
+    """``a`` as the one array type the compiled kernels are specialised for: float64, C-contiguous,
+    writable. A read-only view (``np.broadcast_to`` of a per-run value) is copied: numba would compile
+    a kernel once more for it (minutes), the copy costs microseconds and holds the same bits."""
+    return np.require(a, np.float64, ('C', 'W'))
 
 
 def stage_times(t: float, period: float, max_step: float) -> tuple[np.ndarray, float]:

@@ -24,6 +24,7 @@ from adcs_sim.app.analysis import metrics_kernel as mk
 from adcs_sim.app.analysis.metrics import run_metrics, zoh_durations
 from adcs_sim.app.analysis.estimation import estimation_metrics, series_from_batch
 from adcs_sim.app.analysis.metrics_kernel import error_quaternions
+from adcs_sim.truth.kernel import kernel_rows
 
 
 def _band_times(metric, t: np.ndarray, error: np.ndarray) -> np.ndarray:
@@ -58,12 +59,12 @@ def _full_run_columns(result, rows: np.ndarray, tol_deg: float) -> dict[str, np.
     K = result.t.size - 1
     t, t_end = result.t, float(result.t[K])
     take = slice(None) if rows.size == result.n_runs else rows   # every run: views, not copies
-    q = np.ascontiguousarray(result.q[take])
+    q = kernel_rows(result.q[take])
     q_ref = result.q_ref[take] if result.q_ref.ndim == 2 else np.broadcast_to(result.q_ref, (rows.size, 4))
     u = np.ascontiguousarray(result.u[take])
     speed = (np.ascontiguousarray(result.wheel_speed[take]) if result.wheel_names and result.wheel_speed.shape[-1]
              else np.zeros((rows.size, K + 1, 0)))
-    q_ref = np.ascontiguousarray(q_ref, dtype=float)
+    q_ref = kernel_rows(q_ref)
     eigen, gv, ga = np.empty((rows.size, 2), np.int64), np.empty((rows.size, 3)), np.empty((rows.size, 3))
     cols = np.empty((rows.size, mk.N_COLUMNS))
     mk.first_pass(q, q_ref, u, speed, t, zoh_durations(t[:K], t_end), float(tol_deg),
@@ -108,7 +109,7 @@ def full_run_columns_numpy(result, rows: np.ndarray, tol_deg: float) -> dict[str
     q = result.q[take]
     q_ref = result.q_ref[take] if result.q_ref.ndim == 2 else np.broadcast_to(result.q_ref, (rows.size, 4))
     qe, vnorm = np.empty(q.shape), np.empty(q.shape[:2])
-    error_quaternions(np.ascontiguousarray(q), np.ascontiguousarray(q_ref, dtype=float), qe, vnorm)
+    error_quaternions(kernel_rows(q), kernel_rows(q_ref), qe, vnorm)
     eigen = np.degrees(2.0 * np.arctan2(vnorm, np.abs(qe[..., 3])))   # eigenaxis_angle(qe)
     euler = np.abs(np.degrees(euler_213(qe)))
     u = result.u[take]

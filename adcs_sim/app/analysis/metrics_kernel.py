@@ -31,7 +31,7 @@ the band to tell. Every value is the numpy code's bit for bit:
 * ``u ** 2`` is ``u * u`` (numpy's power by the scalar 2 is ``np.square``).
 
 Compiled as the plant kernel is: no fastmath (no reassociation, no FMA contraction),
-``error_model='numpy'``, cached (``make install`` compiles it). ``tests/test_metrics_kernel.py``
+``error_model='numpy'``, cached (compiled ahead of use: :mod:`adcs_sim.app.batch.kernels`). ``tests/test_metrics_kernel.py``
 compares every column with the numpy code on random batches and edge cases.
 """
 from __future__ import annotations
@@ -41,6 +41,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from adcs_core import compile_log  # noqa: F401 - a compilation prints one line (kernel, types, seconds)
 from adcs_core.euler_kernel import euler_213_row
 from adcs_sim.truth.kernel import _max as _nanmax   # np.maximum: a NaN operand wins (the first one)
 
@@ -358,14 +359,3 @@ def eigen_columns(half_angle, eigen, t, tol, out):
             e0, e1 = (2.0 * half_angle[r, 0]) * DEG, (2.0 * half_angle[r, 1]) * DEG
             out[r, SETTLE_EIGEN] = t[last + 1] if not np.isfinite(e0) else \
                 t[last] + (e0 - tol) / (e0 - e1) * (t[last + 1] - t[last])
-
-
-def compile_rare_kernels() -> None:
-    """Compile (into numba's cache) the kernels a small campaign does not reach: the second pass
-    (a run whose eigenaxis error comes too close to the band after its last exit) and the error
-    quaternions of the general path. ``make install`` calls it, so that no campaign pays a
-    compilation of a few seconds on first use."""
-    q = np.zeros((1, 2, 4))
-    q[..., 3] = 1.0
-    error_quaternions(q, np.ascontiguousarray(q[:, 0]), np.empty(q.shape), np.empty((1, 2)))
-    second_pass(np.zeros((1, 2)), np.arange(2.0), 0.5, np.empty((1, N_COLUMNS)))

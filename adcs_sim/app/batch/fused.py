@@ -34,11 +34,12 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from adcs_core import compile_log  # noqa: F401 - a compilation prints one line (kernel, types, seconds)
 from adcs_controllers.laws.allocation import WheelActuation
 from adcs_controllers.laws.pd import PdLaw
 from adcs_controllers.laws.pd_kernel import CLIP, SCALE, normalize_row, pd_torque_row, wheel_command_row
 from adcs_sim.truth import kernel
-from adcs_sim.truth.kernel import WHEELS, WORK_SIZE, control_torque_row, rk4_period, stage_times
+from adcs_sim.truth.kernel import WHEELS, WORK_SIZE, control_torque_row, kernel_rows, rk4_period, stage_times
 
 ENABLED = os.environ.get('ADCS_FUSED_LOOP', '1') != '0'
 NS_PER_S = 1_000_000_000
@@ -123,8 +124,8 @@ class FusedLoop:
         N, law, act, plant = sim.n_runs, sim.law, sim.actuation, sim.plant
         n = len(act.wheel_names)
 
-        def as_rows(value, shape: tuple) -> np.ndarray:   # one row per run, contiguous
-            return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=float), (N,) + shape))
+        def as_rows(value, shape: tuple) -> np.ndarray:   # one row per run, contiguous and writable
+            return kernel_rows(np.broadcast_to(np.asarray(value, dtype=float), (N,) + shape))
         self.law = np.stack([as_rows(law.kp, ()), as_rows(law.kd, ())], axis=1)
         self.inertia = as_rows(law.inertia, (3, 3)).reshape(N, 9)
         self.q_ref, self.w_ref = as_rows(law.q_ref, (4,)), as_rows(law.w_ref, (3,))

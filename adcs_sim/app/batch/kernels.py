@@ -1,134 +1,158 @@
-"""Every compiled (numba) kernel of the packages, compiled into numba's on-disk cache in one call.
+"""Every compiled (numba) kernel of the packages, compiled into numba's on-disk cache ahead of use.
 
-numba compiles a kernel at its first call and keeps the machine code beside its module
-(``__pycache__/<module>.<function>-<line>.py311.nbi`` + ``.nbc``, or under ``NUMBA_CACHE_DIR``), one
-entry per argument types; later processes load it (~0.1 s) as long as the source is unchanged.
-:func:`compile_all` makes those first calls, so that neither a run, nor a node at start-up, nor a
-test pays a compilation: ``make install`` calls it once, the test suite before its tests (in the
-controller of an xdist run, not in each worker). On a warm cache it only loads.
+numba compiles a kernel for the argument types of its first call and keeps the machine code beside
+its module (``__pycache__/<module>.<function>-<line>.py311.nbi`` + ``.nbc``, or under
+``NUMBA_CACHE_DIR``), one entry per argument types; a later process loads it (~0.1 s) as long as the
+source is unchanged. :data:`SPECIALISATIONS` lists, for each kernel called from Python, the one
+argument-type signature the code calls it with (the callers pass float64, C-contiguous, writable
+arrays: :func:`adcs_sim.truth.kernel.kernel_rows`), and :func:`compile_all` compiles exactly those,
+so that neither a run, nor a node at start-up, nor a test pays a compilation
+(``tests/test_kernel_specialisations.py`` checks that the runs call nothing else). Who calls it:
 
-The groups and what compiles them:
+* ``make install`` (``python -m adcs_sim.app.batch.kernels``); ``make run`` compiles what a graph run
+  and its report use (:data:`RUN_KERNELS`, ``--run``: ~33 of the 132 CPU seconds) before its run and
+  the others (``--not-run``) after it, once its result is on the screen;
+* building the package (``pip install .``: ``setup.py``'s ``build_py`` compiles the built copy, so
+  the wheel carries the cache: the first ``adcs-run`` after ``pip install`` compiles nothing on the
+  machine that built it);
+* the test suite, before its tests (in the controller of an xdist run, not in each worker).
 
-* ``plant``: :mod:`adcs_sim.truth.kernel` (RK4 and torque of the plant), through a plant's warm-up;
-* ``campaign``: :mod:`adcs_sim.app.batch.fused`'s closed PD loop and :mod:`adcs_sim.app.analysis.metrics_kernel`'s
-  first pass with :mod:`adcs_sim.app.analysis.batch_metrics`, through a 2-run campaign of the PD slew;
-* ``rare metrics``: :func:`adcs_sim.app.analysis.metrics_kernel.compile_rare_kernels` (what a small campaign
-  does not reach), the pairwise sum called alone, and the same kernels on read-only arrays (a run's
-  reference or a dispersed parameter given per run is a read-only view: numba compiles those apart);
-* ``fused variants``: the closed loop with the law's inertia, reference attitude and rate or the wheel
-  limits given per run (read-only views, as :class:`adcs_sim.app.batch.fused.FusedLoop` passes them);
-* ``euler``: :func:`adcs_core.euler_kernel.euler_213_rows` (2-1-3 Euler angles of many quaternions);
-* ``pd rows``: :mod:`adcs_controllers.laws.pd_kernel`'s row functions called alone (the fused loop
-  inlines them; the tests call them from Python).
-
-``python -m adcs_sim.app.batch.kernels`` prints one line per group and the total.
+The kernels are independent: they are compiled in ``jobs`` processes at once (numba compiles one
+function at a time in a process), the longest first. Each compilation prints one line on stderr
+(:mod:`adcs_core.compile_log`): kernel, argument types, seconds; on a warm cache nothing compiles and
+only the summary is printed.
 """
 from __future__ import annotations
 
+import argparse
+import importlib
+import os
+import subprocess
+import sys
 import time
 from collections.abc import Callable
 
-import numpy as np
+# Argument types, one letter group each: f float64, i int64, b bool; F1/F2/F3 float64 arrays of 1-3
+# dimensions, I1/I2 int64 arrays, B1 bool arrays, all C-contiguous and writable.
+MODULE = 'adcs_sim.app.batch.kernels'   # what the compiling processes run (python -m)
+_CODES = {'f': ('float64', ()), 'i': ('int64', ()), 'b': ('boolean', ()),
+          'F1': ('float64', 1), 'F2': ('float64', 2), 'F3': ('float64', 3),
+          'I1': ('int64', 1), 'I2': ('int64', 2), 'B1': ('boolean', 1)}
+_PLANT = 'F2 F2 I1 I1 I1 I1 I1 F2 F1 B1 B1 B1'   # params cmds kinds soff poff coff counts axes bias stuck avail flags
 
-# The closed loop's arguments that FusedLoop passes as read-only views when a campaign gives them per
-# run (np.broadcast_to of an array already of the batch's shape): law inertia, q_ref, w_ref (6, 7, 8)
-# and the wheel limits (11); each combination the campaigns and tests reach is its own compilation.
-FUSED_READ_ONLY = ((), (6,), (7,), (8,), (11,), (7, 8, 11), (6, 7, 8, 11))
-
-
-def _plant() -> None:
-    # lazy: each group's modules, imported inside the group so that its time counts them
-    from adcs_sim.truth.plant import Plant
-    Plant(np.eye(3))
-
-
-def _campaign_file():
-    # lazy: each group's modules, imported inside the group so that its time counts them
-    from adcs_sim.app.scenario.files import config_dirs
-    for folder in config_dirs():
-        if (folder / 'campaigns' / 'pd_slew_30deg.yaml').is_file():
-            return folder / 'campaigns' / 'pd_slew_30deg.yaml'
-    raise FileNotFoundError('campaigns/pd_slew_30deg.yaml in none of the config folders')
-
-
-def _campaign() -> None:
-    # lazy: each group's modules, imported inside the group so that its time counts them
-    from adcs_sim.app.campaign.plan import Campaign, run_chunk
-    campaign = Campaign.load(_campaign_file(), runs=2)
-    for chunk in campaign.chunks():
-        run_chunk(campaign, chunk)
+# (kernel, argument types, CPU seconds of its compilation measured on the 2-core machine under load, 131.7 s
+# for all twelve). The seconds only share the work between the processes.
+SPECIALISATIONS: tuple[tuple[str, str, float], ...] = (
+    ('adcs_sim.app.batch.fused.closed_loop',
+     f'F2 I1 F1 F3 f F2 F2 F2 F2 b F2 F2 i i {_PLANT} F1 F3 i F3 F3 F3 F3 F2 I1 B1', 50.2),
+    ('adcs_sim.truth.kernel.rk4_runs', f'F2 F2 F2 f {_PLANT} F3 b F3 f b F1', 26.7),
+    ('adcs_sim.app.analysis.metrics_kernel.first_pass', 'F3 F2 F3 F3 F1 F1 f F1 I2 F2 F2 F2', 41.4),
+    ('adcs_sim.app.analysis.metrics_kernel.second_pass', 'F2 F1 f F2', 0.9),
+    ('adcs_sim.app.analysis.metrics_kernel.error_quaternions', 'F3 F2 F3 F2', 0.8),
+    ('adcs_core.euler_kernel.euler_213_rows', 'F2 F2', 1.2),
+    ('adcs_sim.truth.kernel.torque_runs', f'F2 F2 f {_PLANT} F1', 4.6),
+    ('adcs_sim.app.analysis.metrics_kernel.eigen_columns', 'F2 I2 F1 f F2', 0.2),
+    ('adcs_sim.app.analysis.metrics_kernel.pairwise_sum', 'F1 i i', 1.4),
+    # the law's row kernels, inlined into the fused loop; compiled alone for the tests that call them
+    ('adcs_controllers.laws.pd_kernel.normalize_row', 'F1 i F1', 0.2),
+    ('adcs_controllers.laws.pd_kernel.pd_torque_row', 'F1 F1 i F1 f f F1 F1 b F1', 0.6),
+    ('adcs_controllers.laws.pd_kernel.wheel_command_row', 'F1 F2 F1 i F1 i', 0.4),
+)
 
 
-def _variants(dispatcher, arrays: tuple[int, ...], read_only_sets) -> None:
-    """Compile ``dispatcher`` for the argument types it was first called with, the arrays at
-    positions ``arrays`` read-only for those in each of ``read_only_sets`` and writable otherwise
-    (nothing if it was not called: ``ADCS_FUSED_LOOP=0`` leaves the closed loop out)."""
-    if not dispatcher.signatures:
-        return
-    base = dispatcher.signatures[0]
-    for read_only in read_only_sets:
-        dispatcher.compile(tuple(t.copy(readonly=i in read_only) if i in arrays else t for i, t in enumerate(base)))
+# What a graph run and its report use (the dynamics node's plant, the report's Euler angles): `make run`
+# compiles these before the run and the others after it (`make install` all of them at once).
+RUN_KERNELS = ('adcs_sim.truth.kernel.rk4_runs', 'adcs_sim.truth.kernel.torque_runs',
+               'adcs_core.euler_kernel.euler_213_rows')
 
 
-def _rare_metrics() -> None:
-    # lazy: each group's modules, imported inside the group so that its time counts them
-    from adcs_sim.app.analysis import metrics_kernel
-    metrics_kernel.compile_rare_kernels()
-    metrics_kernel.pairwise_sum(np.zeros(2), 0, 2)
-    _variants(metrics_kernel.error_quaternions, (1,), [(), (1,)])   # q_ref: a run's own or a read-only view
-    _variants(metrics_kernel.first_pass, (1,), [(), (1,)])
+def argument_types(codes: str) -> tuple:
+    """numba's types of ``codes`` (``'F2 f b'``: a 2-D float64 C array, a float64, a bool)."""
+    # lazy: numba (0.4-0.7 s) only where kernels are compiled or checked
+    from numba import types
+    out = []
+    for code in codes.split():
+        dtype, ndim = _CODES[code]
+        scalar = getattr(types, dtype)
+        out.append(scalar if ndim == () else types.Array(scalar, ndim, 'C'))
+    return tuple(out)
 
 
-def _fused_variants() -> None:
-    # lazy: each group's modules, imported inside the group so that its time counts them
-    from adcs_sim.app.batch import fused
-    _variants(fused.closed_loop, (6, 7, 8, 11), FUSED_READ_ONLY)
+def dispatcher(kernel: str):
+    """The numba dispatcher ``module.function``."""
+    module, name = kernel.rsplit('.', 1)
+    return getattr(importlib.import_module(module), name)
 
 
-def _euler() -> None:
-    # lazy: each group's modules, imported inside the group so that its time counts them
-    from adcs_core.euler_kernel import euler_213_rows
-    euler_213_rows(np.array([[0.0, 0.0, 0.0, 1.0]]), np.empty((1, 3)))
+def compile_here(kernels: list[str]) -> None:
+    """Compile (or load from the cache) ``kernels`` in this process, for their listed types."""
+    listed = {name: codes for name, codes, _ in SPECIALISATIONS}
+    for kernel in kernels:
+        dispatcher(kernel).compile(argument_types(listed[kernel]))
 
 
-def _pd_rows() -> None:
-    # lazy: each group's modules, imported inside the group so that its time counts them
-    from adcs_controllers.laws import pd_kernel
-    q, w, out = np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3), np.empty(4)
-    pd_kernel.normalize_row(q, 0, out)
-    pd_kernel.pd_torque_row(q, w, 0, np.eye(3).reshape(9), 1.0, 1.0, q.copy(), w.copy(), True, np.empty(3))
-    pd_kernel.wheel_command_row(np.zeros(3), np.eye(3), np.ones(3), pd_kernel.CLIP, np.zeros(3), 0)
+def plan(jobs: int, kernels: list[str] | None = None) -> list[list[str]]:
+    """``kernels`` (default: all listed) split into ``jobs`` lists of about equal compilation time
+    (longest first, each to the least loaded list)."""
+    bins: list[tuple[float, list[str]]] = [(0.0, []) for _ in range(max(1, jobs))]
+    chosen = [s for s in SPECIALISATIONS if kernels is None or s[0] in kernels]
+    for name, _, seconds in sorted(chosen, key=lambda s: -s[2]):
+        load, names = min(bins, key=lambda b: b[0])
+        bins[bins.index((load, names))] = (load + seconds, names + [name])
+    return [names for _, names in bins if names]
 
 
-# (name, function): in this order (the campaign compiles what the variants start from)
-GROUPS: tuple[tuple[str, Callable[[], None]], ...] = (
-    ('plant', _plant), ('campaign', _campaign), ('rare metrics', _rare_metrics),
-    ('fused variants', _fused_variants), ('euler', _euler), ('pd rows', _pd_rows))
+def default_jobs() -> int:
+    """Processes compiling at once: one per core, at most two (numba's compilation is one thread)."""
+    return max(1, min(2, os.cpu_count() or 1))
 
 
-def compile_all(progress: Callable[[str], None] | None = print) -> dict[str, float]:
-    """Compile (or, on a warm cache, load) every kernel; ``{group: seconds}`` plus ``'total'``.
-    ``progress`` gets one line per group as it ends and the summary line."""
-    times: dict[str, float] = {}
+def compile_all(progress: Callable[[str], None] | None = print, jobs: int | None = None,
+                kernels: list[str] | None = None) -> dict[str, float]:
+    """Compile (or, on a warm cache, load) ``kernels`` (default: every listed one) in ``jobs``
+    processes (default: :func:`default_jobs`; 1: in this process); ``{'total': seconds}``. Each
+    compilation prints its line on stderr as it ends; ``progress`` gets the summary line."""
+    jobs = default_jobs() if jobs is None else jobs
+    kernels = [name for name, _, _ in SPECIALISATIONS] if kernels is None else kernels
     start = time.perf_counter()
-    for name, compile_group in GROUPS:
-        t0 = time.perf_counter()
-        with np.errstate(all='ignore'):
-            compile_group()
-        times[name] = time.perf_counter() - t0
-        if progress is not None:
-            progress(f'  {name}: {times[name]:.1f} s')
-    times['total'] = time.perf_counter() - start
+    if jobs <= 1:
+        compile_here(kernels)
+    else:
+        children = [subprocess.Popen([sys.executable, '-m', MODULE, '--jobs', '1', '--only', ','.join(names)])
+                    for names in plan(jobs, kernels)]
+        failed = [child.args[-1].replace(',', ', ') for child in children if child.wait() != 0]
+        if failed:
+            raise RuntimeError(f'kernels: compiling {"; ".join(failed)} failed (the error is printed above)')
+    times = {'total': time.perf_counter() - start, 'kernels': len(kernels)}
     if progress is not None:
         progress(summary(times))
     return times
 
 
 def summary(times: dict[str, float]) -> str:
-    """``adcs_sim kernels: compiled in 41.2 s (plant 9.1 s, ...)``."""
-    groups = ', '.join(f'{name} {t:.1f} s' for name, t in times.items() if name != 'total')
-    return f'adcs_sim kernels: compiled in {times["total"]:.1f} s ({groups})'
+    """``adcs_sim kernels: 12 compiled or loaded in 41.2 s``."""
+    return f'adcs_sim kernels: {times.get("kernels", len(SPECIALISATIONS))} compiled or loaded in {times["total"]:.1f} s'
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog='python -m adcs_sim.app.batch.kernels', description=__doc__.splitlines()[0])
+    parser.add_argument('--jobs', type=int, default=None, help='processes compiling at once (default: cores, at most 2)')
+    parser.add_argument('--only', default=None, help='comma-separated kernels (module.function) instead of all')
+    parser.add_argument('--run', action='store_true', help="only what a graph run and its report use (RUN_KERNELS)")
+    parser.add_argument('--not-run', action='store_true', help='all but those')
+    args = parser.parse_args(argv)
+    listed = [name for name, _, _ in SPECIALISATIONS]
+    if args.only is not None:
+        unknown = sorted(set(args.only.split(',')) - set(listed))
+        if unknown:
+            print(f'kernels: --only: not a listed kernel: {", ".join(unknown)}', file=sys.stderr)
+            return 2
+        compile_here(args.only.split(','))
+        return 0
+    chosen = [name for name in listed if not (args.run or args.not_run) or (name in RUN_KERNELS) == args.run]
+    compile_all(jobs=args.jobs, kernels=chosen)
+    return 0
 
 
 if __name__ == '__main__':
-    compile_all()
+    raise SystemExit(main())

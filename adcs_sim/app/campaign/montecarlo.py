@@ -4,9 +4,11 @@ summary and histograms.
 
 The campaign (:mod:`adcs_sim.app.campaign.plan`) is checked whole before anything runs, split into chunks
 of ``chunk_size`` runs, and each chunk is simulated as one batch (:mod:`adcs_sim.app.batch.engine`) by a Dask
-worker: a ``LocalCluster`` on loopback using every core by default, any running Dask scheduler
-with ``--scheduler tcp://host:port``, or no Dask at all with ``--scheduler none`` (in this
-process). The results do not depend on the split nor on the scheduler.
+worker, or in this process when a cluster would cost more than it saves: by default (``--scheduler
+auto``) the first chunk runs in this process, timed, and the rest here or on a ``LocalCluster`` on
+loopback using every core, whichever is expected to finish sooner (:mod:`adcs_sim.app.campaign.scheduling`);
+``--scheduler local`` forces the cluster, ``--scheduler none`` this process, ``--scheduler
+tcp://host:port`` any running Dask scheduler. The results do not depend on the split nor on the scheduler.
 
 Output folder (``--out``, default ``runs/<campaign>_<timestamp>``):
 
@@ -50,6 +52,7 @@ import re
 import shutil
 import socket
 import sys
+import time
 from datetime import datetime
 from pathlib import Path
 
@@ -60,6 +63,7 @@ import pyarrow.parquet as pq
 
 from adcs_msgs_py.help_text import command_parser
 from adcs_msgs_py.params_file import one_line_warnings
+from adcs_sim.app.campaign import scheduling
 from adcs_sim.app.campaign.plan import Campaign, CampaignError, run_chunk
 from adcs_sim.app.outputs import OutputError, check_file, check_folder
 
@@ -69,12 +73,14 @@ MAX_WORKERS = 4 * (os.cpu_count() or 1)   # LocalCluster processes: more only th
 
 # --- execution ---------------------------------------------------------------------------------
 
-def execute(campaign: Campaign, scheduler: str = 'local', workers: int | None = None,
+def execute(campaign: Campaign, scheduler: str = 'auto', workers: int | None = None,
             progress: bool = True) -> list[dict]:
     """Run every chunk of the campaign; rows sorted by run index.
 
-    ``scheduler``: ``local`` (a Dask LocalCluster on 127.0.0.1 with ``workers`` processes,
-    default one per core), ``none`` (in this process, no Dask) or a scheduler address.
+    ``scheduler``: ``auto`` (the first chunk here, timed, then the rest here or on a LocalCluster,
+    whichever :func:`adcs_sim.app.campaign.scheduling.choose` expects to finish sooner), ``local`` (a
+    Dask LocalCluster on 127.0.0.1 with ``workers`` processes, default one per core), ``none`` (in
+    this process, no Dask) or a scheduler address.
     """
     # lazy: tqdm, and Dask (1.2 s) only for a scheduler other than none
     from tqdm import tqdm
@@ -82,34 +88,47 @@ def execute(campaign: Campaign, scheduler: str = 'local', workers: int | None = 
     bar = tqdm(total=campaign.runs, unit='run', disable=not progress, dynamic_ncols=True)
     rows: list[dict] = []
     try:
+        if scheduler == 'auto':
+            t0 = time.perf_counter()
+            rows += run_chunk(campaign, chunks[0])
+            bar.update(len(chunks[0]))
+            per_run, chunks = (time.perf_counter() - t0) / len(chunks[0]), chunks[1:]
+            scheduler = scheduling.choose(per_run, [len(c) for c in chunks], workers or os.cpu_count() or 1)
         if scheduler == 'none':
             for chunk in chunks:
                 rows += run_chunk(campaign, chunk)
                 bar.update(len(chunk))
         else:
-            # lazy: tqdm, and Dask (1.2 s) only for a scheduler other than none
-            from dask.distributed import Client, LocalCluster, as_completed
-            if scheduler == 'local':
-                n = workers or os.cpu_count() or 1
-                cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                       host='127.0.0.1', dashboard_address=None,
-                                       silence_logs=logging.ERROR)
-                client = Client(cluster)
-            else:
-                cluster, client = None, _connect(Client, scheduler)
-            try:
-                futures = client.map(run_chunk, [campaign] * len(chunks), chunks, pure=False)
-                for future in as_completed(futures):
-                    done = future.result()
-                    rows += done
-                    bar.update(len(done))
-            finally:
-                client.close()
-                if cluster is not None:
-                    cluster.close()
+            rows += _on_dask(campaign, chunks, scheduler, workers, bar)
     finally:
         bar.close()
     rows.sort(key=lambda r: r['run'])
+    return rows
+
+
+def _on_dask(campaign: Campaign, chunks: list, scheduler: str, workers: int | None, bar) -> list[dict]:
+    """The rows of ``chunks`` run by Dask: a LocalCluster (``scheduler`` 'local') or a scheduler's address."""
+    # lazy: Dask (1.2 s) only for a scheduler other than none
+    from dask.distributed import Client, LocalCluster, as_completed
+    if scheduler == 'local':
+        n = workers or os.cpu_count() or 1
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               host='127.0.0.1', dashboard_address=None,
+                               silence_logs=logging.ERROR)
+        client = Client(cluster)
+    else:
+        cluster, client = None, _connect(Client, scheduler)
+    rows: list[dict] = []
+    try:
+        futures = client.map(run_chunk, [campaign] * len(chunks), chunks, pure=False)
+        for future in as_completed(futures):
+            done = future.result()
+            rows += done
+            bar.update(len(done))
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
     return rows
 
 
@@ -126,7 +145,7 @@ def scheduler_endpoint(address: str) -> tuple[str, int]:
     naming it otherwise (before anything is read or run)."""
     match = SCHEDULER_ADDRESS.fullmatch(address)
     if match is None or not 1 <= int(match['port']) <= 65535:
-        raise CampaignError(f"--scheduler {address!r}: not 'local', 'none' nor a scheduler address "
+        raise CampaignError(f"--scheduler {address!r}: not 'auto', 'local', 'none' nor a scheduler address "
                             'tcp://host:port (port 1..65535)')
     return match['host'].strip('[]'), int(match['port'])
 
@@ -137,7 +156,7 @@ def check_scheduler(address: str) -> None:
     msgpack map naming ``compression``): a server that accepts and stays silent is refused here,
     since the Dask client's own handshake read has no timeout (it waited forever). ``tls://``:
     the connection only (TLS waits for the client)."""
-    if address in ('local', 'none'):
+    if address in ('auto', 'local', 'none'):
         return
     host, port = scheduler_endpoint(address)
     why = None
@@ -498,9 +517,11 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument('campaign', help='campaign YAML file, or the name of a shipped one (e.g. pd_slew_30deg)')
     parser.add_argument('--runs', type=int, default=None, help='number of runs (overrides the file)')
     parser.add_argument('--out', type=Path, default=None, help='output folder (default runs/<campaign>_<time>)')
-    parser.add_argument('--scheduler', default='local',
-                        help="'local' (Dask LocalCluster on loopback, default), 'none' (no Dask), "
-                             'or a Dask scheduler address tcp://host:port')
+    parser.add_argument('--scheduler', default='auto',
+                        help="'auto' (default: the first chunk in this process, timed, then the rest here "
+                             "or on a LocalCluster, whichever is expected to finish sooner), 'local' (Dask "
+                             "LocalCluster on loopback), 'none' (no Dask), or a Dask scheduler address "
+                             'tcp://host:port')
     parser.add_argument('--workers', type=int, default=None, help='LocalCluster worker processes (default: cores)')
     parser.add_argument('--export-run', type=int, default=None, metavar='I',
                         help='only write the scenario file of run I (to --out, default run_I.yaml) and exit')
@@ -522,7 +543,7 @@ def main(argv=None) -> int:
             raise CampaignError(f'--runs: must be at least 1, got {args.runs}')
         if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
             raise CampaignError(f'--workers: must be in 1..{MAX_WORKERS} (4 per core), got {args.workers}')
-        if args.scheduler not in ('local', 'none'):
+        if args.scheduler not in ('auto', 'local', 'none'):
             scheduler_endpoint(args.scheduler)
         campaign = Campaign.load(args.campaign, args.runs)
         if args.export_run is not None and not 0 <= args.export_run < campaign.runs:
