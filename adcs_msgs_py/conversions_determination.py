@@ -69,7 +69,7 @@ _ZERO3 = np.zeros((3, 3))
 
 def _checked_cov(name: str, values, n: int) -> np.ndarray:
     """A received row-major n x n covariance: finite, non-negative variances, symmetric and positive
-    semi-definite. Checked on the correlation matrix (``c_ij / sqrt(c_ii c_jj)``), so the tolerances are
+    semi-definite; returned exactly symmetric. Checked on the correlation matrix (``c_ij / sqrt(c_ii c_jj)``), so the tolerances are
     relative to each entry's own scale however different the variances; a zero variance needs its whole
     row and column zero."""
     c = _finite(name, values, n * n).reshape(n, n)
@@ -88,7 +88,9 @@ def _checked_cov(name: str, values, n: int) -> np.ndarray:
         raise InvalidMessage(f'{name}: covariance is not symmetric')
     if np.linalg.eigvalsh(0.5 * (r + r.T))[0] < -SYMMETRY_TOLERANCE:
         raise InvalidMessage(f'{name}: covariance is not positive semi-definite')
-    return c
+    # symmetric within the tolerance, but the estimators get it exactly so: the mean of c_ij and c_ji
+    # where they differ (an entry equal to its mirror is kept bit for bit; halves first: no overflow)
+    return np.where(c == c.T, c, 0.5 * c + 0.5 * c.T)
 
 
 def _marked(cov: np.ndarray, valid: bool) -> list[float]:

@@ -214,3 +214,13 @@ def test_covariances_of_very_different_scales_are_accepted():
     cov[0, 1] = cov[1, 0] = 0.5e-10      # correlation 0.5
     msg = cd.magnetometer_to_msg(T_NS, Reading(np.zeros(3), cov, np.bool_(True)))
     assert np.array_equal(cd.magnetometer_from_msg(msg)[1].cov, cov)
+
+
+def test_a_covariance_symmetric_within_the_tolerance_is_returned_exactly_symmetric():
+    """Found by the fuzz test in a full run: c_10 = 1, c_01 = 0 beside variances 4.3e16 and 23 is a
+    correlation of ~1e-9 (symmetric within the tolerance, accepted), but was passed on unsymmetrised."""
+    msg = cd.magnetometer_to_msg(T_NS, Reading(np.zeros(3), np.eye(3), np.bool_(True)))
+    msg.magnetic_field_covariance = [4.34782609e+16, 0.0, 0.0, 1.0, 23.0, 0.0, 0.0, 0.0, 1.0]
+    cov = cd.magnetometer_from_msg(msg)[1].cov
+    np.testing.assert_array_equal(cov, cov.T)
+    assert cov[0, 1] == cov[1, 0] == 0.5 and cov[0, 0] == 4.34782609e+16 and cov[1, 1] == 23.0
