@@ -41,6 +41,14 @@ def stamps_ns(t_s) -> np.ndarray:
     return np.rint(np.asarray(t_s, dtype=float) * NS_PER_S).astype(np.int64)
 
 
+def sampled_side(a, b, key: str):
+    """For a ``merge``: the other state when one of ``a``, ``b`` covers no sample (its ``key`` is
+    None), else None (both hold samples: the metric merges them)."""
+    if a[key] is None:
+        return b
+    return a if b[key] is None else None
+
+
 class Metric:
     """The protocol (module docstring). ``per``: ``'wheel'`` for a value per wheel (a list in
     wheel order in a run's metrics, columns ``name[i]`` in a campaign), ``None`` for a number."""
@@ -95,10 +103,8 @@ class HeldIntegral(Metric):
         return state
 
     def merge(self, a, b):
-        if a['last_t'] is None:
-            return b
-        if b['last_t'] is None:
-            return a
+        if (side := sampled_side(a, b, 'last_t')) is not None:
+            return side
         hold = (a['last_v'] * (b['first_t'] - a['last_t']))[:, None]
         return {'runs': a['runs'], 'parts': [*a['parts'], hold, *b['parts']], 'first_t': a['first_t'],
                 'last_t': b['last_t'], 'last_v': b['last_v']}
@@ -264,10 +270,8 @@ class TimeAtWheelSpeedLimit(Metric):
         return state
 
     def merge(self, a, b):
-        if a['last_t'] is None:
-            return b
-        if b['last_t'] is None:
-            return a
+        if (side := sampled_side(a, b, 'last_t')) is not None:
+            return side
         a['total'] = a['total'] + b['total'] + (a['last_at'] & b['first_finite']) * (b['first_t'] - a['last_t'])
         a['last_t'], a['last_at'] = b['last_t'], b['last_at']
         return a

@@ -34,7 +34,7 @@ import warnings
 import numpy as np
 
 from adcs_core.attitude import eigenaxis_angle, error_quaternion, euler_213, pointing_error
-from adcs_sim.app.analysis.metric_defs import IntegratedTorque, Metric
+from adcs_sim.app.analysis.metric_defs import IntegratedTorque, Metric, sampled_side
 
 POINTING_BANDS_DEG = (1.0, 0.1, 0.01)   # seed 003 Table 1
 
@@ -95,10 +95,8 @@ class SettlingTime(Metric):
         return state
 
     def merge(self, a, b):
-        if a['t0'] is None:
-            return b
-        if b['t0'] is None:
-            return a
+        if (side := sampled_side(a, b, 't0')) is not None:
+            return side
         ex = np.where(b['seen'], b['exit'], a['exit'])
         fill = a['pending'] & ~b['seen']        # a's last exit, then b's first sample after it
         ex[2, fill], ex[3, fill] = b['first'][0], b['first'][1][fill]
@@ -156,10 +154,8 @@ class FirstEntryTime(Metric):
         return state
 
     def merge(self, a, b):
-        if a['t0'] is None:
-            return b
-        if b['t0'] is None:
-            return a
+        if (side := sampled_side(a, b, 't0')) is not None:
+            return side
         take = b['found'] & ~a['found']
         entry = np.where(take, b['entry'], a['entry'])
         start = take & b['at_start']            # b's first sample: the one before it is a's last
