@@ -69,9 +69,9 @@ _ZERO3 = np.zeros((3, 3))
 
 def _checked_cov(name: str, values, n: int) -> np.ndarray:
     """A received row-major n x n covariance: finite, non-negative variances, symmetric and positive
-    semi-definite; returned exactly symmetric. Checked on the correlation matrix (``c_ij / sqrt(c_ii c_jj)``), so the tolerances are
-    relative to each entry's own scale however different the variances; a zero variance needs its whole
-    row and column zero."""
+    semi-definite; returned exactly symmetric. Checked on the correlation matrix
+    (``c_ij / sqrt(c_ii c_jj)``), so the tolerances are relative to each entry's own scale however
+    different the variances; a zero variance needs its whole row and column zero."""
     c = _finite(name, values, n * n).reshape(n, n)
     var = np.diag(c).copy()
     if (var < 0).any():
