@@ -141,7 +141,9 @@ def _gid_hex(gid) -> str:
     return bytes(gid).hex()
 
 
-def _full_name(namespace: str, name: str) -> str:
+def full_name(namespace: str, name: str) -> str:
+    """A node's fully qualified name (``/ns/name``; ``/name`` in the root namespace), as the graph's
+    endpoint infos and ``Node.get_fully_qualified_name`` give it."""
     return f'{namespace.rstrip("/")}/{name}'
 
 
@@ -150,8 +152,8 @@ def subscribed_by(node, pub, name: str) -> bool:
     topic and ``pub`` is matched with every subscription listed there (that one among them): e.g.
     the fault injector publishing its schedule once the recorder is matched."""
     infos = node.get_subscriptions_info_by_topic(pub.topic_name)
-    wanted = _full_name(node.get_namespace(), name)
-    return (any(_full_name(i.node_namespace, i.node_name) == wanted for i in infos)
+    wanted = full_name(node.get_namespace(), name)
+    return (any(full_name(i.node_namespace, i.node_name) == wanted for i in infos)
             and pub.get_subscription_count() >= len(infos))
 
 
@@ -170,15 +172,15 @@ class PublisherVetting:
         self._node = node
         ns = node.get_namespace()
         special = (RUN_NODES, RESTARTABLE)
-        self.allowed = {node.resolve_topic_name(t): frozenset(_full_name(ns, n) for n in names)
+        self.allowed = {node.resolve_topic_name(t): frozenset(full_name(ns, n) for n in names)
                         for t, names in allowed.items() if t not in special}
         # the type of each vetted topic: a publisher of another type can never deliver there
         self.types = {node.resolve_topic_name(t): topics.TOPICS[t].type_name
                       for t in allowed if t in topics.TOPICS}
         # every node of the run (RUN_NODES entry): whose subscriptions the start-up handshake counts
-        self.run_nodes = (frozenset(_full_name(ns, n) for n in allowed[RUN_NODES])
+        self.run_nodes = (frozenset(full_name(ns, n) for n in allowed[RUN_NODES])
                           if RUN_NODES in allowed else None)
-        self.restartable = frozenset(_full_name(ns, n) for n in allowed.get(RESTARTABLE, ()))
+        self.restartable = frozenset(full_name(ns, n) for n in allowed.get(RESTARTABLE, ()))
         self.on_intrusion = on_intrusion
         self.on_unmatchable = on_unmatchable
         self.vetted: dict[str, set[str]] = {}      # topic -> GIDs of admitted publishers
@@ -228,7 +230,7 @@ class PublisherVetting:
         under the same name, a QoS rmw calls incompatible) never adds to the publisher's matched
         count: counted among the others, it would keep the start-up handshake waiting forever."""
         infos = [i for i in self._node.get_subscriptions_info_by_topic(topic) if can_match is None or can_match(i)]
-        own = sum(_full_name(i.node_namespace, i.node_name) in self.run_nodes for i in infos)
+        own = sum(full_name(i.node_namespace, i.node_name) in self.run_nodes for i in infos)
         return own, len(infos) - own
 
     def describe_subscribers(self, topic: str, can_match: Callable[[object], bool] | None = None) -> str:
@@ -236,7 +238,7 @@ class PublisherVetting:
         node, whether it counts as the run's, another's or cannot match, and its endpoint GID."""
         rows = []
         for info in self._node.get_subscriptions_info_by_topic(topic):
-            node = _full_name(info.node_namespace, info.node_name)
+            node = full_name(info.node_namespace, info.node_name)
             kind = ('cannot match' if can_match is not None and not can_match(info)
                     else 'run' if self.run_nodes is not None and node in self.run_nodes else 'other')
             rows.append(f'{node} ({kind}, GID {_gid_hex(info.endpoint_gid)})')
@@ -268,7 +270,7 @@ class PublisherVetting:
         publisher of it was already found so."""
         if self.run_nodes is None:
             return
-        counts = Counter(_full_name(ns, name) for name, ns in self._node.get_node_names_and_namespaces())
+        counts = Counter(full_name(ns, name) for name, ns in self._node.get_node_names_and_namespaces())
         new = []
         for node in sorted(self.run_nodes):
             if counts[node] < 2:
@@ -304,7 +306,7 @@ class PublisherVetting:
         by_node: dict[str, list[str]] = {}
         new = []
         for info in infos:
-            gid, node = _gid_hex(info.endpoint_gid), _full_name(info.node_namespace, info.node_name)
+            gid, node = _gid_hex(info.endpoint_gid), full_name(info.node_namespace, info.node_name)
             if node in allowed:
                 by_node.setdefault(node, []).append(gid)
             elif gid not in self.intruders:
@@ -342,7 +344,7 @@ class PublisherVetting:
         for info in infos:
             gid = _gid_hex(info.endpoint_gid)
             if gid not in self.unmatchable:
-                self.unmatchable[gid] = Unmatchable(topic, _full_name(info.node_namespace, info.node_name),
+                self.unmatchable[gid] = Unmatchable(topic, full_name(info.node_namespace, info.node_name),
                                                     gid, info.topic_type, expected)
                 new.append(self.unmatchable[gid])
         if new and self.on_unmatchable is not None:

@@ -347,7 +347,8 @@ class _Base:
         if self.propagation == 'hold':
             interval = last
         else:
-            interval = np.where(ok[..., None], rate if self.propagation == 'increment' else 0.5 * (last + rate), last)
+            fresh = rate if self.propagation == 'increment' else 0.5 * (last + rate)
+            interval = np.where(ok[..., None], fresh, last)
         self.rate = rate
         return rate, interval
 

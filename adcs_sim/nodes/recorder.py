@@ -40,7 +40,7 @@ from std_msgs.msg import String
 from adcs_msgs_py import conversions as cv
 from adcs_msgs_py import names, topics
 from adcs_msgs_py.cdr import deserialized
-from adcs_msgs_py.guard import UNKNOWN_NODE, Intruder, Unmatchable
+from adcs_msgs_py.guard import UNKNOWN_NODE, Intruder, Unmatchable, full_name
 from adcs_msgs_py.node import FASTDDS_PROFILE, AdcsNode, DiskFull, RunStopped, can_deliver, main_for
 from adcs_msgs_py.recorded_topics import MAX_PENDING, RecordedTopics, parse_config
 from adcs_sim.bag.schema import RECORDER_SCHEMA
@@ -201,7 +201,7 @@ class RecorderNode(AdcsNode):
             # a node name arrives after its endpoints (UNKNOWN_NODE until then): looked at again
             settled &= len(infos) == count and all(i.node_name != UNKNOWN_NODE for i in infos)
             if count >= len(infos):
-                matched[topic] = {f'{i.node_namespace.rstrip("/")}/{i.node_name}' for i in infos}
+                matched[topic] = {full_name(i.node_namespace, i.node_name) for i in infos}
         if matched != self._matched_sent:
             self.pub_matched.publish(cv.matched_to_msg(matched))
             self._matched_sent = matched
