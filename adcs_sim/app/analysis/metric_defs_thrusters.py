@@ -23,6 +23,9 @@ from adcs_sim.app.analysis.metric_defs import Metric
 
 
 class _Thrusters(Metric):
+    """A thruster metric: ``reduce`` a chunk of its series ``needs[0]`` (runs, samples, thrusters) to a
+    value, ``combine`` two spans' values in time order; no value without thruster samples."""
+
     def init(self, context: dict):
         return {'runs': context['runs'], 'value': None}
 
@@ -31,20 +34,23 @@ class _Thrusters(Metric):
             return b if a['value'] is None else a
         return {'runs': a['runs'], 'value': self.combine(a['value'], b['value'])}
 
-    @staticmethod
-    def present(chunk_values: np.ndarray) -> bool:
-        return bool(chunk_values.shape[1] and chunk_values.shape[2])
+    def update(self, state, chunk: dict):
+        """The chunk's value of its series (``reduce``) folded into the state (``combine``); a chunk
+        without thruster samples leaves it as it is."""
+        values = np.asarray(chunk[self.needs[0]], dtype=float)
+        if values.shape[1] and values.shape[2]:
+            value = self.reduce(values)
+            state['value'] = value if state['value'] is None else self.combine(state['value'], value)
+        return state
 
 
 class ThrusterImpulse(_Thrusters):
     name, unit, needs = 'thruster_impulse_Ns', 'N·s', ('thruster_impulse',)
     note = 'total thruster impulse Σ∫F dt at the end (N·s)'
 
-    def update(self, state, chunk: dict):
-        impulse = np.asarray(chunk['thruster_impulse'], dtype=float)
-        if self.present(impulse):
-            state['value'] = impulse[:, -1].copy()
-        return state
+    @staticmethod
+    def reduce(impulse):
+        return impulse[:, -1].copy()
 
     @staticmethod
     def combine(a, b):
@@ -58,12 +64,9 @@ class ThrusterFirings(_Thrusters):
     name, unit, needs = 'thruster_firings', '', ('thruster_on_time',)
     note = 'thruster-periods with a non-zero on-time'
 
-    def update(self, state, chunk: dict):
-        on = np.asarray(chunk['thruster_on_time'], dtype=float)
-        if self.present(on):
-            count = np.count_nonzero(on > 0.0, axis=(1, 2))
-            state['value'] = count if state['value'] is None else state['value'] + count
-        return state
+    @staticmethod
+    def reduce(on):
+        return np.count_nonzero(on > 0.0, axis=(1, 2))
 
     @staticmethod
     def combine(a, b):
@@ -77,11 +80,9 @@ class ThrusterOnTime(_Thrusters):
     name, unit, needs = 'thruster_on_time_s', 's', ('thruster_on_time',)
     note = 'total thruster on-time, all thrusters (s)'
 
-    def update(self, state, chunk: dict):
-        on = np.asarray(chunk['thruster_on_time'], dtype=float)
-        if self.present(on):
-            state['value'] = [on] if state['value'] is None else [*state['value'], on]
-        return state
+    @staticmethod
+    def reduce(on):
+        return [on]
 
     @staticmethod
     def combine(a, b):
