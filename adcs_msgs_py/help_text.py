@@ -24,9 +24,16 @@ _END = ('.', '?', '!')
 _WORD = re.compile(r"[a-z][a-z'-]*(?=[\s,;:()!?]|\.(?!\w)|$)")
 
 
+def replace_roles(text: str, shown=lambda target: target) -> str:
+    """``text`` with every cross-reference role replaced by ``shown(target)``: the target as written,
+    its last dotted part with ``~``, the title of ``title <target>`` (also the API reference's
+    Markdown, docs/tools/griffe_sphinx_roles.py)."""
+    return _ROLE.sub(lambda m: shown(m[2].rsplit('.', 1)[-1] if m[1] else m[2]), text)
+
+
 def plain(text: str) -> str:
     """``text`` without reST markup, its whitespace (line breaks included) collapsed to single spaces."""
-    text = _ROLE.sub(lambda m: m[2].rsplit('.', 1)[-1] if m[1] else m[2], text)
+    text = replace_roles(text)
     text = _LITERAL.sub(r'\1', text)
     text = _INTERPRETED.sub(r'\1', text)
     return ' '.join(text.split())

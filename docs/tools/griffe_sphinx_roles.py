@@ -4,16 +4,14 @@
 honoured. The docstrings stay as ``help()`` and the numpydoc tools read them."""
 from __future__ import annotations
 
-import re
-
 import griffe
 
-ROLE = re.compile(r':(?:py:)?(?:class|meth|func|mod|data|attr|exc|obj):`(~?)([^`]+)`')
+from adcs_msgs_py.help_text import replace_roles
 
 
 def plain(text: str) -> str:
     """The docstring text with every role replaced by a code span of its target."""
-    return ROLE.sub(lambda m: '`' + (m.group(2).rsplit('.', 1)[-1] if m.group(1) else m.group(2)) + '`', text)
+    return replace_roles(text, lambda target: f'`{target}`')
 
 
 class SphinxRoles(griffe.Extension):
