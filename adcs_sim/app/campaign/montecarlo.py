@@ -10,7 +10,7 @@ loopback using every core, whichever is expected to finish sooner (:mod:`adcs_si
 ``--scheduler local`` forces the cluster, ``--scheduler none`` this process, ``--scheduler
 tcp://host:port`` any running Dask scheduler. The results do not depend on the split nor on the scheduler.
 
-Output folder (``--out``, default ``runs/<campaign>_<timestamp>``):
+Output folder (``--out``, default ``runs/<campaign>-<timestamp>``, numbered if taken):
 
 * ``results.csv`` — one row per run: index, status (``ok``, ``failed``: diverged, ``violated``:
   outside the campaign's ``requirements``), reason, dispersed inputs, metrics;
@@ -53,7 +53,6 @@ import shutil
 import socket
 import sys
 import time
-from datetime import datetime
 from pathlib import Path
 
 import numpy as np
@@ -65,7 +64,7 @@ from adcs_msgs_py.help_text import command_parser
 from adcs_msgs_py.params_file import one_line_warnings
 from adcs_sim.app.campaign import scheduling
 from adcs_sim.app.campaign.plan import Campaign, CampaignError, run_chunk
-from adcs_sim.app.outputs import OutputError, check_file, check_folder
+from adcs_sim.app.outputs import OutputError, check_file, check_folder, fresh_folder
 
 PERCENTILES = (5, 50, 95)
 MAX_WORKERS = 4 * (os.cpu_count() or 1)   # LocalCluster processes: more only thrash
@@ -516,7 +515,7 @@ def _parser() -> argparse.ArgumentParser:
     parser = command_parser('adcs-montecarlo', __doc__)
     parser.add_argument('campaign', help='campaign YAML file, or the name of a shipped one (e.g. pd_slew_30deg)')
     parser.add_argument('--runs', type=int, default=None, help='number of runs (overrides the file)')
-    parser.add_argument('--out', type=Path, default=None, help='output folder (default runs/<campaign>_<time>)')
+    parser.add_argument('--out', type=Path, default=None, help='output folder (default runs/<campaign>-<time>, numbered if taken)')
     parser.add_argument('--scheduler', default='auto',
                         help="'auto' (default: the first chunk in this process, timed, then the rest here "
                              "or on a LocalCluster, whichever is expected to finish sooner), 'local' (Dask "
@@ -553,7 +552,7 @@ def main(argv=None) -> int:
         if args.export_run is not None:
             out = args.out or Path(f'run_{args.export_run}.yaml')
         else:
-            out = args.out or Path('runs') / f'{Path(args.campaign).stem}_{datetime.now():%Y%m%d_%H%M%S}'
+            out = args.out or fresh_folder(Path(args.campaign).stem)
         _check_outputs(args, campaign, out)
         if args.export_run is not None:
             out.write_text(campaign.scenario_text(args.export_run))
